@@ -1,0 +1,24 @@
+#include "clients/lightlink/exit_codes.h"
+
+#include <cstdio>
+
+namespace lightlink::cli {
+
+int exitCodeFor(const Status& status) {
+  switch (status.code()) {
+    case Code::kOk: return kExitOk;
+    case Code::kInvalidInput:
+    case Code::kUnsupported:
+    case Code::kNotFound: return kExitBadInput;
+    case Code::kIoError: return kExitIoError;
+    case Code::kInternal: return kExitInternal;
+  }
+  return kExitInternal;
+}
+
+int reportError(const char* command, const Status& status) {
+  std::fprintf(stderr, "lightlink %s: %s\n", command, status.toString().c_str());
+  return exitCodeFor(status);
+}
+
+}  // namespace lightlink::cli

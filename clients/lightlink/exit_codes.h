@@ -1,0 +1,22 @@
+// Exit codes of the `lightlink` CLI, documented in docs/cli.md. CI jobs branch on these,
+// so they distinguish the user's fault (fix the input) from ours (file a bug).
+#pragma once
+
+#include "core/common/status.h"
+
+namespace lightlink::cli {
+
+enum ExitCode : int {
+  kExitOk = 0,
+  kExitUsage = 1,        // bad command line (CLI11 also uses 1... see docs/cli.md)
+  kExitBadInput = 2,     // invalid or unsupported scene / parameters, missing file
+  kExitIoError = 3,      // could not read or write a file for OS reasons
+  kExitInternal = 4,     // a bug in lightlink
+};
+
+int exitCodeFor(const Status& status);
+
+// Prints "lightlink <command>: <message>" to stderr and returns the exit code.
+int reportError(const char* command, const Status& status);
+
+}  // namespace lightlink::cli

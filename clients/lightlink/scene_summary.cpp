@@ -1,0 +1,99 @@
+#include "clients/lightlink/scene_summary.h"
+
+#include <set>
+
+#include <fmt/format.h>
+
+namespace lightlink::cli {
+
+nlohmann::ordered_json summarizeScene(const scene::Scene& s) {
+  std::size_t static_meshes = 0, with_uv1 = 0, static_with_uv1 = 0;
+  std::set<int> gltf_meshes;
+  for (const auto& m : s.meshes) {
+    gltf_meshes.insert(m.gltf_mesh);
+    if (m.is_static) ++static_meshes;
+    if (m.hasLightmapUv()) {
+      ++with_uv1;
+      if (m.is_static) ++static_with_uv1;
+    }
+  }
+  std::size_t point = 0, spot = 0, directional = 0;
+  for (const auto& l : s.lights) {
+    switch (l.kind) {
+      case scene::Light::Kind::kPoint: ++point; break;
+      case scene::Light::Kind::kSpot: ++spot; break;
+      case scene::Light::Kind::kDirectional: ++directional; break;
+    }
+  }
+  std::size_t emissive_materials = 0;
+  for (const auto& m : s.materials) emissive_materials += m.isEmissive() ? 1 : 0;
+
+  const std::size_t tris = s.triangleCount();
+  const std::size_t static_tris = s.staticTriangleCount();
+  nlohmann::ordered_json j;
+  j["file"] = s.source_path;
+  j["mesh_instances"] = s.meshes.size();
+  j["gltf_meshes"] = gltf_meshes.size();
+  j["static_mesh_instances"] = static_meshes;
+  j["dynamic_mesh_instances"] = s.meshes.size() - static_meshes;
+  j["triangles"] = tris;
+  j["static_triangles"] = static_tris;
+  j["dynamic_triangles"] = tris - static_tris;
+  j["degenerate_triangles_dropped"] = s.stats.degenerate_dropped;
+  j["materials"] = s.materials.size();
+  j["emissive_materials"] = emissive_materials;
+  j["lights"] = {{"point", point}, {"spot", spot}, {"directional", directional}};
+  j["emissive_area_m2"] = s.emissiveArea();
+  j["bounds_m"] = {{"min", {s.bounds.min.x, s.bounds.min.y, s.bounds.min.z}},
+                   {"max", {s.bounds.max.x, s.bounds.max.y, s.bounds.max.z}}};
+  j["scale_m"] = s.scale;
+  j["lightmap_uv"] = {{"mesh_instances_with_uv1", with_uv1},
+                      {"static_instances_with_uv1", static_with_uv1},
+                      {"static_instances", static_meshes},
+                      {"unwrap_needed", static_with_uv1 < static_meshes}};
+  j["warnings"] = s.warnings;
+  return j;
+}
+
+std::string formatSummary(const nlohmann::ordered_json& j) {
+  std::string out;
+  auto line = [&out](const char* key, const std::string& value) {
+    out += fmt::format("{:<12} {}\n", key, value);
+  };
+  line("scene", j["file"].get<std::string>());
+  line("meshes", fmt::format("{} instances of {} glTF meshes ({} static, {} dynamic)",
+                             j["mesh_instances"].get<std::size_t>(), j["gltf_meshes"].get<std::size_t>(),
+                             j["static_mesh_instances"].get<std::size_t>(),
+                             j["dynamic_mesh_instances"].get<std::size_t>()));
+  line("triangles", fmt::format("{} ({} static, {} dynamic), {} degenerate dropped",
+                                j["triangles"].get<std::size_t>(), j["static_triangles"].get<std::size_t>(),
+                                j["dynamic_triangles"].get<std::size_t>(),
+                                j["degenerate_triangles_dropped"].get<std::size_t>()));
+  line("materials", fmt::format("{} ({} emissive)", j["materials"].get<std::size_t>(),
+                                j["emissive_materials"].get<std::size_t>()));
+  const auto& l = j["lights"];
+  line("lights", fmt::format("{} point, {} spot, {} directional; emissive area {:.6g} m^2",
+                             l["point"].get<std::size_t>(), l["spot"].get<std::size_t>(),
+                             l["directional"].get<std::size_t>(), j["emissive_area_m2"].get<double>()));
+  const auto& mn = j["bounds_m"]["min"];
+  const auto& mx = j["bounds_m"]["max"];
+  line("bounds", fmt::format("[{:.4g}, {:.4g}, {:.4g}] .. [{:.4g}, {:.4g}, {:.4g}] m, diagonal {:.4g} m",
+                             mn[0].get<double>(), mn[1].get<double>(), mn[2].get<double>(),
+                             mx[0].get<double>(), mx[1].get<double>(), mx[2].get<double>(),
+                             j["scale_m"].get<double>()));
+  const auto& uv = j["lightmap_uv"];
+  line("lightmap UV", fmt::format("{} of {} static instances have TEXCOORD_1{}",
+                                  uv["static_instances_with_uv1"].get<std::size_t>(),
+                                  uv["static_instances"].get<std::size_t>(),
+                                  uv["unwrap_needed"].get<bool>() ? " (unwrap needed)" : ""));
+  const auto& w = j["warnings"];
+  if (w.empty()) {
+    line("warnings", "none");
+  } else {
+    line("warnings", fmt::format("{}", w.size()));
+    for (const auto& msg : w) out += fmt::format("  - {}\n", msg.get<std::string>());
+  }
+  return out;
+}
+
+}  // namespace lightlink::cli

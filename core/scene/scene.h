@@ -1,0 +1,123 @@
+// Scene: the in-memory form of a glTF after ingest and validation.
+//
+// Everything downstream (charts, surfels, links, relight, the reference) reads this and
+// only this. Geometry is flattened: one `MeshInstance` per (node, primitive) pair with
+// positions and normals already in world space, so instancing is expanded and no module
+// needs the node graph. Units are the ones in docs/units.md: lengths in metres (glTF's
+// unit), point/spot intensity in candela, directional illuminance in lux, emission as
+// radiance (glTF emissiveFactor * KHR_materials_emissive_strength) so an emitter of
+// radiance L gives irradiance pi*L at a point it fully surrounds.
+#pragma once
+
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include <glm/glm.hpp>
+
+#include "core/common/aabb.h"
+
+namespace lightlink::scene {
+
+// A decoded texture, RGBA8 as stored; colour textures are sRGB-encoded and converted to
+// linear at sample time (glTF: baseColor and emissive are sRGB).
+struct Texture {
+  std::string name;
+  int width = 0;
+  int height = 0;
+  std::vector<std::uint8_t> rgba8;  // width*height*4, row 0 = top (glTF v = 0)
+  // Sampler state from glTF (wrap modes as GL enums; 10497 = REPEAT).
+  int wrap_s = 10497;
+  int wrap_t = 10497;
+  bool nearest = false;  // magFilter NEAREST
+
+  // Bilinear, wrap-aware sample at glTF UV, decoded from sRGB to linear RGB (alpha linear).
+  glm::vec4 sampleSrgb(glm::vec2 uv) const;
+};
+
+struct TextureRef {
+  int texture = -1;  // index into Scene::textures, -1 if none
+  int texcoord = 0;  // which TEXCOORD_n set the texture uses
+  bool valid() const { return texture >= 0; }
+};
+
+struct Material {
+  std::string name;
+  glm::vec4 base_color_factor{1.0f};  // linear RGBA
+  TextureRef base_color_texture;
+  glm::vec3 emissive_factor{0.0f};    // linear RGB
+  float emissive_strength = 1.0f;     // KHR_materials_emissive_strength
+  TextureRef emissive_texture;
+  float metallic = 1.0f;              // glTF defaults
+  float roughness = 1.0f;
+  bool double_sided = false;
+
+  bool isEmissive() const {
+    return emissive_strength > 0.0f &&
+           (emissive_factor.x > 0.0f || emissive_factor.y > 0.0f || emissive_factor.z > 0.0f);
+  }
+};
+
+// One triangle primitive placed in the world by one node.
+struct MeshInstance {
+  std::string name;          // "<mesh name>/<primitive index>" (or node name if the mesh has none)
+  int gltf_node = -1;
+  int gltf_mesh = -1;
+  int gltf_primitive = -1;
+  int material = -1;         // index into Scene::materials; -1 = glTF default material
+  bool is_static = true;     // node extras {"lightlink": {"static": false}} marks it dynamic
+  glm::mat4 world_from_mesh{1.0f};
+
+  std::vector<glm::vec3> positions;  // world space
+  std::vector<glm::vec3> normals;    // world space, unit length (generated when absent)
+  std::vector<glm::vec2> uv0;        // TEXCOORD_0, empty if absent
+  std::vector<glm::vec2> uv1;        // TEXCOORD_1 (lightmap UV), empty if absent
+  std::vector<std::uint32_t> indices;  // 3 per triangle, degenerate triangles already dropped
+  bool normals_generated = false;
+
+  std::size_t triangleCount() const { return indices.size() / 3; }
+  bool hasLightmapUv() const { return !uv1.empty(); }
+};
+
+// KHR_lights_punctual, in world space.
+struct Light {
+  enum class Kind { kPoint, kSpot, kDirectional };
+  std::string name;
+  Kind kind = Kind::kPoint;
+  int gltf_node = -1;
+  glm::vec3 color{1.0f};  // linear RGB, multiplies intensity
+  // Point/spot: luminous intensity in candela (lm/sr). Directional: illuminance in lux.
+  float intensity = 1.0f;
+  float range = 0.0f;     // metres; 0 = infinite (glTF: undefined)
+  float inner_cone_angle = 0.0f;                  // radians, spot only
+  float outer_cone_angle = 0.78539816339744831f;  // radians, spot only (glTF default pi/4)
+  glm::vec3 position{0.0f};      // world, point/spot
+  glm::vec3 direction{0, 0, -1}; // world, unit: the direction light travels (spot/directional)
+};
+
+struct SceneStats {
+  std::size_t triangles_in = 0;         // as read, before dropping degenerates
+  std::size_t degenerate_dropped = 0;   // zero-area or repeated-index triangles removed
+};
+
+struct Scene {
+  std::string source_path;
+  std::vector<MeshInstance> meshes;
+  std::vector<Material> materials;
+  std::vector<Texture> textures;
+  std::vector<Light> lights;
+  std::vector<std::string> warnings;  // non-fatal findings, each naming the object
+  SceneStats stats;
+
+  Aabb bounds;        // of all geometry, world space
+  float scale = 1.0f; // bounds diagonal in metres; the yardstick for every epsilon
+
+  std::size_t triangleCount() const;
+  std::size_t staticTriangleCount() const;
+  // The material for a mesh, or the glTF default material for material == -1.
+  const Material& materialOf(const MeshInstance& mesh) const;
+  // Emissive surface area (m^2) over all meshes whose material emits.
+  double emissiveArea() const;
+};
+
+}  // namespace lightlink::scene

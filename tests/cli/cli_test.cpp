@@ -1,0 +1,101 @@
+// The `lightlink` CLI as a user runs it: real processes, exit codes, JSON on stdout.
+#include <sys/wait.h>
+
+#include <array>
+#include <cstdio>
+#include <fstream>
+#include <sstream>
+#include <string>
+
+#include <gtest/gtest.h>
+#include <nlohmann/json.hpp>
+
+#include "clients/lightlink/exit_codes.h"
+#include "tests/common/testing.h"
+
+namespace lightlink {
+namespace {
+
+struct ProcessResult {
+  int exit_code = -1;
+  std::string output;  // stdout and stderr together
+};
+
+ProcessResult runCommand(const std::string& command) {
+  ProcessResult result;
+  FILE* pipe = ::popen((command + " 2>&1").c_str(), "r");
+  if (pipe == nullptr) return result;
+  std::array<char, 4096> buffer{};
+  std::size_t n = 0;
+  while ((n = std::fread(buffer.data(), 1, buffer.size(), pipe)) > 0) result.output.append(buffer.data(), n);
+  const int status = ::pclose(pipe);
+  result.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+  return result;
+}
+
+std::string readAll(const std::filesystem::path& path) {
+  std::ifstream in(path, std::ios::binary);
+  std::stringstream ss;
+  ss << in.rdbuf();
+  return ss.str();
+}
+
+const std::string kCli = LIGHTLINK_CLI_PATH;
+
+std::filesystem::path demoScene() { return testing::sourceDir() / "clients/demo/cornell_box.gltf"; }
+
+TEST(DemoScene, CommittedFileMatchesGenerator) {
+  testing::TempDir dir;
+  const auto regenerated = dir / "cornell_box.gltf";
+  const auto r = runCommand(std::string(LIGHTLINK_MAKE_CORNELL_BOX_PATH) + " " + regenerated.string());
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_EQ(readAll(regenerated), readAll(demoScene()))
+      << "clients/demo/cornell_box.gltf is stale: rerun make_cornell_box";
+}
+
+TEST(Inspect, DemoSceneJsonCounts) {
+  const auto r = runCommand(kCli + " inspect --json " + demoScene().string());
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  const auto j = nlohmann::json::parse(r.output);
+  EXPECT_EQ(j["triangles"], 112);  // 32 in the room and blocks + an 80-triangle probe
+  EXPECT_EQ(j["static_triangles"], 32);
+  EXPECT_EQ(j["dynamic_triangles"], 80);
+  EXPECT_EQ(j["dynamic_mesh_instances"], 1);
+  EXPECT_EQ(j["lights"]["point"], 1);
+  EXPECT_EQ(j["lights"]["spot"], 0);
+  EXPECT_EQ(j["emissive_materials"], 1);
+  // The ceiling emitter is 130 mm x 105 mm.
+  EXPECT_NEAR(j["emissive_area_m2"].get<double>(), 0.130 * 0.105, 1e-6);
+  EXPECT_NEAR(j["bounds_m"]["max"][1].get<double>(), 0.5488, 1e-5);
+  EXPECT_TRUE(j["lightmap_uv"]["unwrap_needed"].get<bool>());
+}
+
+TEST(Inspect, TextSummaryNamesTheEssentials) {
+  const auto r = runCommand(kCli + " inspect " + demoScene().string());
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_NE(r.output.find("112 (32 static, 80 dynamic)"), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("1 point, 0 spot, 0 directional"), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("unwrap needed"), std::string::npos) << r.output;
+}
+
+TEST(Inspect, MissingFileIsBadInput) {
+  const auto r = runCommand(kCli + " inspect /nonexistent/scene.gltf");
+  EXPECT_EQ(r.exit_code, cli::kExitBadInput) << r.output;
+  EXPECT_NE(r.output.find("/nonexistent/scene.gltf"), std::string::npos) << r.output;
+}
+
+TEST(Inspect, MalformedGltfIsBadInputNamingTheFile) {
+  testing::TempDir dir;
+  const auto path = testing::writeFile(dir / "broken.gltf", "{ \"asset\": {\"version\": \"2.0\"}, \"meshes\": [ ");
+  const auto r = runCommand(kCli + " inspect " + path);
+  EXPECT_EQ(r.exit_code, cli::kExitBadInput) << r.output;
+  EXPECT_NE(r.output.find("broken.gltf"), std::string::npos) << r.output;
+}
+
+TEST(Cli, UnknownSubcommandIsUsageError) {
+  const auto r = runCommand(kCli + " frobnicate");
+  EXPECT_EQ(r.exit_code, cli::kExitUsage) << r.output;
+}
+
+}  // namespace
+}  // namespace lightlink
