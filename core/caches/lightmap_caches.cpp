@@ -1,0 +1,210 @@
+#include <algorithm>
+#include <cmath>
+
+#include <tbb/parallel_for.h>
+
+#include "core/caches/caches.h"
+
+namespace lightlink::caches {
+namespace {
+
+float cross2(glm::vec2 a, glm::vec2 b) { return a.x * b.y - a.y * b.x; }
+
+// Separating-axis test of a triangle against the unit texel square at `lo`.
+bool overlapsSquare(const glm::vec2 t[3], glm::vec2 lo) {
+  const glm::vec2 hi = lo + glm::vec2(1.0f);
+  const glm::vec2 mn = glm::min(t[0], glm::min(t[1], t[2]));
+  const glm::vec2 mx = glm::max(t[0], glm::max(t[1], t[2]));
+  if (mx.x <= lo.x || mn.x >= hi.x || mx.y <= lo.y || mn.y >= hi.y) return false;
+  const glm::vec2 corners[4] = {lo, {hi.x, lo.y}, hi, {lo.x, hi.y}};
+  for (int e = 0; e < 3; ++e) {
+    const glm::vec2 a = t[e], b = t[(e + 1) % 3], c = t[(e + 2) % 3];
+    const glm::vec2 axis(-(b.y - a.y), b.x - a.x);
+    const float side = glm::dot(axis, c - a);
+    bool all_outside = true;
+    for (const auto& q : corners) {
+      if (glm::dot(axis, q - a) * side > 0.0f) {
+        all_outside = false;
+        break;
+      }
+    }
+    if (all_outside) return false;
+  }
+  return true;
+}
+
+// Closest point of triangle t to p, as barycentrics (Ericson, Real-Time Collision
+// Detection 5.1.5, in 2D).
+glm::vec3 closestBarycentric(const glm::vec2 t[3], glm::vec2 p) {
+  const glm::vec2 ab = t[1] - t[0], ac = t[2] - t[0], ap = p - t[0];
+  const float d1 = glm::dot(ab, ap), d2 = glm::dot(ac, ap);
+  if (d1 <= 0 && d2 <= 0) return {1, 0, 0};
+  const glm::vec2 bp = p - t[1];
+  const float d3 = glm::dot(ab, bp), d4 = glm::dot(ac, bp);
+  if (d3 >= 0 && d4 <= d3) return {0, 1, 0};
+  const float vc = d1 * d4 - d3 * d2;
+  if (vc <= 0 && d1 >= 0 && d3 <= 0) {
+    const float v = d1 / (d1 - d3);
+    return {1 - v, v, 0};
+  }
+  const glm::vec2 cp = p - t[2];
+  const float d5 = glm::dot(ab, cp), d6 = glm::dot(ac, cp);
+  if (d6 >= 0 && d5 <= d6) return {0, 0, 1};
+  const float vb = d5 * d2 - d1 * d6;
+  if (vb <= 0 && d2 >= 0 && d6 <= 0) {
+    const float w = d2 / (d2 - d6);
+    return {1 - w, 0, w};
+  }
+  const float va = d3 * d6 - d5 * d4;
+  if (va <= 0 && (d4 - d3) >= 0 && (d5 - d6) >= 0) {
+    const float w = (d4 - d3) / ((d4 - d3) + (d5 - d6));
+    return {0, 1 - w, w};
+  }
+  const float denom = 1.0f / (va + vb + vc);
+  const float v = vb * denom, w = vc * denom;
+  return {1 - v - w, v, w};
+}
+
+struct Candidate {
+  std::uint32_t texel;
+  float score;  // 0 = texel centre inside the triangle, else squared distance (texels)
+  std::uint32_t mesh;
+  std::uint32_t triangle;
+  glm::vec3 bary;
+};
+
+void rasterizeTriangle(const glm::vec2 t[3], int w, int h, std::uint32_t mesh, std::uint32_t tri,
+                       std::vector<Candidate>& out) {
+  const glm::vec2 mn = glm::min(t[0], glm::min(t[1], t[2]));
+  const glm::vec2 mx = glm::max(t[0], glm::max(t[1], t[2]));
+  const int x0 = std::max(0, static_cast<int>(std::floor(mn.x)));
+  const int y0 = std::max(0, static_cast<int>(std::floor(mn.y)));
+  const int x1 = std::min(w - 1, static_cast<int>(std::ceil(mx.x)) - 1);
+  const int y1 = std::min(h - 1, static_cast<int>(std::ceil(mx.y)) - 1);
+  const float area = cross2(t[1] - t[0], t[2] - t[0]);  // signed: mirrored charts work too
+  constexpr float kInside = -1e-6f;  // barycentric tolerance: centres on a shared edge count
+  for (int y = y0; y <= y1; ++y) {
+    for (int x = x0; x <= x1; ++x) {
+      const glm::vec2 c(static_cast<float>(x) + 0.5f, static_cast<float>(y) + 0.5f);
+      const float w0 = cross2(t[1] - c, t[2] - c) / area;
+      const float w1 = cross2(t[2] - c, t[0] - c) / area;
+      const float w2 = 1.0f - w0 - w1;
+      const auto texel = static_cast<std::uint32_t>(y * w + x);
+      if (w0 >= kInside && w1 >= kInside && w2 >= kInside) {
+        out.push_back({texel, 0.0f, mesh, tri, {w0, w1, w2}});
+      } else if (overlapsSquare(t, glm::vec2(x, y))) {
+        const glm::vec3 b = closestBarycentric(t, c);
+        const glm::vec2 q = b.x * t[0] + b.y * t[1] + b.z * t[2];
+        const float d2 = std::max(glm::dot(q - c, q - c), 1e-12f);
+        out.push_back({texel, d2, mesh, tri, b});
+      }
+    }
+  }
+}
+
+}  // namespace
+
+std::size_t LightmapCaches::validCount() const {
+  return static_cast<std::size_t>(std::count(valid.begin(), valid.end(), std::uint8_t{1}));
+}
+
+Expected<LightmapCaches> placeLightmapCaches(const scene::Scene& scene, const rt::Accel& accel,
+                                             const LightmapCacheOptions& options) {
+  const int res = options.resolution;
+  if (res <= 0 || res > 16384)
+    return invalidInput("lightmap resolution {} is out of range (1..16384)", res);
+  if (options.validity.rays <= 0 || options.validity.rays > 65536)
+    return invalidInput("validity rays {} is out of range (1..65536)", options.validity.rays);
+  if (!(options.validity.max_backface_fraction >= 0.0f && options.validity.max_backface_fraction <= 1.0f))
+    return invalidInput("max backface fraction {} must be in [0, 1]", options.validity.max_backface_fraction);
+
+  // Rasterise every static, lightmapped mesh into candidates; meshes in parallel, each
+  // into its own list, concatenated in mesh order so the result is thread-independent.
+  std::vector<std::vector<Candidate>> per_mesh(scene.meshes.size());
+  std::vector<std::size_t> degenerate(scene.meshes.size(), 0);
+  tbb::parallel_for(std::size_t(0), scene.meshes.size(), [&](std::size_t m) {
+    const auto& mesh = scene.meshes[m];
+    if (!mesh.is_static || !mesh.hasLightmapUv()) return;
+    for (std::size_t tri = 0; tri < mesh.triangleCount(); ++tri) {
+      glm::vec2 t[3];
+      for (int k = 0; k < 3; ++k) t[k] = mesh.uv1[mesh.indices[3 * tri + k]] * glm::vec2(res, res);
+      if (std::abs(cross2(t[1] - t[0], t[2] - t[0])) < 1e-10f) {
+        ++degenerate[m];
+        continue;
+      }
+      rasterizeTriangle(t, res, res, static_cast<std::uint32_t>(m), static_cast<std::uint32_t>(tri),
+                        per_mesh[m]);
+    }
+  });
+  std::vector<Candidate> all;
+  LightmapCaches out;
+  for (std::size_t m = 0; m < per_mesh.size(); ++m) {
+    all.insert(all.end(), per_mesh[m].begin(), per_mesh[m].end());
+    out.degenerate_uv_triangles += degenerate[m];
+  }
+  // Per texel the best candidate wins: centre inside beats grazing, nearer grazing beats
+  // farther, then lower (mesh, triangle) — a total order, so the choice is deterministic.
+  std::sort(all.begin(), all.end(), [](const Candidate& a, const Candidate& b) {
+    if (a.texel != b.texel) return a.texel < b.texel;
+    if (a.score != b.score) return a.score < b.score;
+    if (a.mesh != b.mesh) return a.mesh < b.mesh;
+    return a.triangle < b.triangle;
+  });
+
+  out.width = out.height = res;
+  out.cache_of_texel.assign(static_cast<std::size_t>(res) * res, -1);
+  std::vector<glm::vec3> bary;
+  for (std::size_t i = 0; i < all.size(); ++i) {
+    if (i > 0 && all[i].texel == all[i - 1].texel) continue;
+    const Candidate& c = all[i];
+    const auto& mesh = scene.meshes[c.mesh];
+    const std::uint32_t* idx = &mesh.indices[3 * c.triangle];
+    const glm::vec3 p0 = mesh.positions[idx[0]], p1 = mesh.positions[idx[1]], p2 = mesh.positions[idx[2]];
+    glm::vec3 ng = glm::cross(p1 - p0, p2 - p0);
+    const glm::vec3 ns = c.bary.x * mesh.normals[idx[0]] + c.bary.y * mesh.normals[idx[1]] +
+                         c.bary.z * mesh.normals[idx[2]];
+    if (glm::dot(ng, ng) == 0.0f) ng = ns;
+    // The hemisphere axis is the geometric normal on the side the shading normal faces.
+    if (glm::dot(ng, ns) < 0.0f) ng = -ng;
+    out.cache_of_texel[c.texel] = static_cast<std::int32_t>(out.position.size());
+    out.position.push_back(c.bary.x * p0 + c.bary.y * p1 + c.bary.z * p2);
+    out.normal.push_back(glm::normalize(ng));
+    out.texel.push_back(c.texel);
+    out.mesh.push_back(c.mesh);
+    out.triangle.push_back(c.triangle);
+  }
+
+  const std::size_t n = out.position.size();
+  out.valid.assign(n, 1);
+  out.pushed.assign(n, 0);
+  const float max_back = options.validity.max_backface_fraction;
+  tbb::parallel_for(std::size_t(0), n, [&](std::size_t i) {
+    const glm::vec3 p = out.position[i], nrm = out.normal[i];
+    if (backfaceFraction(scene, accel, p, nrm, options.validity) <= max_back) return;
+    const auto& mesh = scene.meshes[out.mesh[i]];
+    const std::uint32_t* idx = &mesh.indices[3 * out.triangle[i]];
+    const glm::vec3 p0 = mesh.positions[idx[0]], p1 = mesh.positions[idx[1]], p2 = mesh.positions[idx[2]];
+    const glm::vec3 centroid = (p0 + p1 + p2) / 3.0f;
+    // World size of one texel on this triangle: sqrt(world area / texel area).
+    const glm::vec2 t0 = mesh.uv1[idx[0]] * float(res), t1 = mesh.uv1[idx[1]] * float(res),
+                    t2 = mesh.uv1[idx[2]] * float(res);
+    const float texel_area = std::abs(cross2(t1 - t0, t2 - t0));
+    const float world_area = glm::length(glm::cross(p1 - p0, p2 - p0));
+    const float texel_m = std::sqrt(world_area / std::max(texel_area, 1e-12f));
+    // Candidates in order of how little they move the cache: into the triangle (away from
+    // the wall that hides the texel), then off the surface.
+    const glm::vec3 candidates[4] = {glm::mix(p, centroid, 0.5f), centroid, p + nrm * (0.5f * texel_m),
+                                     centroid + nrm * (0.5f * texel_m)};
+    for (const auto& q : candidates) {
+      if (backfaceFraction(scene, accel, q, nrm, options.validity) <= max_back) {
+        out.position[i] = q;
+        out.pushed[i] = 1;
+        return;
+      }
+    }
+    out.valid[i] = 0;
+  });
+  return out;
+}
+
+}  // namespace lightlink::caches
