@@ -1,0 +1,104 @@
+// Links: for every cache, which sender nodes of the surfel tree it sees and how, as SH
+// "form factors" (seed 000 sec 3.1, 4.5, 4.6; DESIGN.md sec 4).
+//
+// Per cache we trace a stratified set of directions (the hemisphere around a lightmap
+// cache's normal, the whole sphere for a grid cache), credit every hit on a front face to
+// the surfel that owns the hit point, and keep two things from the same samples:
+//   1. importance: the visible solid angle per surfel, summed up the tree; the cut of at
+//      most nL nodes is chosen by repeatedly refining the node with the largest visible
+//      solid angle (nodes nobody sees are never linked), so the cut covers every visible
+//      surfel exactly once;
+//   2. transport: each cut node's visibility V_s(w)/pi projected into SH from the rays that
+//      hit it (Monte Carlo with equal-solid-angle weights Omega/N).
+// Rays that escape give the cache's sky visibility (also V/pi in SH, stored as float), and
+// rays that hit the back of a single-sided surface are blocked (they see the inside of
+// something). Incident radiance at relight time is L(w) = sum_links B_node F_node(w) with
+// B_node = flux_node / area_node: node radiosity, never 1/A folded into the coefficients,
+// which would overflow fp16 for small senders (DESIGN.md sec 4).
+//
+// Two stored forms, both built from the same cut:
+//   - kShProjected: bands^2 fp16 coefficients per link (3 bands: 18 + 4 bytes);
+//   - runtime projection: a direction (octahedral, 2 x snorm16) and the node's visible
+//     solid angle / pi (fp16); at relight the node is treated as a spherical cap of that
+//     solid angle around that direction and projected analytically (capZonal()), for any
+//     band count (4 + 4 + 2 bytes).
+// Generation is parallel over fixed-size chunks of caches whose results are concatenated in
+// order, and every random number is a function of (seed, cache, ray): the output is
+// bit-identical for any thread count.
+#pragma once
+
+#include <cstdint>
+#include <span>
+#include <vector>
+
+#include <glm/glm.hpp>
+
+#include "core/common/half.h"
+#include "core/common/progress.h"
+#include "core/common/status.h"
+#include "core/hierarchy/tree.h"
+#include "core/rt/accel.h"
+#include "core/scene/scene.h"
+#include "core/surfels/surfels.h"
+
+namespace lightlink::links {
+
+struct LinkOptions {
+  int rays = 1024;       // directions per cache, rounded down to a square (stratified n x n)
+  int max_links = 128;   // nL: most sender nodes per cache
+  int bands = 3;         // SH bands of the projected form, 1..4
+  std::uint64_t seed = 0x5eed;
+};
+
+// The caches to link: positions, and a unit normal for a hemisphere (lightmap) cache or a
+// zero vector for a sphere (grid) cache.
+struct CacheQuery {
+  std::span<const glm::vec3> position;
+  std::span<const glm::vec3> normal;
+};
+
+struct LinkStats {
+  std::uint64_t rays = 0;           // traced
+  std::uint64_t front_hits = 0;     // credited to a surfel
+  std::uint64_t back_hits = 0;      // blocked by the inside of a single-sided surface
+  std::uint64_t escaped = 0;        // sky
+  std::uint64_t unowned = 0;        // front hits with no surfel near (not credited)
+  double seconds = 0.0;
+};
+
+struct Links {
+  int bands = 0;
+  std::vector<std::uint32_t> offsets;   // caches + 1: links of cache c are [offsets[c], offsets[c+1])
+  std::vector<std::uint32_t> node;      // per link: tree node
+  std::vector<half_bits> coeffs;        // per link, bands^2: SH of V/pi (projected form)
+  std::vector<std::uint32_t> direction; // per link: octahedral direction, 2 x snorm16 (runtime form)
+  std::vector<half_bits> solid_angle;   // per link: visible solid angle / pi (runtime form)
+  std::vector<float> sky;               // per cache, bands^2: SH of sky visibility / pi
+  LinkStats stats;
+
+  std::size_t cacheCount() const { return offsets.empty() ? 0 : offsets.size() - 1; }
+  std::size_t linkCount() const { return node.size(); }
+  std::size_t bytesPerLinkProjected() const { return sizeof(std::uint32_t) + sizeof(half_bits) * bands * bands; }
+  static constexpr std::size_t bytesPerLinkRuntime() {
+    return sizeof(std::uint32_t) + sizeof(std::uint32_t) + sizeof(half_bits);
+  }
+};
+
+// `surfels` must be in the tree's order (buildTree reorders them).
+Expected<Links> generateLinks(const scene::Scene& scene, const rt::Accel& accel,
+                              const surfels::Surfels& surfels, const hierarchy::Tree& tree,
+                              const CacheQuery& caches, const LinkOptions& options,
+                              Progress* progress = nullptr);
+
+// Zonal SH coefficients z_l (l < bands) of the indicator of a spherical cap of solid angle
+// `omega` (sr) around +z, divided by pi: the runtime-projection link shape. Rotated to
+// direction d, coefficient (l, m) is z_l * sqrt(4 pi / (2l + 1)) * Y_lm(d).
+void capZonal(float omega, int bands, float* z);
+// Projects one runtime-form link (direction, omega/pi) into `bands`^2 SH coefficients.
+void projectRuntimeLink(const glm::vec3& direction, float omega_over_pi, int bands, float* coeffs);
+
+// Octahedral direction encoding, 2 x snorm16 (max angular error ~0.003 degrees).
+std::uint32_t encodeOctahedral(const glm::vec3& unit_dir);
+glm::vec3 decodeOctahedral(std::uint32_t packed);
+
+}  // namespace lightlink::links

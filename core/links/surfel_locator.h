@@ -1,0 +1,46 @@
+// SurfelLocator: which surfel owns a point on the static geometry.
+//
+// Link generation traces rays from caches and must credit each hit to the surfel that
+// stands for that piece of surface. Surfels are (after relaxation) close to a Poisson-disc
+// set, so the owner is the nearest surfel on the same side of the same surface: the
+// nearest one whose normal agrees with the hit's shading side. A dense uniform grid over
+// the surfels (cell ~2 surfel spacings, CSR layout: one offsets array, one id array) makes
+// the query a scan of 27 cells of a few surfels each, with no allocation per query.
+#pragma once
+
+#include <cstdint>
+#include <limits>
+#include <vector>
+
+#include <glm/glm.hpp>
+
+#include "core/surfels/surfels.h"
+
+namespace lightlink::links {
+
+inline constexpr std::uint32_t kNoSurfel = std::numeric_limits<std::uint32_t>::max();
+
+class SurfelLocator {
+ public:
+  explicit SurfelLocator(const surfels::Surfels& surfels);
+
+  // Nearest surfel to p whose normal is within ~60 degrees of n (unit); falls back to a
+  // wider search, then to the nearest surfel regardless of normal, then kNoSurfel.
+  std::uint32_t owner(const glm::vec3& p, const glm::vec3& n) const;
+
+  float cellSize() const { return cell_; }
+
+ private:
+  glm::ivec3 cellOf(const glm::vec3& p) const;
+  std::uint32_t search(const glm::vec3& p, const glm::vec3& n, int radius, float min_cos) const;
+
+  const surfels::Surfels& surfels_;
+  glm::vec3 origin_{0.0f};
+  float cell_ = 1.0f;
+  float inv_cell_ = 1.0f;
+  glm::ivec3 dims_{1};
+  std::vector<std::uint32_t> cell_begin_;  // size cells + 1
+  std::vector<std::uint32_t> ids_;         // surfel ids grouped by cell, ascending within a cell
+};
+
+}  // namespace lightlink::links

@@ -1,0 +1,239 @@
+#include "core/links/links.h"
+
+#include <array>
+#include <cmath>
+#include <numbers>
+#include <string>
+
+#include <gtest/gtest.h>
+#include <tbb/global_control.h>
+
+#include "core/sh/sh.h"
+
+namespace lightlink::links {
+namespace {
+
+using scene::MeshInstance;
+using scene::Scene;
+constexpr float kPi = std::numbers::pi_v<float>;
+
+void addQuad(Scene& s, glm::vec3 p0, glm::vec3 p1, glm::vec3 p2, glm::vec3 p3) {
+  MeshInstance m;
+  m.name = "quad" + std::to_string(s.meshes.size());
+  m.positions = {p0, p1, p2, p3};
+  const glm::vec3 n = glm::normalize(glm::cross(p1 - p0, p2 - p0));
+  m.normals = {n, n, n, n};
+  m.indices = {0, 1, 2, 0, 2, 3};
+  s.meshes.push_back(m);
+}
+
+// Axis-aligned box; inward = true gives a room (faces point inside), false a solid block.
+void addBox(Scene& s, glm::vec3 lo, glm::vec3 hi, bool inward) {
+  const glm::vec3 c[8] = {{lo.x, lo.y, lo.z}, {hi.x, lo.y, lo.z}, {hi.x, hi.y, lo.z}, {lo.x, hi.y, lo.z},
+                          {lo.x, lo.y, hi.z}, {hi.x, lo.y, hi.z}, {hi.x, hi.y, hi.z}, {lo.x, hi.y, hi.z}};
+  const int faces[6][4] = {{0, 3, 2, 1}, {4, 5, 6, 7}, {0, 1, 5, 4}, {2, 3, 7, 6}, {0, 4, 7, 3}, {1, 2, 6, 5}};
+  for (const auto& f : faces) {
+    if (inward)
+      addQuad(s, c[f[3]], c[f[2]], c[f[1]], c[f[0]]);
+    else
+      addQuad(s, c[f[0]], c[f[1]], c[f[2]], c[f[3]]);
+  }
+}
+
+void finish(Scene& s) {
+  s.bounds = Aabb();
+  for (const auto& m : s.meshes)
+    for (const auto& p : m.positions) s.bounds.grow(p);
+  s.scale = s.bounds.diagonal();
+}
+
+// Everything link generation needs, built the way precompute builds it.
+struct LinkFixture {
+  Scene scene;
+  rt::Accel accel;
+  surfels::Surfels surfels;
+  hierarchy::Tree tree;
+
+  static LinkFixture make(Scene s, std::uint32_t surfel_count = 2048) {
+    finish(s);
+    auto accel = rt::Accel::build(s);
+    EXPECT_TRUE(accel) << accel.status().toString();
+    auto placed = surfels::placeSurfels(s, {.count = surfel_count});
+    EXPECT_TRUE(placed) << placed.status().toString();
+    auto tree = hierarchy::buildTree(*placed, {});
+    EXPECT_TRUE(tree) << tree.status().toString();
+    return LinkFixture{std::move(s), std::move(accel).value(), std::move(placed).value(), std::move(tree).value()};
+  }
+
+  Links link(std::vector<glm::vec3> p, std::vector<glm::vec3> n, LinkOptions opt = {}) const {
+    auto links = generateLinks(scene, accel, surfels, tree, {p, n}, opt);
+    EXPECT_TRUE(links) << links.status().toString();
+    return std::move(links).value();
+  }
+};
+
+float linkSolidAngle(const Links& l, std::size_t cache) {
+  float sum = 0.0f;
+  for (std::uint32_t k = l.offsets[cache]; k < l.offsets[cache + 1]; ++k) sum += fromHalf(l.solid_angle[k]) * kPi;
+  return sum;
+}
+
+TEST(Links, OpenSkyMatchesTheAnalyticHemisphere) {
+  Scene s;
+  addQuad(s, {-1, 0, -1}, {-1, 0, 1}, {1, 0, 1}, {1, 0, -1});  // floor facing +y
+  const LinkFixture fixture = LinkFixture::make(std::move(s));
+  const Links links = fixture.link({{0, 0, 0}}, {{0, 1, 0}});
+  ASSERT_EQ(links.cacheCount(), 1u);
+  EXPECT_EQ(links.linkCount(), 0u);
+  EXPECT_EQ(links.stats.escaped, links.stats.rays);
+  // Sky visibility / pi of a full hemisphere = a cap of 2 pi sr around the normal.
+  float expected[9];
+  projectRuntimeLink({0, 1, 0}, 2.0f, 3, expected);
+  for (int i = 0; i < 9; ++i) EXPECT_NEAR(links.sky[i], expected[i], 2e-3f) << "coefficient " << i;
+  // c_00 of V/pi over a hemisphere is 2 pi Y00 / pi = 2 Y00.
+  EXPECT_NEAR(links.sky[0], 2.0f * sh::kY00, 1e-4f);
+}
+
+TEST(Links, LargeQuadAboveGivesItsAnalyticSolidAngle) {
+  // A 2 x 2 m ceiling 1 m above the cache, facing down; nothing else but the floor.
+  Scene s;
+  addQuad(s, {-1, 1, -1}, {1, 1, -1}, {1, 1, 1}, {-1, 1, 1});
+  addQuad(s, {-3, 0, -3}, {-3, 0, 3}, {3, 0, 3}, {3, 0, -3});
+  const LinkFixture fixture = LinkFixture::make(std::move(s));
+  const Links links = fixture.link({{0, 0, 0}}, {{0, 1, 0}}, {.rays = 4096});
+  const float a = 1.0f, b = 1.0f, h = 1.0f;
+  const float omega = 4.0f * std::atan(a * b / (h * std::sqrt(h * h + a * a + b * b)));  // 2 pi / 3
+  EXPECT_NEAR(linkSolidAngle(links, 0), omega, 0.01f * omega);
+  // Links and sky together are the whole visible hemisphere, coefficient by coefficient.
+  float hemisphere[9];
+  projectRuntimeLink({0, 1, 0}, 2.0f, 3, hemisphere);
+  for (int i = 0; i < 9; ++i) {
+    float sum = links.sky[i];
+    for (std::uint32_t k = 0; k < links.linkCount(); ++k) sum += fromHalf(links.coeffs[k * 9 + i]);
+    EXPECT_NEAR(sum, hemisphere[i], 3e-3f) << "coefficient " << i;
+  }
+  // Sky sees the rest: c00 of the sky is (2 pi - omega) Y00 / pi.
+  EXPECT_NEAR(links.sky[0], (2.0f * kPi - omega) * sh::kY00 / kPi, 5e-3f);
+}
+
+TEST(Links, ClosedRoomCutCoversTheVisibleSurfelsOnce) {
+  Scene s;
+  addBox(s, {0, 0, 0}, {2, 2, 2}, /*inward=*/true);
+  const LinkFixture fixture = LinkFixture::make(std::move(s), 4096);
+  const std::vector<glm::vec3> p = {{1, 1, 1}, {0.5f, 1.5f, 1.2f}};
+  const std::vector<glm::vec3> n = {{0, 0, 0}, {0, 0, 0}};  // grid caches: full sphere
+  const Links links = fixture.link(p, n, {.rays = 1024, .max_links = 64});
+  EXPECT_EQ(links.stats.escaped, 0u);
+  EXPECT_EQ(links.stats.back_hits, 0u);
+  EXPECT_EQ(links.stats.unowned, 0u);
+  for (std::size_t c = 0; c < 2; ++c) {
+    EXPECT_NEAR(linkSolidAngle(links, c), 4.0f * kPi, 4e-3f * 4.0f * kPi);
+    const std::uint32_t count = links.offsets[c + 1] - links.offsets[c];
+    EXPECT_LE(count, 64u);
+    EXPECT_GT(count, 32u);
+    // Disjoint ranges; together they cover the surfels the rays saw. From inside a room all
+    // surfels are visible, but a node that no ray hit carries no light and is not linked, so
+    // coverage is nearly (not exactly) all at 1024 rays for 4096 surfels.
+    std::vector<int> covered(fixture.surfels.size(), 0);
+    for (std::uint32_t k = links.offsets[c]; k < links.offsets[c + 1]; ++k) {
+      const std::uint32_t node = links.node[k];
+      for (std::uint32_t i = fixture.tree.begin[node]; i < fixture.tree.end[node]; ++i) covered[i]++;
+    }
+    EXPECT_EQ(std::count_if(covered.begin(), covered.end(), [](int v) { return v > 1; }), 0);
+    EXPECT_GT(std::count(covered.begin(), covered.end(), 1), static_cast<long>(0.98 * covered.size()));
+  }
+}
+
+TEST(Links, CacheInsideASolidBlockSeesOnlyBackFaces) {
+  Scene s;
+  addBox(s, {0, 0, 0}, {1, 1, 1}, /*inward=*/false);
+  const LinkFixture fixture = LinkFixture::make(std::move(s));
+  const Links links = fixture.link({{0.5f, 0.5f, 0.5f}}, {{0, 0, 0}});
+  EXPECT_EQ(links.linkCount(), 0u);
+  EXPECT_EQ(links.stats.back_hits, links.stats.rays);
+  for (float c : links.sky) EXPECT_EQ(c, 0.0f);
+}
+
+TEST(Links, OneLinkIsTheRootWithEverything) {
+  Scene s;
+  addBox(s, {0, 0, 0}, {2, 2, 2}, true);
+  const LinkFixture fixture = LinkFixture::make(std::move(s));
+  const Links links = fixture.link({{1, 1, 1}}, {{0, 0, 0}}, {.max_links = 1});
+  ASSERT_EQ(links.linkCount(), 1u);
+  EXPECT_EQ(links.node[0], 0u);
+}
+
+TEST(Links, DeterministicAcrossThreadCounts) {
+  Scene s;
+  addBox(s, {0, 0, 0}, {2, 2, 2}, true);
+  addBox(s, {0.5f, 0, 0.5f}, {1.0f, 0.8f, 1.0f}, false);
+  const LinkFixture fixture = LinkFixture::make(std::move(s));
+  std::vector<glm::vec3> p, n;
+  for (int i = 0; i < 100; ++i) {
+    p.push_back({0.1f + 0.018f * i, 1.2f, 1.5f});
+    n.push_back(i % 2 ? glm::vec3(0) : glm::vec3(0, 1, 0));
+  }
+  auto run = [&](int threads) {
+    tbb::global_control limit(tbb::global_control::max_allowed_parallelism, threads);
+    return fixture.link(p, n, {.rays = 256, .max_links = 32});
+  };
+  const Links a = run(1), b = run(2);
+  EXPECT_EQ(a.offsets, b.offsets);
+  EXPECT_EQ(a.node, b.node);
+  EXPECT_EQ(a.coeffs, b.coeffs);
+  EXPECT_EQ(a.direction, b.direction);
+  EXPECT_EQ(a.sky, b.sky);
+}
+
+TEST(Links, RuntimeFormApproximatesTheProjectedForm) {
+  // A small quad far away is nearly a cap: both forms must agree closely.
+  Scene s;
+  addQuad(s, {-0.2f, 2, -0.2f}, {0.2f, 2, -0.2f}, {0.2f, 2, 0.2f}, {-0.2f, 2, 0.2f});
+  addQuad(s, {-3, 0, -3}, {-3, 0, 3}, {3, 0, 3}, {3, 0, -3});
+  const LinkFixture fixture = LinkFixture::make(std::move(s));
+  const Links links = fixture.link({{0, 0, 0}}, {{0, 1, 0}}, {.rays = 16384, .max_links = 1});
+  ASSERT_EQ(links.linkCount(), 1u);
+  float runtime[9];
+  projectRuntimeLink(decodeOctahedral(links.direction[0]), fromHalf(links.solid_angle[0]), 3, runtime);
+  for (int i = 0; i < 9; ++i) EXPECT_NEAR(fromHalf(links.coeffs[i]), runtime[i], 2e-3f) << i;
+}
+
+TEST(Links, BytesPerLinkMeetTheBudget) {
+  Links l;
+  l.bands = 3;
+  EXPECT_LE(l.bytesPerLinkProjected(), 22u);
+  EXPECT_LE(Links::bytesPerLinkRuntime(), 12u);
+}
+
+TEST(Links, RejectsAbsurdOptions) {
+  Scene s;
+  addQuad(s, {-1, 0, -1}, {-1, 0, 1}, {1, 0, 1}, {1, 0, -1});
+  const LinkFixture fixture = LinkFixture::make(std::move(s), 64);
+  const std::vector<glm::vec3> p = {{0, 0, 0}}, n = {{0, 1, 0}};
+  for (LinkOptions bad : {LinkOptions{.bands = 0}, LinkOptions{.bands = 5}, LinkOptions{.rays = 0},
+                          LinkOptions{.max_links = 0}}) {
+    auto r = generateLinks(fixture.scene, fixture.accel, fixture.surfels, fixture.tree, {p, n}, bad);
+    EXPECT_FALSE(r);
+    EXPECT_EQ(r.status().code(), Code::kInvalidInput);
+  }
+}
+
+TEST(Octahedral, RoundTripIsAccurate) {
+  for (int i = 0; i < 1000; ++i) {
+    const float z = 1.0f - 2.0f * (i + 0.5f) / 1000.0f, phi = 2.399963f * i;
+    const float r = std::sqrt(1 - z * z);
+    const glm::vec3 d(r * std::cos(phi), r * std::sin(phi), z);
+    const glm::vec3 back = decodeOctahedral(encodeOctahedral(d));
+    EXPECT_GT(glm::dot(d, back), std::cos(1e-3f)) << i;
+  }
+}
+
+TEST(CapZonal, FullSphereIsConstant) {
+  float z[4];
+  capZonal(4.0f * kPi, 4, z);
+  EXPECT_NEAR(z[0], std::sqrt(4.0f * kPi) / kPi, 1e-5f);
+  for (int l = 1; l < 4; ++l) EXPECT_NEAR(z[l], 0.0f, 1e-5f);
+}
+
+}  // namespace
+}  // namespace lightlink::links
