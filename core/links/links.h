@@ -66,6 +66,18 @@ struct LinkStats {
   double seconds = 0.0;
 };
 
+// Read-only view of link arrays, wherever they live (a Links in memory, or an artifact
+// mapping): what relight consumes.
+struct LinksView {
+  int bands = 0;
+  std::span<const std::uint32_t> offsets, node, direction;
+  std::span<const half_bits> coeffs, solid_angle;
+  std::span<const float> sky;
+
+  std::size_t cacheCount() const { return offsets.empty() ? 0 : offsets.size() - 1; }
+  std::size_t linkCount() const { return node.size(); }
+};
+
 struct Links {
   int bands = 0;
   std::vector<std::uint32_t> offsets;   // caches + 1: links of cache c are [offsets[c], offsets[c+1])
@@ -78,6 +90,7 @@ struct Links {
 
   std::size_t cacheCount() const { return offsets.empty() ? 0 : offsets.size() - 1; }
   std::size_t linkCount() const { return node.size(); }
+  LinksView view() const { return {bands, offsets, node, direction, coeffs, solid_angle, sky}; }
   std::size_t bytesPerLinkProjected() const { return sizeof(std::uint32_t) + sizeof(half_bits) * bands * bands; }
   static constexpr std::size_t bytesPerLinkRuntime() {
     return sizeof(std::uint32_t) + sizeof(std::uint32_t) + sizeof(half_bits);

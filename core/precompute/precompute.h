@@ -1,0 +1,101 @@
+// Precompute: the once-per-scene pipeline of seed 000 sec 3-4, end to end.
+//
+//   scene --unwrap (when a static mesh lacks TEXCOORD_1)--> lightmap atlas
+//         --surfels--> --hierarchy--> --caches (lightmap texels, grid)--> --links-->
+//   Precomputation (in memory) --save--> artifact (.llk) --open--> LoadedPrecomputation
+//
+// Each stage is its own module; this one only orders them, times them, reports progress and
+// memory (seed 000 Table 4) and decides which optional parts the scene calls for (a grid
+// only when the scene has dynamic meshes or a grid is asked for). The artifact's cache key
+// covers the scene file's bytes, the canonical option string and the format version, so a
+// matching artifact can be reused instead of recomputed.
+#pragma once
+
+#include <cstdint>
+#include <optional>
+#include <span>
+#include <string>
+#include <vector>
+
+#include <nlohmann/json.hpp>
+
+#include "core/artifact/artifact.h"
+#include "core/caches/caches.h"
+#include "core/charts/unwrap.h"
+#include "core/common/progress.h"
+#include "core/common/status.h"
+#include "core/hierarchy/tree.h"
+#include "core/links/links.h"
+#include "core/scene/scene.h"
+#include "core/surfels/surfels.h"
+
+namespace lightlink::precompute {
+
+enum class GridMode { kAuto, kOn, kOff };
+
+struct PrecomputeOptions {
+  std::uint32_t surfels = 32768;   // nS
+  int links = 128;                 // nL, most links per cache
+  int bands = 3;                   // SH bands of the projected links, 1..4
+  int rays = 1024;                 // link rays per cache
+  hierarchy::Builder builder = hierarchy::Builder::kAgglomerative;
+  GridMode grid = GridMode::kAuto; // auto: a grid only when the scene has dynamic meshes
+  float grid_spacing_m = 0.0f;     // 0 = derived from grid_resolution
+  int grid_resolution = 16;        // grid points along the longest axis when spacing is 0
+  std::optional<float> texel_size_m;     // lightmap texel size; unset = from the resolution
+  std::optional<int> lightmap_resolution;
+  int target_resolution = 128;     // default atlas size when neither of the above is set
+  int validity_rays = 64;
+  std::uint64_t seed = 1;
+
+  Status validate() const;
+  // Every option that changes the result, in a fixed order: part of the cache key.
+  std::string canonical() const;
+};
+
+struct StageTime {
+  std::string stage;
+  double seconds = 0.0;
+};
+
+struct Precomputation {
+  PrecomputeOptions options;
+  charts::LightmapAtlas atlas;
+  surfels::Surfels surfels;  // in tree order
+  hierarchy::Tree tree;
+  caches::LightmapCaches lightmap;
+  bool has_grid = false;
+  caches::GridCaches grid;
+  links::Links lightmap_links;
+  links::Links grid_links;
+  caches::FillPlan lightmap_fill, grid_fill, dilation;
+  std::vector<StageTime> timings;
+  std::vector<std::string> notes;  // decisions taken (what was skipped and why)
+
+  // Report: counts, time per stage, memory per structure, rays and rays/s.
+  nlohmann::ordered_json report() const;
+};
+
+// Runs every stage. `scene` is modified: the unwrap writes uv1 (and splits seam vertices).
+Expected<Precomputation> run(scene::Scene& scene, const PrecomputeOptions& options,
+                             Progress* progress = nullptr);
+
+// Writes the precomputation atomically as one artifact keyed by `cache_key`.
+Status save(const Precomputation& p, const std::string& path, std::uint64_t cache_key);
+
+// The artifact mapped back. The link arrays (the bulk of the file) stay in the mapping and
+// are read through spans; the small structures (surfels, tree, caches, plans) are copied
+// into a Precomputation whose `lightmap_links`/`grid_links` vectors stay empty.
+struct LoadedPrecomputation {
+  artifact::Artifact file;
+  Precomputation p;
+  nlohmann::json meta;
+  links::LinksView lightmap_links, grid_links;
+};
+
+Expected<LoadedPrecomputation> open(const std::string& path);
+
+// Key for reusing an artifact: the scene file's bytes + options + format version.
+Expected<std::uint64_t> cacheKeyFor(const std::string& scene_path, const PrecomputeOptions& options);
+
+}  // namespace lightlink::precompute

@@ -1,0 +1,149 @@
+#include "core/precompute/precompute.h"
+
+#include <cmath>
+#include <fstream>
+#include <iterator>
+
+#include <gtest/gtest.h>
+#include <tbb/global_control.h>
+
+#include "core/scene/load.h"
+#include "tests/common/testing.h"
+
+namespace lightlink::precompute {
+namespace {
+
+const std::string kDemo = (testing::sourceDir() / "clients/demo/cornell_box.gltf").string();
+
+PrecomputeOptions smallOptions() {
+  PrecomputeOptions o;
+  o.surfels = 1024;
+  o.links = 32;
+  o.rays = 256;
+  o.target_resolution = 32;
+  o.grid_resolution = 6;
+  o.validity_rays = 16;
+  return o;
+}
+
+Precomputation runDemo(const PrecomputeOptions& o) {
+  auto scene = scene::loadGltf(kDemo);
+  EXPECT_TRUE(scene) << scene.status().toString();
+  auto p = run(*scene, o);
+  EXPECT_TRUE(p) << p.status().toString();
+  return std::move(p).value();
+}
+
+std::vector<char> readFile(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  return {std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
+}
+
+TEST(Precompute, DemoSceneProducesEveryStructure) {
+  const Precomputation p = runDemo(smallOptions());
+  EXPECT_EQ(p.surfels.size(), 1024u);
+  EXPECT_EQ(p.tree.nodeCount(), 2047u);
+  EXPECT_GT(p.lightmap.size(), 100u);
+  EXPECT_EQ(p.lightmap_links.cacheCount(), p.lightmap.size());
+  // The demo has a dynamic probe, so the grid is planned in.
+  EXPECT_TRUE(p.has_grid);
+  EXPECT_EQ(p.grid_links.cacheCount(), p.grid.size());
+  for (std::size_t c = 0; c < p.lightmap_links.cacheCount(); ++c)
+    EXPECT_LE(p.lightmap_links.offsets[c + 1] - p.lightmap_links.offsets[c], 32u);
+  const auto report = p.report();
+  for (const char* stage : {"unwrap", "surfels", "hierarchy", "bvh", "caches", "links", "total"})
+    EXPECT_TRUE(report["seconds"].contains(stage)) << stage;
+  EXPECT_GT(report["links"]["lightmap"]["rays"].get<std::uint64_t>(), 0u);
+  EXPECT_GT(report["memory_bytes"]["lightmap_links_projected"].get<std::size_t>(), 0u);
+  // Inside a closed-ish room most link rays hit front faces.
+  const auto& s = p.lightmap_links.stats;
+  EXPECT_GT(double(s.front_hits) / double(s.rays), 0.5);
+}
+
+TEST(Precompute, GridIsSkippedWithoutDynamicMeshes) {
+  auto scene = scene::loadGltf(kDemo);
+  ASSERT_TRUE(scene);
+  std::erase_if(scene->meshes, [](const scene::MeshInstance& m) { return !m.is_static; });
+  auto p = run(*scene, smallOptions());
+  ASSERT_TRUE(p) << p.status().toString();
+  EXPECT_FALSE(p->has_grid);
+  EXPECT_EQ(p->grid.size(), 0u);
+  bool noted = false;
+  for (const auto& n : p->notes) noted |= n.find("grid caches skipped") != std::string::npos;
+  EXPECT_TRUE(noted);
+}
+
+TEST(Precompute, ArtifactRoundTripKeepsEveryArray) {
+  const Precomputation p = runDemo(smallOptions());
+  testing::TempDir dir;
+  const std::string path = (dir / "demo.llk").string();
+  ASSERT_TRUE(save(p, path, 1234));
+  auto loaded = open(path);
+  ASSERT_TRUE(loaded) << loaded.status().toString();
+  EXPECT_EQ(loaded->file.cacheKey(), 1234u);
+  const Precomputation& q = loaded->p;
+  EXPECT_EQ(q.surfels.position, p.surfels.position);
+  EXPECT_EQ(q.surfels.area, p.surfels.area);
+  EXPECT_EQ(q.tree.left, p.tree.left);
+  EXPECT_EQ(q.tree.area, p.tree.area);
+  EXPECT_EQ(q.lightmap.texel, p.lightmap.texel);
+  EXPECT_EQ(q.lightmap.cache_of_texel, p.lightmap.cache_of_texel);
+  EXPECT_EQ(q.lightmap.width, p.lightmap.width);
+  EXPECT_EQ(q.grid.dims, p.grid.dims);
+  EXPECT_EQ(q.dilation.source, p.dilation.source);
+  const auto& l = loaded->lightmap_links;
+  EXPECT_EQ(l.bands, 3);
+  EXPECT_TRUE(std::equal(l.node.begin(), l.node.end(), p.lightmap_links.node.begin(), p.lightmap_links.node.end()));
+  EXPECT_TRUE(std::equal(l.coeffs.begin(), l.coeffs.end(), p.lightmap_links.coeffs.begin(),
+                         p.lightmap_links.coeffs.end()));
+  // Zero copy: the link arrays point into the mapping.
+  const auto whole = *loaded->file.bytes("lmlink.node");
+  EXPECT_EQ(static_cast<const void*>(l.node.data()), static_cast<const void*>(whole.data()));
+}
+
+TEST(Precompute, ArtifactIsDeterministicAcrossThreadCounts) {
+  testing::TempDir dir;
+  auto write = [&](int threads, const std::string& name) {
+    tbb::global_control limit(tbb::global_control::max_allowed_parallelism, threads);
+    const Precomputation p = runDemo(smallOptions());
+    const std::string path = (dir / name).string();
+    EXPECT_TRUE(save(p, path, 7));
+    return readFile(path);
+  };
+  const auto one = write(1, "one.llk");
+  const auto two = write(2, "two.llk");
+  ASSERT_FALSE(one.empty());
+  EXPECT_TRUE(one == two) << "artifacts differ between 1 and 2 threads";
+}
+
+TEST(Precompute, RejectsAbsurdOptions) {
+  auto scene = scene::loadGltf(kDemo);
+  ASSERT_TRUE(scene);
+  PrecomputeOptions bad = smallOptions();
+  bad.surfels = 0;
+  EXPECT_FALSE(run(*scene, bad));
+  bad = smallOptions();
+  bad.bands = 5;
+  auto r = run(*scene, bad);
+  ASSERT_FALSE(r);
+  EXPECT_NE(r.status().message().find("--bands"), std::string::npos);
+  bad = smallOptions();
+  bad.texel_size_m = std::nanf("");
+  EXPECT_FALSE(run(*scene, bad));
+  bad = smallOptions();
+  bad.grid_spacing_m = -1.0f;
+  EXPECT_FALSE(run(*scene, bad));
+}
+
+TEST(Precompute, CacheKeyFollowsSceneAndOptions) {
+  auto a = cacheKeyFor(kDemo, smallOptions());
+  ASSERT_TRUE(a);
+  EXPECT_EQ(*a, *cacheKeyFor(kDemo, smallOptions()));
+  PrecomputeOptions other = smallOptions();
+  other.links = 64;
+  EXPECT_NE(*a, *cacheKeyFor(kDemo, other));
+  EXPECT_FALSE(cacheKeyFor("/no/such/scene.gltf", smallOptions()));
+}
+
+}  // namespace
+}  // namespace lightlink::precompute
