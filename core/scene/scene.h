@@ -68,11 +68,15 @@ struct MeshInstance {
   bool is_static = true;     // node extras {"lightlink": {"static": false}} marks it dynamic
   glm::mat4 world_from_mesh{1.0f};
 
+  // Vertices stay 1:1 with the glTF primitive's accessors (vertex i here is vertex i
+  // there), so a writer can add TEXCOORD_1 to the original file; only `indices` is edited.
   std::vector<glm::vec3> positions;  // world space
   std::vector<glm::vec3> normals;    // world space, unit length (generated when absent)
   std::vector<glm::vec2> uv0;        // TEXCOORD_0, empty if absent
   std::vector<glm::vec2> uv1;        // TEXCOORD_1 (lightmap UV), empty if absent
-  std::vector<std::uint32_t> indices;  // 3 per triangle, degenerate triangles already dropped
+  // 3 per triangle, counter-clockwise seen from the front in world space (mirrored
+  // instances already flipped), strips/fans triangulated, degenerate triangles dropped.
+  std::vector<std::uint32_t> indices;
   bool normals_generated = false;
 
   std::size_t triangleCount() const { return indices.size() / 3; }
@@ -98,6 +102,9 @@ struct Light {
 struct SceneStats {
   std::size_t triangles_in = 0;         // as read, before dropping degenerates
   std::size_t degenerate_dropped = 0;   // zero-area or repeated-index triangles removed
+  std::size_t vertices = 0;             // over all instances, as read
+  std::size_t instances_without_triangles = 0;  // (node, primitive) pairs left empty and removed
+  std::size_t normals_generated = 0;    // instances whose normals were generated
 };
 
 struct Scene {

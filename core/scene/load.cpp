@@ -1,0 +1,169 @@
+#include "core/scene/load.h"
+
+#include <algorithm>
+#include <cctype>
+#include <filesystem>
+#include <fstream>
+#include <limits>
+#include <map>
+#include <optional>
+#include <sstream>
+#include <string_view>
+
+#include <tiny_gltf.h>
+
+#include "core/scene/gltf_context.h"
+#include "core/scene/gltf_diagnose.h"
+#include "core/scene/gltf_lights.h"
+#include "core/scene/gltf_materials.h"
+#include "core/scene/gltf_nodes.h"
+#include "core/scene/gltf_primitive.h"
+#include "core/scene/gltf_structure.h"
+#include "core/scene/mesh_ops.h"
+
+namespace lightlink::scene {
+namespace {
+
+// Triangles smaller than (kDegenerateEdgeFraction * scene scale)^2 carry no light and
+// break normals and barycentric sampling downstream; they are dropped, not fatal.
+constexpr double kDegenerateEdgeFraction = 1e-7;
+
+// Binary (.glb) by the "glTF" magic or the extension, JSON (.gltf) by the extension or a
+// leading '{'; anything else (an .obj, an .fbx) is named as unsupported rather than
+// reported as malformed JSON.
+Expected<bool> isBinaryGltf(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  if (!in) return ioError("{}: cannot open the file for reading", path);
+  char head[64] = {};
+  in.read(head, sizeof(head));
+  const auto got = static_cast<std::size_t>(in.gcount());
+  if (got >= 4 && std::string_view(head, 4) == "glTF") return true;
+  std::string ext = std::filesystem::path(path).extension().string();
+  std::transform(ext.begin(), ext.end(), ext.begin(),
+                 [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
+  if (ext == ".glb") return true;
+  if (ext == ".gltf") return false;
+  for (std::size_t i = 0; i < got; ++i) {
+    if (head[i] == '{') return false;
+    if (!std::isspace(static_cast<unsigned char>(head[i]))) break;
+  }
+  return unsupported("{}: is not a glTF file (expected .gltf JSON or .glb binary; convert "
+                     "other formats to glTF 2.0 first)", path);
+}
+
+void addTinygltfWarnings(const std::string& path, const std::string& warn, Scene& scene) {
+  std::istringstream lines(warn);
+  std::string line;
+  while (std::getline(lines, line)) {
+    if (!line.empty()) {
+      scene.warnings.push_back(fmt::format("{}: tinygltf: {}", path, gltf::shortenTinygltfMessage(line)));
+    }
+  }
+}
+
+Status loadModel(const std::string& path, bool binary, const LoadOptions& options,
+                 tinygltf::Model& model, Scene& scene) {
+  tinygltf::TinyGLTF loader;
+  gltf::ImageDecodeState images;
+  images.model = &model;
+  images.decode = options.load_textures;
+  loader.SetImageLoader(&gltf::decodeImage, &images);
+  std::string err, warn;
+  const bool ok = binary ? loader.LoadBinaryFromFile(&model, &err, &warn, path)
+                         : loader.LoadASCIIFromFile(&model, &err, &warn, path);
+  if (!ok) {
+    if (!images.fatal.empty()) return invalidInput("{}: {}", path, images.fatal);
+    if (std::optional<Status> why = gltf::diagnoseLoadFailure(path, binary, err)) return *why;
+    const bool json_error = err.find("parse_error") != std::string::npos ||
+                            err.find("JSON") != std::string::npos;
+    return invalidInput("{}: {}{}", path, json_error ? "malformed JSON: " : "",
+                        gltf::shortenTinygltfMessage(err.empty() ? "tinygltf failed without a message" : err));
+  }
+  addTinygltfWarnings(path, warn, scene);
+  for (const std::string& problem : images.problems) {
+    scene.warnings.push_back(fmt::format("{}: {}", path, gltf::shortenTinygltfMessage(problem)));
+  }
+  return Status::ok();
+}
+
+Status buildGeometry(const gltf::Context& ctx, const std::vector<gltf::PlacedNode>& nodes) {
+  Scene& scene = ctx.scene;
+  for (const gltf::PlacedNode& placed : nodes) {
+    const int mesh = ctx.model.nodes[static_cast<std::size_t>(placed.node)].mesh;
+    if (mesh < 0) continue;
+    const auto& primitives = ctx.model.meshes[static_cast<std::size_t>(mesh)].primitives;
+    for (std::size_t p = 0; p < primitives.size(); ++p) {
+      Expected<MeshInstance> instance = gltf::buildInstance(ctx, placed, mesh, static_cast<int>(p));
+      if (!instance) return instance.status();
+      scene.stats.triangles_in += instance->triangleCount();
+      scene.stats.vertices += instance->positions.size();
+      scene.meshes.push_back(std::move(*instance));
+    }
+  }
+
+  Aabb all;
+  for (const MeshInstance& m : scene.meshes) {
+    for (std::uint32_t i : m.indices) all.grow(m.positions[i]);
+  }
+  const double edge = kDegenerateEdgeFraction * static_cast<double>(all.diagonal());
+  const double min_area_m2 = std::max(edge * edge, std::numeric_limits<double>::min());
+
+  std::map<int, std::size_t> dropped_per_mesh;
+  for (MeshInstance& m : scene.meshes) {
+    const std::size_t dropped = dropDegenerateTriangles(m, min_area_m2);
+    if (dropped > 0) dropped_per_mesh[m.gltf_mesh] += dropped;
+    scene.stats.degenerate_dropped += dropped;
+  }
+  for (const auto& [mesh, dropped] : dropped_per_mesh) {
+    ctx.warn(gltf::describeMesh(ctx.model, mesh),
+             fmt::format("{} degenerate triangles dropped (zero area below {:.3g} m^2 or a "
+                         "repeated index)", dropped, min_area_m2));
+  }
+  const auto empty = std::remove_if(scene.meshes.begin(), scene.meshes.end(),
+                                    [](const MeshInstance& m) { return m.indices.empty(); });
+  scene.stats.instances_without_triangles = static_cast<std::size_t>(scene.meshes.end() - empty);
+  scene.meshes.erase(empty, scene.meshes.end());
+  scene.stats.normals_generated = static_cast<std::size_t>(std::count_if(
+      scene.meshes.begin(), scene.meshes.end(), [](const MeshInstance& m) { return m.normals_generated; }));
+
+  if (scene.meshes.empty()) {
+    return ctx.invalid("scene", fmt::format("has no triangles ({} read, {} degenerate)",
+                                            scene.stats.triangles_in, scene.stats.degenerate_dropped));
+  }
+  scene.bounds = Aabb{};
+  for (const MeshInstance& m : scene.meshes) {
+    for (std::uint32_t i : m.indices) scene.bounds.grow(m.positions[i]);
+  }
+  scene.scale = scene.bounds.diagonal();
+  return Status::ok();
+}
+
+}  // namespace
+
+Expected<Scene> loadGltf(const std::string& path, const LoadOptions& options) {
+  std::error_code ec;
+  if (!std::filesystem::exists(path, ec)) return notFound("{}: file not found", path);
+  if (!std::filesystem::is_regular_file(path, ec)) {
+    return invalidInput("{}: is not a regular file", path);
+  }
+  Expected<bool> binary = isBinaryGltf(path);
+  if (!binary) return binary.status();
+
+  Scene scene;
+  scene.source_path = path;
+  tinygltf::Model model;
+  if (Status s = loadModel(path, *binary, options, model, scene); !s) return s;
+
+  const gltf::Context ctx{path, model, scene, options};
+  if (Status s = gltf::validateExtensions(ctx); !s) return s;
+  if (Status s = gltf::validateBufferViews(ctx); !s) return s;
+  Expected<std::vector<gltf::PlacedNode>> nodes = gltf::placeNodes(ctx);
+  if (!nodes) return nodes.status();
+  if (Status s = gltf::loadTextures(ctx); !s) return s;
+  if (Status s = gltf::loadMaterials(ctx); !s) return s;
+  if (Status s = buildGeometry(ctx, *nodes); !s) return s;
+  if (Status s = gltf::loadLights(ctx, *nodes); !s) return s;
+  return scene;
+}
+
+}  // namespace lightlink::scene

@@ -1,0 +1,77 @@
+#include <array>
+#include <cmath>
+
+#include "core/scene/scene.h"
+
+namespace lightlink::scene {
+namespace {
+
+constexpr int kRepeat = 10497;
+constexpr int kMirroredRepeat = 33648;  // anything else is CLAMP_TO_EDGE (33071)
+
+// sRGB EOTF (IEC 61966-2-1) for the 256 8-bit codes.
+const std::array<float, 256>& srgbToLinearTable() {
+  static const std::array<float, 256> table = [] {
+    std::array<float, 256> t{};
+    for (int i = 0; i < 256; ++i) {
+      const double c = i / 255.0;
+      t[static_cast<std::size_t>(i)] =
+          static_cast<float>(c <= 0.04045 ? c / 12.92 : std::pow((c + 0.055) / 1.055, 2.4));
+    }
+    return t;
+  }();
+  return table;
+}
+
+// Folds a texture coordinate into the range the wrap mode maps onto [0, 1] before it
+// is scaled to texels, so huge UVs cannot overflow the integer texel index.
+float foldCoordinate(float u, int wrap) {
+  if (!std::isfinite(u)) return 0.0f;
+  if (wrap == kRepeat) return u - std::floor(u);
+  if (wrap == kMirroredRepeat) return u - 2.0f * std::floor(0.5f * u);  // [0, 2)
+  return std::fmin(std::fmax(u, -1.0f), 2.0f);
+}
+
+int wrapTexel(int i, int n, int wrap) {
+  if (wrap == kRepeat) return ((i % n) + n) % n;
+  if (wrap == kMirroredRepeat) {
+    const int period = 2 * n;
+    const int k = ((i % period) + period) % period;
+    return k < n ? k : period - 1 - k;
+  }
+  return i < 0 ? 0 : (i >= n ? n - 1 : i);
+}
+
+}  // namespace
+
+glm::vec4 Texture::sampleSrgb(glm::vec2 uv) const {
+  // Not decoded (LoadOptions::load_textures = false, or an undecodable image): neutral
+  // white, so the material's factors apply alone.
+  if (width <= 0 || height <= 0 || rgba8.size() < static_cast<std::size_t>(width) * height * 4) {
+    return glm::vec4(1.0f);
+  }
+  const auto& lut = srgbToLinearTable();
+  const auto texel = [&](int x, int y) {
+    const std::size_t at = (static_cast<std::size_t>(y) * static_cast<std::size_t>(width) +
+                            static_cast<std::size_t>(x)) * 4;
+    return glm::vec4(lut[rgba8[at]], lut[rgba8[at + 1]], lut[rgba8[at + 2]], rgba8[at + 3] / 255.0f);
+  };
+  // Texel centres sit at (i + 0.5) / size, as in GL.
+  const float x = foldCoordinate(uv.x, wrap_s) * static_cast<float>(width) - 0.5f;
+  const float y = foldCoordinate(uv.y, wrap_t) * static_cast<float>(height) - 0.5f;
+  if (nearest) {
+    return texel(wrapTexel(static_cast<int>(std::floor(x + 0.5f)), width, wrap_s),
+                 wrapTexel(static_cast<int>(std::floor(y + 0.5f)), height, wrap_t));
+  }
+  const float fx = std::floor(x), fy = std::floor(y);
+  const float tx = x - fx, ty = y - fy;
+  const int x0 = static_cast<int>(fx), y0 = static_cast<int>(fy);
+  const int xa = wrapTexel(x0, width, wrap_s), xb = wrapTexel(x0 + 1, width, wrap_s);
+  const int ya = wrapTexel(y0, height, wrap_t), yb = wrapTexel(y0 + 1, height, wrap_t);
+  // Filter in linear space: decoding after averaging would darken edges.
+  const glm::vec4 top = glm::mix(texel(xa, ya), texel(xb, ya), tx);
+  const glm::vec4 bottom = glm::mix(texel(xa, yb), texel(xb, yb), tx);
+  return glm::mix(top, bottom, ty);
+}
+
+}  // namespace lightlink::scene
