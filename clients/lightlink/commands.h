@@ -3,6 +3,8 @@
 // (exit_codes.h). Keeping parsing apart from doing lets tests call commands directly.
 #pragma once
 
+#include <cstdint>
+#include <optional>
 #include <string>
 
 namespace lightlink::cli {
@@ -12,5 +14,35 @@ struct InspectArgs {
   bool json = false;
 };
 int runInspect(const InspectArgs& args);
+
+struct UnwrapArgs {
+  std::string scene_path;
+  std::string output_path;   // glTF with TEXCOORD_1
+  std::string preview_png;
+  std::string report_json;
+  std::optional<float> texel_size_m;
+  std::optional<int> resolution;
+  int gutter_texels = 2;
+  bool json = false;         // print the report as JSON instead of text
+};
+int runUnwrap(const UnwrapArgs& args);
+
+struct PrecomputeArgs {
+  std::string scene_path;
+  std::string output_path;   // .llk artifact
+  std::string report_json;
+  std::uint32_t surfels = 32768;
+  int links = 128;
+  int bands = 3;
+  int rays = 1024;
+  std::string hierarchy = "hac";  // fast | hac
+  std::string grid = "auto";      // auto | on | off
+  float grid_spacing_m = 0.0f;
+  std::optional<float> texel_size_m;
+  std::optional<int> resolution;
+  int subdivide = 0;              // split every triangle into 4^N first (scale tests)
+  bool quiet = false;
+};
+int runPrecompute(const PrecomputeArgs& args);
 
 }  // namespace lightlink::cli

@@ -1,4 +1,5 @@
-// lightlink: the command-line front end (inspect; later unwrap, precompute, bake, ...).
+// lightlink: the command-line front end. Parsing only: every subcommand is a run*()
+// function in its own file (commands.h), so CLI11 is compiled once, here.
 #include <CLI/CLI.hpp>
 
 #include "clients/lightlink/commands.h"
@@ -15,6 +16,35 @@ int main(int argc, char** argv) {
   inspect_cmd->add_option("scene", inspect.scene_path, "glTF scene (.gltf or .glb)")->required();
   inspect_cmd->add_flag("--json", inspect.json, "Print the summary as JSON");
 
+  UnwrapArgs unwrap;
+  auto* unwrap_cmd = app.add_subcommand("unwrap", "Generate lightmap UVs (TEXCOORD_1) and write the glTF back");
+  unwrap_cmd->add_option("scene", unwrap.scene_path, "glTF scene (.gltf or .glb)")->required();
+  unwrap_cmd->add_option("-o,--output", unwrap.output_path, "Output glTF with TEXCOORD_1 (.gltf or .glb)");
+  unwrap_cmd->add_option("--preview", unwrap.preview_png, "Write a PNG of the chart layout");
+  unwrap_cmd->add_option("--report", unwrap.report_json, "Write the quality report as JSON");
+  unwrap_cmd->add_option("--texel-size", unwrap.texel_size_m, "Metres of surface per texel");
+  unwrap_cmd->add_option("--resolution", unwrap.resolution, "Atlas width = height in texels (1..16384)");
+  unwrap_cmd->add_option("--gutter", unwrap.gutter_texels, "Empty texels between charts")->capture_default_str();
+  unwrap_cmd->add_flag("--json", unwrap.json, "Print the report as JSON");
+
+  PrecomputeArgs pre;
+  auto* pre_cmd = app.add_subcommand("precompute", "Surfels, hierarchy, caches and links into one artifact (.llk)");
+  pre_cmd->add_option("scene", pre.scene_path, "glTF scene (.gltf or .glb)")->required();
+  pre_cmd->add_option("-o,--output", pre.output_path, "Artifact to write (.llk)")->required();
+  pre_cmd->add_option("--report", pre.report_json, "Write the report (counts, times, memory) as JSON");
+  pre_cmd->add_option("--surfels", pre.surfels, "nS: number of surfels")->capture_default_str();
+  pre_cmd->add_option("--links", pre.links, "nL: most links per cache")->capture_default_str();
+  pre_cmd->add_option("--bands", pre.bands, "SH bands of the links (1..4)")->capture_default_str();
+  pre_cmd->add_option("--rays", pre.rays, "Link rays per cache")->capture_default_str();
+  pre_cmd->add_option("--hierarchy", pre.hierarchy, "Tree builder: fast (kd median) or hac")->capture_default_str();
+  pre_cmd->add_option("--grid", pre.grid, "Grid caches: auto (when dynamic meshes exist), on, off")
+      ->capture_default_str();
+  pre_cmd->add_option("--grid-spacing", pre.grid_spacing_m, "Grid spacing in metres (0 = 16 along the longest axis)");
+  pre_cmd->add_option("--texel-size", pre.texel_size_m, "Lightmap texel size in metres");
+  pre_cmd->add_option("--resolution", pre.resolution, "Lightmap resolution in texels");
+  pre_cmd->add_option("--subdivide", pre.subdivide, "Split every triangle into 4^N first (0..4)");
+  pre_cmd->add_flag("-q,--quiet", pre.quiet, "No progress bar, no summary");
+
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
@@ -22,5 +52,7 @@ int main(int argc, char** argv) {
     return code == 0 ? kExitOk : kExitUsage;
   }
   if (*inspect_cmd) return runInspect(inspect);
+  if (*unwrap_cmd) return runUnwrap(unwrap);
+  if (*pre_cmd) return runPrecompute(pre);
   return kExitUsage;
 }

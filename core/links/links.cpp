@@ -240,7 +240,7 @@ Expected<Links> generateLinks(const scene::Scene& scene, const rt::Accel& accel,
   std::vector<ChunkResult> results(chunks);
   NullProgress null_progress;
   Progress& sink = progress ? *progress : null_progress;
-  sink.begin("links", n);
+  sink.begin(options.progress_label, n);
   ProgressCounter counter(sink, std::max<std::size_t>(1, n / 200));
   tbb::parallel_for(std::size_t(0), chunks, [&](std::size_t chunk) {
     thread_local Scratch scratch;

@@ -48,6 +48,7 @@ struct LinkOptions {
   int max_links = 128;   // nL: most sender nodes per cache
   int bands = 3;         // SH bands of the projected form, 1..4
   std::uint64_t seed = 0x5eed;
+  const char* progress_label = "links";  // stage name shown by a Progress
 };
 
 // The caches to link: positions, and a unit normal for a hemisphere (lightmap) cache or a

@@ -131,11 +131,12 @@ Expected<Precomputation> run(scene::Scene& scene, const PrecomputeOptions& optio
   Progress& sink = progress ? *progress : null_progress;
   Precomputation p;
   p.options = options;
-  auto stage = [&](const char* name, auto&& body) -> Status {
+  // Stages that report their own progress (links) get no begin/end of their own here.
+  auto stage = [&](const char* name, auto&& body, bool self_reporting = false) -> Status {
     const auto t0 = Clock::now();
-    sink.begin(name, 0);
+    if (!self_reporting) sink.begin(name, 0);
     Status s = body();
-    sink.end();
+    if (!self_reporting) sink.end();
     p.timings.push_back({name, secondsSince(t0)});
     return s;
   };
@@ -212,18 +213,22 @@ Expected<Precomputation> run(scene::Scene& scene, const PrecomputeOptions& optio
   const links::LinkOptions link_options{
       .rays = options.rays, .max_links = options.links, .bands = options.bands, .seed = options.seed};
   s = stage("links", [&]() -> Status {
+    links::LinkOptions lm_options = link_options;
+    lm_options.progress_label = "links lightmap";
     auto lm = links::generateLinks(scene, *accel, p.surfels, p.tree, {p.lightmap.position, p.lightmap.normal},
-                                   link_options, &sink);
+                                   lm_options, &sink);
     if (!lm) return lm.status();
     p.lightmap_links = std::move(lm).value();
     if (p.has_grid) {
       const std::vector<glm::vec3> sphere(p.grid.size(), glm::vec3(0.0f));
-      auto g = links::generateLinks(scene, *accel, p.surfels, p.tree, {p.grid.position, sphere}, link_options, &sink);
+      links::LinkOptions grid_options = link_options;
+      grid_options.progress_label = "links grid";
+      auto g = links::generateLinks(scene, *accel, p.surfels, p.tree, {p.grid.position, sphere}, grid_options, &sink);
       if (!g) return g.status();
       p.grid_links = std::move(g).value();
     }
     return {};
-  });
+  }, /*self_reporting=*/true);
   if (!s) return s;
   return p;
 }

@@ -92,6 +92,43 @@ TEST(Inspect, MalformedGltfIsBadInputNamingTheFile) {
   EXPECT_NE(r.output.find("broken.gltf"), std::string::npos) << r.output;
 }
 
+TEST(Precompute, WritesAnArtifactAndAReport) {
+  testing::TempDir dir;
+  const auto artifact = dir / "demo.llk";
+  const auto report = dir / "report.json";
+  const auto r = runCommand(kCli + " precompute " + demoScene().string() + " -o " + artifact.string() +
+                            " --surfels 512 --links 16 --rays 64 --resolution 32 -q --report " + report.string());
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_TRUE(std::filesystem::exists(artifact));
+  const auto j = nlohmann::json::parse(readAll(report));
+  EXPECT_EQ(j["counts"]["surfels"], 512);
+  EXPECT_EQ(j["counts"]["lightmap_resolution"], 32);
+  EXPECT_GT(j["links"]["lightmap"]["rays_per_second"].get<double>(), 0.0);
+  EXPECT_EQ(j["triangles"], 112);
+}
+
+TEST(Precompute, BadParametersAreBadInputNamingTheOption) {
+  for (const std::string bad : {"--bands 9", "--hierarchy bogus", "--surfels 0", "--grid maybe",
+                                "--texel-size -1", "--subdivide 9"}) {
+    const auto r = runCommand(kCli + " precompute " + demoScene().string() + " -o /tmp/never.llk -q " + bad);
+    EXPECT_EQ(r.exit_code, cli::kExitBadInput) << bad << ": " << r.output;
+    EXPECT_NE(r.output.find(bad.substr(0, bad.find(' '))), std::string::npos) << bad << ": " << r.output;
+  }
+}
+
+TEST(Unwrap, WritesGltfWithLightmapUvs) {
+  testing::TempDir dir;
+  const auto out = dir / "box_lm.gltf";
+  const auto r = runCommand(kCli + " unwrap " + demoScene().string() + " -o " + out.string() + " --json");
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  const auto report = nlohmann::json::parse(r.output);
+  EXPECT_EQ(report["overlaps"], 0);
+  const auto inspect = runCommand(kCli + " inspect --json " + out.string());
+  ASSERT_EQ(inspect.exit_code, 0) << inspect.output;
+  const auto j = nlohmann::json::parse(inspect.output);
+  EXPECT_FALSE(j["lightmap_uv"]["unwrap_needed"].get<bool>());
+}
+
 TEST(Cli, UnknownSubcommandIsUsageError) {
   const auto r = runCommand(kCli + " frobnicate");
   EXPECT_EQ(r.exit_code, cli::kExitUsage) << r.output;

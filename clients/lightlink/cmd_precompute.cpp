@@ -1,0 +1,108 @@
+// `lightlink precompute`: scene -> surfels, tree, caches, links -> one artifact (.llk).
+#include <cstdio>
+#include <fstream>
+
+#include <fmt/format.h>
+
+#include "clients/lightlink/commands.h"
+#include "clients/lightlink/exit_codes.h"
+#include "clients/lightlink/progress_bar.h"
+#include "core/precompute/precompute.h"
+#include "core/scene/load.h"
+#include "core/scene/subdivide.h"
+
+namespace lightlink::cli {
+namespace {
+
+Expected<precompute::PrecomputeOptions> toOptions(const PrecomputeArgs& a) {
+  precompute::PrecomputeOptions o;
+  o.surfels = a.surfels;
+  o.links = a.links;
+  o.bands = a.bands;
+  o.rays = a.rays;
+  if (a.hierarchy == "hac") o.builder = hierarchy::Builder::kAgglomerative;
+  else if (a.hierarchy == "fast") o.builder = hierarchy::Builder::kKdMedian;
+  else return invalidInput("--hierarchy '{}' must be 'fast' or 'hac'", a.hierarchy);
+  if (a.grid == "auto") o.grid = precompute::GridMode::kAuto;
+  else if (a.grid == "on") o.grid = precompute::GridMode::kOn;
+  else if (a.grid == "off") o.grid = precompute::GridMode::kOff;
+  else return invalidInput("--grid '{}' must be 'auto', 'on' or 'off'", a.grid);
+  o.grid_spacing_m = a.grid_spacing_m;
+  o.texel_size_m = a.texel_size_m;
+  o.lightmap_resolution = a.resolution;
+  if (Status s = o.validate(); !s) return s;
+  return o;
+}
+
+std::string humanBytes(double b) {
+  const char* units[] = {"B", "KiB", "MiB", "GiB"};
+  int u = 0;
+  while (b >= 1024.0 && u < 3) {
+    b /= 1024.0;
+    ++u;
+  }
+  return fmt::format("{:.1f} {}", b, units[u]);
+}
+
+std::string formatReport(const nlohmann::ordered_json& r) {
+  std::string out;
+  const auto& c = r["counts"];
+  out += fmt::format("surfels      {}   tree nodes {} ({} levels)\n", c["surfels"].get<std::size_t>(),
+                     c["tree_nodes"].get<std::size_t>(), c["tree_levels"].get<std::size_t>());
+  out += fmt::format("lightmap     {}x{} texels of {:.4g} m, {} caches ({} valid, {} pushed)\n",
+                     c["lightmap_resolution"].get<int>(), c["lightmap_resolution"].get<int>(),
+                     c["texel_size_m"].get<double>(), c["lightmap_caches"].get<std::size_t>(),
+                     c["lightmap_caches_valid"].get<std::size_t>(), c["lightmap_caches_pushed"].get<std::size_t>());
+  out += fmt::format("grid         {} caches ({} valid)\n", c["grid_caches"].get<std::size_t>(),
+                     c["grid_caches_valid"].get<std::size_t>());
+  for (const char* set : {"lightmap", "grid"}) {
+    const auto& l = r["links"][set];
+    if (l["caches"].get<std::size_t>() == 0) continue;
+    out += fmt::format("links {:<7} {} ({:.1f}/cache), {} rays at {:.2f} Mrays/s\n", set, l["links"].get<std::size_t>(),
+                       l["mean_links_per_cache"].get<double>(), l["rays"].get<std::uint64_t>(),
+                       l["rays_per_second"].get<double>() * 1e-6);
+  }
+  out += "seconds     ";
+  for (const auto& [stage, s] : r["seconds"].items()) out += fmt::format(" {} {:.3f}", stage, s.get<double>());
+  out += "\nmemory      ";
+  for (const auto& [what, b] : r["memory_bytes"].items())
+    out += fmt::format(" {} {}", what, humanBytes(b.get<double>()));
+  out += "\n";
+  for (const auto& note : r["notes"]) out += fmt::format("note         {}\n", note.get<std::string>());
+  return out;
+}
+
+}  // namespace
+
+int runPrecompute(const PrecomputeArgs& args) {
+  auto options = toOptions(args);
+  if (!options) return reportError("precompute", options.status());
+  if (args.subdivide < 0 || args.subdivide > 4)
+    return reportError("precompute", invalidInput("--subdivide {} is out of range (0..4)", args.subdivide));
+  auto scene = scene::loadGltf(args.scene_path);
+  if (!scene) return reportError("precompute", scene.status());
+  if (args.subdivide > 0) scene::subdivide(*scene, args.subdivide);
+  auto key = precompute::cacheKeyFor(args.scene_path, *options);
+  if (!key) return reportError("precompute", key.status());
+  ProgressBar bar(!args.quiet);
+  auto p = precompute::run(*scene, *options, &bar);
+  if (!p) return reportError("precompute", p.status());
+  if (Status s = precompute::save(*p, args.output_path, *key); !s) return reportError("precompute", s);
+  auto report = p->report();
+  report["artifact"] = args.output_path;
+  report["cache_key"] = artifact::cacheKeyHex(*key);
+  report["scene"] = args.scene_path;
+  report["triangles"] = scene->triangleCount();
+  if (!args.report_json.empty()) {
+    std::ofstream out(args.report_json, std::ios::binary | std::ios::trunc);
+    out << report.dump(2) << "\n";
+    if (!out) return reportError("precompute", ioError("cannot write report {}", args.report_json));
+  }
+  if (!args.quiet) {
+    const std::string text = formatReport(report) + fmt::format("wrote        {}\n", args.output_path);
+    std::fwrite(text.data(), 1, text.size(), stdout);
+  }
+  return kExitOk;
+}
+
+}  // namespace lightlink::cli

@@ -1,0 +1,28 @@
+// `lightlink unwrap`: generate (or check) lightmap UVs and write the glTF back.
+#include <cstdio>
+
+#include <nlohmann/json.hpp>
+
+#include "clients/lightlink/commands.h"
+#include "clients/lightlink/exit_codes.h"
+#include "core/charts/unwrap_command.h"
+
+namespace lightlink::cli {
+
+int runUnwrap(const UnwrapArgs& args) {
+  charts::UnwrapCommand command;
+  command.input_path = args.scene_path;
+  command.output_path = args.output_path;
+  command.preview_png = args.preview_png;
+  command.report_json = args.report_json;
+  command.options.texel_size_m = args.texel_size_m;
+  command.options.resolution = args.resolution;
+  command.options.gutter_texels = args.gutter_texels;
+  auto report = charts::runUnwrap(command);
+  if (!report) return reportError("unwrap", report.status());
+  const std::string text = args.json ? report->toJson().dump(2) + "\n" : report->toText();
+  std::fwrite(text.data(), 1, text.size(), stdout);
+  return kExitOk;
+}
+
+}  // namespace lightlink::cli
