@@ -20,6 +20,11 @@ constexpr float kPi = std::numbers::pi_v<float>;
 // concatenated in the same order whatever the scheduling.
 constexpr std::size_t kChunk = 32;
 
+// Rays per cache form a strata x strata stratified grid.
+std::uint32_t strataFor(const LinkOptions& options) {
+  return static_cast<std::uint32_t>(std::max(1.0, std::floor(std::sqrt(double(options.rays)))));
+}
+
 struct Sample {
   std::uint32_t surfel;
   std::uint32_t ray;
@@ -98,22 +103,9 @@ void linkCache(std::size_t cache, const glm::vec3& p, const glm::vec3& normal, c
                ChunkResult& out) {
   const bool hemisphere = glm::dot(normal, normal) > 0.0f;
   const std::uint32_t count = strata * strata;
-  glm::vec3 t(1, 0, 0), b(0, 1, 0), n(0, 0, 1);
-  if (hemisphere) {
-    n = glm::normalize(normal);
-    orthonormalBasis(n, t, b);
-  }
-  const std::uint64_t seed = mixBits(options.seed ^ (std::uint64_t(cache) * 0xd1b54a32d192ed03ULL));
-  for (std::uint32_t i = 0; i < count; ++i) {
-    const glm::vec2 u = stratifiedSample(i, strata, seed);
-    const glm::vec3 local = hemisphere ? uniformHemisphere(u.x, u.y) : uniformSphere(u.x, u.y);
-    const glm::vec3 dir = glm::normalize(local.x * t + local.y * b + local.z * n);
-    s.dirs[i] = dir;
-    s.rays[i].origin = hemisphere ? accel.offsetOrigin(p, n, dir) : p;
-    s.rays[i].dir = dir;
-    s.rays[i].tnear = 0.0f;
-    s.rays[i].tfar = std::numeric_limits<float>::infinity();
-  }
+  const glm::vec3 n = hemisphere ? glm::normalize(normal) : glm::vec3(0, 0, 1);
+  cacheRays(accel, cache, p, normal, options, std::span<rt::Ray>(s.rays.data(), count));
+  for (std::uint32_t i = 0; i < count; ++i) s.dirs[i] = s.rays[i].dir;
   accel.intersect(std::span<const rt::Ray>(s.rays.data(), count), std::span<rt::Hit>(s.hits.data(), count),
                   rt::Coherence::kCoherent);
 
@@ -177,6 +169,33 @@ void linkCache(std::size_t cache, const glm::vec3& p, const glm::vec3& normal, c
 
 }  // namespace
 
+std::uint32_t raysPerCache(const LinkOptions& options) {
+  const std::uint32_t strata = strataFor(options);
+  return strata * strata;
+}
+
+void cacheRays(const rt::Accel& accel, std::size_t cache, const glm::vec3& p, const glm::vec3& normal,
+               const LinkOptions& options, std::span<rt::Ray> rays) {
+  const bool hemisphere = glm::dot(normal, normal) > 0.0f;
+  const std::uint32_t strata = strataFor(options);
+  const std::uint32_t count = strata * strata;
+  glm::vec3 t(1, 0, 0), b(0, 1, 0), n(0, 0, 1);
+  if (hemisphere) {
+    n = glm::normalize(normal);
+    orthonormalBasis(n, t, b);
+  }
+  const std::uint64_t seed = mixBits(options.seed ^ (std::uint64_t(cache) * 0xd1b54a32d192ed03ULL));
+  for (std::uint32_t i = 0; i < count; ++i) {
+    const glm::vec2 u = stratifiedSample(i, strata, seed);
+    const glm::vec3 local = hemisphere ? uniformHemisphere(u.x, u.y) : uniformSphere(u.x, u.y);
+    const glm::vec3 dir = glm::normalize(local.x * t + local.y * b + local.z * n);
+    rays[i].origin = hemisphere ? accel.offsetOrigin(p, n, dir) : p;
+    rays[i].dir = dir;
+    rays[i].tnear = 0.0f;
+    rays[i].tfar = std::numeric_limits<float>::infinity();
+  }
+}
+
 void capZonal(float omega, int bands, float* z) {
   const float cos_half = std::clamp(1.0f - omega / (2.0f * kPi), -1.0f, 1.0f);
   const auto zonal = sh::coneZonal(std::acos(cos_half));
@@ -234,7 +253,7 @@ Expected<Links> generateLinks(const scene::Scene& scene, const rt::Accel& accel,
 
   const auto start = std::chrono::steady_clock::now();
   const SurfelLocator locator(surfels);
-  const auto strata = static_cast<std::uint32_t>(std::max(1.0, std::floor(std::sqrt(double(options.rays)))));
+  const std::uint32_t strata = strataFor(options);
   const std::size_t n = caches.position.size();
   const std::size_t chunks = (n + kChunk - 1) / kChunk;
   std::vector<ChunkResult> results(chunks);

@@ -104,6 +104,13 @@ Expected<Links> generateLinks(const scene::Scene& scene, const rt::Accel& accel,
                               const CacheQuery& caches, const LinkOptions& options,
                               Progress* progress = nullptr);
 
+// The rays link generation traces for one cache (strata^2 of them, strata =
+// floor(sqrt(options.rays))): exposed so a benchmark can trace exactly the same rays through
+// the bare BVH and compare throughput. `rays.size()` must be at least strata^2.
+std::uint32_t raysPerCache(const LinkOptions& options);
+void cacheRays(const rt::Accel& accel, std::size_t cache, const glm::vec3& position, const glm::vec3& normal,
+               const LinkOptions& options, std::span<rt::Ray> rays);
+
 // Zonal SH coefficients z_l (l < bands) of the indicator of a spherical cap of solid angle
 // `omega` (sr) around +z, divided by pi: the runtime-projection link shape. Rotated to
 // direction d, coefficient (l, m) is z_l * sqrt(4 pi / (2l + 1)) * Y_lm(d).

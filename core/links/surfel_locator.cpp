@@ -10,7 +10,7 @@ namespace {
 constexpr std::size_t kMaxCells = std::size_t(1) << 22;
 }
 
-SurfelLocator::SurfelLocator(const surfels::Surfels& surfels) : surfels_(surfels) {
+SurfelLocator::SurfelLocator(const surfels::Surfels& surfels) {
   const std::size_t n = surfels.size();
   Aabb box;
   double area = 0.0;
@@ -26,7 +26,7 @@ SurfelLocator::SurfelLocator(const surfels::Surfels& surfels) : surfels_(surfels
   // the true owner inside the 27-cell neighbourhood even after relaxation.
   const float spacing = static_cast<float>(std::sqrt(area / static_cast<double>(n)));
   const glm::vec3 extent = glm::max(box.extent(), glm::vec3(1e-6f));
-  cell_ = std::max(2.0f * spacing, 1e-6f * glm::length(extent));
+  cell_ = std::max(spacing, 1e-6f * glm::length(extent));
   for (;;) {
     dims_ = glm::max(glm::ivec3(glm::ceil(extent / cell_)), glm::ivec3(1));
     if (std::size_t(dims_.x) * dims_.y * dims_.z <= kMaxCells) break;
@@ -46,6 +46,12 @@ SurfelLocator::SurfelLocator(const surfels::Surfels& surfels) : surfels_(surfels
   ids_.resize(n);
   std::vector<std::uint32_t> fill(cell_begin_.begin(), cell_begin_.end() - 1);
   for (std::size_t i = 0; i < n; ++i) ids_[fill[cell_of[i]]++] = static_cast<std::uint32_t>(i);
+  cell_position_.resize(n);
+  cell_normal_.resize(n);
+  for (std::size_t k = 0; k < n; ++k) {
+    cell_position_[k] = surfels.position[ids_[k]];
+    cell_normal_[k] = surfels.normal[ids_[k]];
+  }
 }
 
 glm::ivec3 SurfelLocator::cellOf(const glm::vec3& p) const {
@@ -64,19 +70,18 @@ std::uint32_t SurfelLocator::search(const glm::vec3& p, const glm::vec3& n, int 
       const std::size_t row = (std::size_t(z) * dims_.y + y) * dims_.x;
       const std::uint32_t begin = cell_begin_[row + lo.x], end = cell_begin_[row + hi.x + 1];
       for (std::uint32_t k = begin; k < end; ++k) {
-        const std::uint32_t s = ids_[k];
-        if (glm::dot(surfels_.normal[s], n) < min_cos) continue;
-        const glm::vec3 d = surfels_.position[s] - p;
+        if (glm::dot(cell_normal_[k], n) < min_cos) continue;
+        const glm::vec3 d = cell_position_[k] - p;
         const float d2 = glm::dot(d, d);
         // The scan order is fixed (cells, then ids), so ties resolve the same way every run.
         if (d2 < best_d2) {
           best_d2 = d2;
-          best = s;
+          best = k;
         }
       }
     }
   }
-  return best;
+  return best == kNoSurfel ? kNoSurfel : ids_[best];
 }
 
 std::uint32_t SurfelLocator::owner(const glm::vec3& p, const glm::vec3& n) const {

@@ -5,7 +5,8 @@
 // set, so the owner is the nearest surfel on the same side of the same surface: the
 // nearest one whose normal agrees with the hit's shading side. A dense uniform grid over
 // the surfels (cell ~2 surfel spacings, CSR layout: one offsets array, one id array) makes
-// the query a scan of 27 cells of a few surfels each, with no allocation per query.
+// the query a scan of 27 cells of a few surfels each, with no allocation per query. The
+// locator copies what it needs; the Surfels may go away after construction.
 #pragma once
 
 #include <cstdint>
@@ -34,13 +35,16 @@ class SurfelLocator {
   glm::ivec3 cellOf(const glm::vec3& p) const;
   std::uint32_t search(const glm::vec3& p, const glm::vec3& n, int radius, float min_cos) const;
 
-  const surfels::Surfels& surfels_;
   glm::vec3 origin_{0.0f};
   float cell_ = 1.0f;
   float inv_cell_ = 1.0f;
   glm::ivec3 dims_{1};
   std::vector<std::uint32_t> cell_begin_;  // size cells + 1
   std::vector<std::uint32_t> ids_;         // surfel ids grouped by cell, ascending within a cell
+  // Positions and normals in the same cell order: a query scans contiguous memory instead
+  // of gathering from the surfel arrays (the owner lookup runs once per link ray).
+  std::vector<glm::vec3> cell_position_;
+  std::vector<glm::vec3> cell_normal_;
 };
 
 }  // namespace lightlink::links

@@ -1,0 +1,149 @@
+// precompute_bench: issue 4's figures in one run per scene.
+//
+//  - time per precompute stage and memory per structure (seed 000 Table 4);
+//  - link generation throughput as a ratio to raw Embree throughput on the *same rays*
+//    (links::cacheRays regenerates exactly the rays link generation traced), measured in the
+//    same process right after the precompute (target >= 0.7);
+//  - HAC build time vs kd build time on the same surfels.
+// Usage: precompute_bench [--scene F] [--subdivide N] [--surfels N] [--links N] [--bands B]
+//                         [--rays N] [--resolution R] [--hierarchy hac|fast] [--json OUT]
+#include <chrono>
+#include <cstdio>
+#include <cstring>
+#include <fstream>
+#include <string>
+#include <thread>
+
+#include <fmt/format.h>
+#include <nlohmann/json.hpp>
+#include <tbb/info.h>
+
+#include "bench/rt/throughput.h"
+#include "core/precompute/precompute.h"
+#include "core/scene/load.h"
+#include "core/scene/subdivide.h"
+
+namespace {
+
+using namespace lightlink;
+
+struct Args {
+  std::string scene;
+  std::string json;
+  int subdivide = 0;
+  precompute::PrecomputeOptions options;
+};
+
+bool parse(int argc, char** argv, Args& a) {
+  a.scene = std::string(LIGHTLINK_SOURCE_DIR) + "/clients/demo/cornell_box.gltf";
+  a.options.lightmap_resolution = 128;  // "medium": ~10k lightmap caches on the shared scenes
+  for (int i = 1; i < argc; ++i) {
+    const std::string k = argv[i];
+    if (i + 1 >= argc) return false;
+    const char* v = argv[++i];
+    if (k == "--scene") a.scene = v;
+    else if (k == "--json") a.json = v;
+    else if (k == "--subdivide") a.subdivide = std::stoi(v);
+    else if (k == "--surfels") a.options.surfels = static_cast<std::uint32_t>(std::stoul(v));
+    else if (k == "--links") a.options.links = std::stoi(v);
+    else if (k == "--bands") a.options.bands = std::stoi(v);
+    else if (k == "--rays") a.options.rays = std::stoi(v);
+    else if (k == "--resolution") a.options.lightmap_resolution = std::stoi(v);
+    else if (k == "--hierarchy")
+      a.options.builder = std::strcmp(v, "fast") == 0 ? hierarchy::Builder::kKdMedian : hierarchy::Builder::kAgglomerative;
+    else return false;
+  }
+  return true;
+}
+
+std::string cpuModel() {
+  std::ifstream in("/proc/cpuinfo");
+  std::string line;
+  while (std::getline(in, line))
+    if (line.rfind("model name", 0) == 0) return line.substr(line.find(':') + 2);
+  return "unknown";
+}
+
+double seconds(std::chrono::steady_clock::time_point t0) {
+  return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  Args args;
+  if (!parse(argc, argv, args)) {
+    std::fprintf(stderr, "usage: precompute_bench [--scene F] [--subdivide N] [--surfels N] [--links N] "
+                         "[--bands B] [--rays N] [--resolution R] [--hierarchy hac|fast] [--json OUT]\n");
+    return 1;
+  }
+  auto scene = scene::loadGltf(args.scene);
+  if (!scene) {
+    std::fprintf(stderr, "%s\n", scene.status().toString().c_str());
+    return 2;
+  }
+  scene::subdivide(*scene, args.subdivide);
+  const std::size_t triangles = scene->triangleCount();
+  auto p = precompute::run(*scene, args.options);
+  if (!p) {
+    std::fprintf(stderr, "%s\n", p.status().toString().c_str());
+    return 2;
+  }
+  auto report = p->report();
+
+  // Raw Embree on the same rays: every ray the lightmap links traced, 16-ray packets, all
+  // threads, the same BVH build options as precompute.
+  auto accel = rt::Accel::build(*scene);
+  const links::LinkOptions lo{.rays = args.options.rays, .max_links = args.options.links,
+                              .bands = args.options.bands, .seed = args.options.seed};
+  const std::uint32_t per_cache = links::raysPerCache(lo);
+  std::vector<rt::Ray> rays(std::size_t(per_cache) * p->lightmap.size());
+  for (std::size_t c = 0; c < p->lightmap.size(); ++c)
+    links::cacheRays(*accel, c, p->lightmap.position[c], p->lightmap.normal[c], lo,
+                     std::span<rt::Ray>(rays.data() + c * per_cache, per_cache));
+  bench::ThroughputOptions to;
+  to.api = bench::RayApi::kPacket16;
+  to.threads = 0;
+  to.chunk = per_cache * 32;  // link generation's chunk of 32 caches
+  const auto raw = bench::measureThroughput(*accel, rays, to);
+  const double link_rps = report["links"]["lightmap"]["rays_per_second"].get<double>();
+  const double raw_rps = raw.raysPerSecond();
+
+  // Tree builders on the same surfels.
+  surfels::Surfels copy = p->surfels;
+  auto t0 = std::chrono::steady_clock::now();
+  auto kd = hierarchy::buildTree(copy, {.builder = hierarchy::Builder::kKdMedian});
+  const double kd_s = seconds(t0);
+  copy = p->surfels;
+  t0 = std::chrono::steady_clock::now();
+  auto hac = hierarchy::buildTree(copy, {.builder = hierarchy::Builder::kAgglomerative});
+  const double hac_s = seconds(t0);
+
+  nlohmann::ordered_json j;
+  j["machine"] = {{"cpu", cpuModel()}, {"threads", tbb::info::default_concurrency()}};
+  j["scene"] = args.scene;
+  j["subdivide"] = args.subdivide;
+  j["triangles"] = triangles;
+  j["precompute"] = report;
+  j["link_generation_vs_raw_embree"] = {{"rays", rays.size()},
+                                        {"link_rays_per_second", link_rps},
+                                        {"raw_rays_per_second", raw_rps},
+                                        {"ratio", raw_rps > 0 ? link_rps / raw_rps : 0.0}};
+  j["tree_build_seconds"] = {{"kd", kd_s}, {"hac", hac_s}, {"hac_over_kd", kd_s > 0 ? hac_s / kd_s : 0.0},
+                             {"ok", bool(kd) && bool(hac)}};
+  const auto& t = report["seconds"];
+  fmt::print("scene {} ({} triangles, subdivide {}) on {} x {}\n", args.scene, triangles, args.subdivide, cpuModel(),
+             tbb::info::default_concurrency());
+  fmt::print("caches: {} lightmap, {} grid; surfels {}; links/cache {:.1f}\n",
+             report["counts"]["lightmap_caches"].get<std::size_t>(), report["counts"]["grid_caches"].get<std::size_t>(),
+             report["counts"]["surfels"].get<std::size_t>(),
+             report["links"]["lightmap"]["mean_links_per_cache"].get<double>());
+  for (const auto& [stage, s] : t.items()) fmt::print("  {:<10} {:8.3f} s\n", stage, s.get<double>());
+  fmt::print("link rays/s {:.3g}, raw Embree on the same rays {:.3g}: ratio {:.2f}\n", link_rps, raw_rps,
+             raw_rps > 0 ? link_rps / raw_rps : 0.0);
+  fmt::print("tree build: kd {:.3f} s, hac {:.3f} s ({:.1f}x)\n", kd_s, hac_s, kd_s > 0 ? hac_s / kd_s : 0.0);
+  for (const auto& [what, b] : report["memory_bytes"].items())
+    fmt::print("  mem {:<26} {:10.2f} MiB\n", what, b.get<double>() / (1024.0 * 1024.0));
+  if (!args.json.empty()) std::ofstream(args.json) << j.dump(2) << "\n";
+  return 0;
+}

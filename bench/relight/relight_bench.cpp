@@ -1,0 +1,306 @@
+// relight_bench: issue 5's figures in one run per scene (DESIGN.md sec 11).
+//
+//  - per relight stage, median over repeated full relights, for both link forms and 2/3/4
+//    output bands (projected form: only up to the links' bands);
+//  - cache lighting as a ratio to a plain read loop over the same link bytes, same caches,
+//    same TBB chunks, same run (target <= 2x), scalar and AVX2 kernels;
+//  - an incremental relight (one point light with a range moved) and a relight with bounces.
+// The scene gets a directional light ("sun") when it has none, so that zdm2 (no lights of
+// its own) is lit. Usage:
+//   relight_bench [--scene F] [--surfels N] [--links N] [--bands B] [--rays N]
+//                 [--resolution R] [--repeats N] [--sky L] [--json OUT]
+#include <algorithm>
+#include <chrono>
+#include <cstdio>
+#include <fstream>
+#include <map>
+#include <random>
+#include <string>
+
+#include <fmt/format.h>
+#include <nlohmann/json.hpp>
+#include <tbb/blocked_range.h>
+#include <tbb/info.h>
+#include <tbb/parallel_for.h>
+#include <tbb/parallel_reduce.h>
+
+#include "core/precompute/precompute.h"
+#include "core/relight/cache_lighting.h"
+#include "core/relight/relight.h"
+#include "core/scene/load.h"
+
+namespace {
+
+using namespace lightlink;
+using Clock = std::chrono::steady_clock;
+
+struct Args {
+  std::string scene;
+  std::string json;
+  int repeats = 15;
+  float sky = 0.0f;
+  precompute::PrecomputeOptions options;
+};
+
+bool parse(int argc, char** argv, Args& a) {
+  a.scene = std::string(LIGHTLINK_SOURCE_DIR) + "/clients/demo/cornell_box.gltf";
+  a.options.lightmap_resolution = 128;
+  for (int i = 1; i < argc; ++i) {
+    const std::string k = argv[i];
+    if (i + 1 >= argc) return false;
+    const char* v = argv[++i];
+    if (k == "--scene") a.scene = v;
+    else if (k == "--json") a.json = v;
+    else if (k == "--surfels") a.options.surfels = static_cast<std::uint32_t>(std::stoul(v));
+    else if (k == "--links") a.options.links = std::stoi(v);
+    else if (k == "--bands") a.options.bands = std::stoi(v);
+    else if (k == "--rays") a.options.rays = std::stoi(v);
+    else if (k == "--resolution") a.options.lightmap_resolution = std::stoi(v);
+    else if (k == "--repeats") a.repeats = std::max(1, std::stoi(v));
+    else if (k == "--sky") a.sky = std::stof(v);
+    else return false;
+  }
+  return true;
+}
+
+std::string cpuModel() {
+  std::ifstream in("/proc/cpuinfo");
+  std::string line;
+  while (std::getline(in, line))
+    if (line.rfind("model name", 0) == 0) return line.substr(line.find(':') + 2);
+  return "unknown";
+}
+
+double median(std::vector<double> v) {
+  if (v.empty()) return 0.0;
+  std::sort(v.begin(), v.end());
+  return v[v.size() / 2];
+}
+
+double seconds(Clock::time_point t0) { return std::chrono::duration<double>(Clock::now() - t0).count(); }
+
+// Median seconds of `body` over `repeats` runs after one warm-up.
+template <typename F>
+double timeMedian(int repeats, F&& body) {
+  body();
+  std::vector<double> t;
+  for (int r = 0; r < repeats; ++r) {
+    const auto t0 = Clock::now();
+    body();
+    t.push_back(seconds(t0));
+  }
+  return median(t);
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  Args args;
+  if (!parse(argc, argv, args)) {
+    std::fprintf(stderr, "usage: relight_bench [--scene F] [--surfels N] [--links N] [--bands B] [--rays N] "
+                         "[--resolution R] [--repeats N] [--sky L] [--json OUT]\n");
+    return 1;
+  }
+  auto scene = scene::loadGltf(args.scene);
+  if (!scene) {
+    std::fprintf(stderr, "%s\n", scene.status().toString().c_str());
+    return 2;
+  }
+  const auto t_pre = Clock::now();
+  auto p = precompute::run(*scene, args.options);
+  if (!p) {
+    std::fprintf(stderr, "%s\n", p.status().toString().c_str());
+    return 2;
+  }
+  const double precompute_s = seconds(t_pre);
+  auto accel = rt::Accel::build(*scene);
+  if (!accel) {
+    std::fprintf(stderr, "%s\n", accel.status().toString().c_str());
+    return 2;
+  }
+  auto relighter = relight::Relighter::create(*scene, *accel, *p);
+  if (!relighter) {
+    std::fprintf(stderr, "%s\n", relighter.status().toString().c_str());
+    return 2;
+  }
+
+  relight::LightSet lights = relight::LightSet::fromScene(*scene);
+  if (lights.lights().empty()) {
+    relight::LightEntry sun;
+    sun.id = "sun";
+    sun.light.kind = scene::Light::Kind::kDirectional;
+    sun.light.direction = glm::normalize(glm::vec3(-0.3f, -1.0f, -0.2f));
+    sun.light.intensity = 10.0f;  // lux
+    if (Status s = lights.add(sun); !s) return 2;
+  }
+  if (args.sky > 0.0f) {
+    relight::Sky sky;
+    sky.radiance = glm::vec3(args.sky);
+    if (Status s = lights.setSky(sky); !s) return 2;
+  }
+
+  nlohmann::ordered_json j;
+  j["machine"] = {{"cpu", cpuModel()}, {"threads", tbb::info::default_concurrency()},
+                  {"avx2_f16c", relight::Relighter::simdAvailable()}};
+  j["scene"] = args.scene;
+  j["triangles"] = scene->triangleCount();
+  j["precompute_seconds"] = precompute_s;
+  j["counts"] = p->report()["counts"];
+  const auto& lm = p->lightmap_links;
+  fmt::print("scene {} ({} triangles) on {} x {}\n", args.scene, scene->triangleCount(), cpuModel(),
+             tbb::info::default_concurrency());
+  fmt::print("surfels {}, lightmap caches {} ({} valid), grid caches {}, links {} ({:.1f}/cache), link bands {}\n",
+             p->surfels.size(), p->lightmap.size(), p->lightmap.validCount(), p->grid.size(), lm.linkCount(),
+             lm.cacheCount() ? double(lm.linkCount()) / lm.cacheCount() : 0.0, lm.bands);
+  fmt::print("precompute {:.2f} s; lights {}; repeats {} (medians)\n\n", precompute_s, lights.lights().size(),
+             args.repeats);
+
+  // ---- full relights per link form and band count ------------------------------------
+  j["relight"] = nlohmann::ordered_json::array();
+  fmt::print("{:<10} {:>5} {:>9} {:>9} {:>9} {:>10} {:>9} {:>9} {:>9}\n", "form", "bands", "direct", "emission",
+             "pull", "caches", "fill", "baked", "total ms");
+  for (relight::LinkForm form : {relight::LinkForm::kProjected, relight::LinkForm::kRuntime})
+    for (int bands : {2, 3, 4}) {
+      if (form == relight::LinkForm::kProjected && bands > lm.bands) continue;
+      const relight::RelightOptions o{.link_form = form, .bands = bands, .max_bounces = 0};
+      std::map<std::string, std::vector<double>> stage;
+      std::vector<double> total;
+      for (int r = 0; r <= args.repeats; ++r) {
+        relighter->invalidate();
+        auto res = relighter->relight(lights, o);
+        if (!res) {
+          std::fprintf(stderr, "%s\n", res.status().toString().c_str());
+          return 2;
+        }
+        if (r == 0) continue;  // warm-up
+        for (const auto& s : res->timings) stage[s.stage].push_back(s.seconds);
+        total.push_back(res->totalSeconds());
+      }
+      nlohmann::ordered_json row;
+      row["form"] = form == relight::LinkForm::kProjected ? "projected" : "runtime";
+      row["bands"] = bands;
+      for (auto& [name, v] : stage) row["ms"][name] = median(v) * 1e3;
+      row["ms"]["total"] = median(total) * 1e3;
+      auto ms = [&](const char* s) { return stage.count(s) ? median(stage[s]) * 1e3 : 0.0; };
+      fmt::print("{:<10} {:>5} {:>9.3f} {:>9.3f} {:>9.3f} {:>10.3f} {:>9.3f} {:>9.3f} {:>9.3f}\n",
+                 row["form"].get<std::string>(), bands, ms("surfel_direct"), ms("emission"), ms("pull"),
+                 ms("cache_lighting"), ms("fill_dilate"), ms("baked_direct"), median(total) * 1e3);
+      j["relight"].push_back(row);
+    }
+
+  // ---- cache lighting vs a plain read of the same link bytes -------------------------
+  {
+    const std::size_t nodes = p->tree.nodeCount();
+    std::vector<float> r(nodes), g(nodes), b(nodes);
+    std::mt19937 rng(7);
+    std::uniform_real_distribution<float> u(0.0f, 2.0f);
+    for (std::size_t n = 0; n < nodes; ++n) r[n] = u(rng), g[n] = u(rng), b[n] = u(rng);
+    const relight::detail::NodeRadiance node{r.data(), g.data(), b.data()};
+    const links::LinksView view = lm.view();
+    const std::size_t caches = view.cacheCount();
+    const int nc = view.bands * view.bands;
+    std::vector<float> out(caches * 3 * nc);
+    constexpr std::size_t kChunk = 64;  // the relight's cache chunk
+    auto runKernel = [&](auto kernel) {
+      tbb::parallel_for(tbb::blocked_range<std::size_t>(0, caches, kChunk), [&](const auto& rr) {
+        for (std::size_t c = rr.begin(); c < rr.end(); ++c) kernel(view, c, view.bands, node, out.data() + c * 3 * nc);
+      });
+    };
+    std::uint64_t sink = 0;
+    auto runStream = [&](bool projected) {
+      sink += tbb::parallel_reduce(
+          tbb::blocked_range<std::size_t>(0, caches, kChunk), std::uint64_t(0),
+          [&](const auto& rr, std::uint64_t acc) {
+            return acc + relight::detail::streamLinkBytes(view, rr.begin(), rr.end(), projected);
+          },
+          std::plus<>());
+    };
+    const double links_n = double(view.linkCount());
+    const double bytes_proj = links_n * (4.0 + 2.0 * nc);
+    const double bytes_rt = links_n * 10.0;
+    const double t_read_proj = timeMedian(args.repeats, [&] { runStream(true); });
+    const double t_read_rt = timeMedian(args.repeats, [&] { runStream(false); });
+    nlohmann::ordered_json k;
+    fmt::print("\ncache lighting kernels over {} caches, {} links ({} bands): time / plain read of the same bytes\n",
+               caches, view.linkCount(), view.bands);
+    fmt::print("  plain read: projected {:.3f} ms ({:.2f} GB/s), runtime {:.3f} ms ({:.2f} GB/s)\n", t_read_proj * 1e3,
+               bytes_proj / t_read_proj * 1e-9, t_read_rt * 1e3, bytes_rt / t_read_rt * 1e-9);
+    k["read_ms"] = {{"projected", t_read_proj * 1e3}, {"runtime", t_read_rt * 1e3}};
+    k["bytes"] = {{"projected", bytes_proj}, {"runtime", bytes_rt}};
+    struct Variant {
+      const char* name;
+      void (*fn)(const links::LinksView&, std::size_t, int, const relight::detail::NodeRadiance&, float*);
+      bool projected;
+      bool simd;
+    };
+    const Variant variants[] = {
+        {"projected_scalar", relight::detail::lightCacheProjectedScalar, true, false},
+        {"projected_avx2", relight::detail::lightCacheProjectedAvx2, true, true},
+        {"runtime_scalar", relight::detail::lightCacheRuntimeScalar, false, false},
+        {"runtime_avx2", relight::detail::lightCacheRuntimeAvx2, false, true}};
+    for (const auto& v : variants) {
+      if (v.simd && !relight::Relighter::simdAvailable()) continue;
+      const double t = timeMedian(args.repeats, [&] { runKernel(v.fn); });
+      const double read = v.projected ? t_read_proj : t_read_rt;
+      fmt::print("  {:<17} {:8.3f} ms  {:6.2f} x read  {:7.1f} Mlinks/s\n", v.name, t * 1e3, t / read,
+                 links_n / t * 1e-6);
+      k[v.name] = {{"ms", t * 1e3}, {"ratio_to_read", t / read}, {"links_per_second", links_n / t}};
+    }
+    float check = 0.0f;
+    for (float x : out) check += x;
+    k["checksum"] = double(check) + double(sink % 1000);
+    j["cache_lighting_vs_read"] = k;
+  }
+
+  // ---- incremental: one point light with a range, moved ---------------------------------
+  {
+    relight::LightSet inc = lights;
+    relight::LightEntry lamp;
+    lamp.id = "bench_lamp";
+    lamp.light.kind = scene::Light::Kind::kPoint;
+    lamp.light.position = scene->bounds.center();
+    lamp.light.range = 0.1f * scene->scale;
+    lamp.light.intensity = 100.0f;
+    if (Status s = inc.add(lamp); !s) return 2;
+    const relight::RelightOptions o{.max_bounces = 0};
+    relighter->invalidate();
+    auto full = relighter->relight(inc, o);
+    if (!full) return 2;
+    std::vector<double> t;
+    std::size_t lit = 0, pulled = 0, summed = 0;
+    for (int r = 0; r < args.repeats; ++r) {
+      lamp.light.position.x += 0.002f * scene->scale * ((r & 1) ? -1.0f : 1.0f);
+      if (Status s = inc.modify(lamp); !s) return 2;
+      auto res = relighter->relight(inc, o);
+      if (!res || !res->passes.incremental) return 3;
+      t.push_back(res->totalSeconds());
+      lit = res->counts.surfels_lit, pulled = res->counts.nodes_pulled, summed = res->counts.caches_summed;
+    }
+    fmt::print("\nincremental (point light, range {:.2f} m, moved): {:.3f} ms vs full {:.3f} ms; surfels {}/{}, "
+               "nodes {}/{}, caches {}/{}\n",
+               lamp.light.range, median(t) * 1e3, full->totalSeconds() * 1e3, lit, full->counts.surfels, pulled,
+               full->counts.nodes, summed, full->counts.caches);
+    j["incremental"] = {{"ms", median(t) * 1e3},     {"full_ms", full->totalSeconds() * 1e3},
+                        {"surfels_lit", lit},        {"surfels", full->counts.surfels},
+                        {"nodes_pulled", pulled},    {"nodes", full->counts.nodes},
+                        {"caches_summed", summed},   {"caches", full->counts.caches}};
+  }
+
+  // ---- bounces ------------------------------------------------------------------------------
+  {
+    relighter->invalidate();
+    auto res = relighter->relight(lights, {.max_bounces = 8});
+    if (!res) return 2;
+    fmt::print("\nbounces: {} ({}), total {:.3f} ms\n", res->bounce_log.size(), res->bounce_stop,
+               res->totalSeconds() * 1e3);
+    for (const auto& b : res->bounce_log)
+      fmt::print("  bounce {}: added {:.4g} of {:.4g} ({:.2e}), {:.3f} ms\n", b.bounce, b.added_flux, b.total_flux,
+                 b.total_flux > 0 ? b.added_flux / b.total_flux : 0.0, b.seconds * 1e3);
+    j["bounces"] = res->report()["bounces"];
+    j["bounce_stop"] = res->bounce_stop;
+    j["bounce_total_ms"] = res->totalSeconds() * 1e3;
+    fmt::print("\n{}", res->plan.toText());
+  }
+  if (!args.json.empty()) std::ofstream(args.json) << j.dump(2) << "\n";
+  return 0;
+}
