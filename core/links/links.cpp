@@ -131,7 +131,7 @@ void linkCache(std::size_t cache, const glm::vec3& p, const glm::vec3& normal, c
     const glm::vec3 hit_p = s.rays[i].origin + h.t * s.dirs[i];
     // The visible side's normal faces the cache.
     const glm::vec3 ng = glm::normalize(back ? -h.ng : h.ng);
-    const std::uint32_t owner = locator.owner(hit_p, ng);
+    const std::uint32_t owner = locator.ownerOfHit(h.mesh, h.triangle, hit_p, ng);
     if (owner == kNoSurfel) {
       ++out.stats.unowned;
       continue;
@@ -252,7 +252,7 @@ Expected<Links> generateLinks(const scene::Scene& scene, const rt::Accel& accel,
     return invalidInput("links: the tree covers {} surfels but {} were given", tree.surfelCount(), surfels.size());
 
   const auto start = std::chrono::steady_clock::now();
-  const SurfelLocator locator(surfels);
+  const SurfelLocator locator(surfels, scene);
   const std::uint32_t strata = strataFor(options);
   const std::size_t n = caches.position.size();
   const std::size_t chunks = (n + kChunk - 1) / kChunk;

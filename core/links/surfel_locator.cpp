@@ -10,7 +10,7 @@ namespace {
 constexpr std::size_t kMaxCells = std::size_t(1) << 22;
 }
 
-SurfelLocator::SurfelLocator(const surfels::Surfels& surfels) {
+SurfelLocator::SurfelLocator(const surfels::Surfels& surfels, const scene::Scene& scene) {
   const std::size_t n = surfels.size();
   Aabb box;
   double area = 0.0;
@@ -52,6 +52,61 @@ SurfelLocator::SurfelLocator(const surfels::Surfels& surfels) {
     cell_position_[k] = surfels.position[ids_[k]];
     cell_normal_[k] = surfels.normal[ids_[k]];
   }
+  buildTriangleLists(surfels, scene);
+}
+
+void SurfelLocator::buildTriangleLists(const surfels::Surfels& surfels, const scene::Scene& scene) {
+  const std::size_t meshes = scene.meshes.size();
+  mesh_first_.assign(meshes + 1, 0);
+  for (std::size_t m = 0; m < meshes; ++m)
+    mesh_first_[m + 1] = mesh_first_[m] + static_cast<std::uint32_t>(scene.meshes[m].triangleCount());
+  const std::uint32_t tris = mesh_first_.back();
+  std::vector<std::uint32_t> count(tris, 0);
+  const std::size_t n = surfels.size();
+  for (std::size_t i = 0; i < n; ++i) {
+    if (surfels.mesh[i] >= meshes) continue;
+    ++count[mesh_first_[surfels.mesh[i]] + surfels.triangle[i]];
+  }
+  tri_use_grid_.assign(tris, 0);
+  tri_begin_.assign(tris + 1, 0);
+  for (std::uint32_t t = 0; t < tris; ++t) {
+    std::uint32_t c = count[t];
+    if (c > kTriangleListMax) {
+      tri_use_grid_[t] = 1;
+      c = 0;
+    }
+    // An empty triangle gets one entry (its nearest surfel), filled below.
+    tri_begin_[t + 1] = tri_begin_[t] + (c == 0 && !tri_use_grid_[t] ? 1 : c);
+  }
+  tri_surfel_.assign(tri_begin_.back(), kNoSurfel);
+  tri_position_.assign(tri_begin_.back(), glm::vec3(0.0f));
+  std::vector<std::uint32_t> fill(tri_begin_.begin(), tri_begin_.end() - 1);
+  for (std::size_t i = 0; i < n; ++i) {
+    if (surfels.mesh[i] >= meshes) continue;
+    const std::uint32_t t = mesh_first_[surfels.mesh[i]] + surfels.triangle[i];
+    if (tri_use_grid_[t]) continue;
+    tri_surfel_[fill[t]] = static_cast<std::uint32_t>(i);
+    tri_position_[fill[t]] = surfels.position[i];
+    ++fill[t];
+  }
+  // Triangles too small to hold a surfel of their own (their area went into a neighbour's
+  // slice) are represented by the surfel nearest to their centroid.
+  for (std::size_t m = 0; m < meshes; ++m) {
+    const auto& mesh = scene.meshes[m];
+    for (std::uint32_t tri = 0; tri < mesh.triangleCount(); ++tri) {
+      const std::uint32_t t = mesh_first_[m] + tri;
+      if (tri_use_grid_[t] || count[t] != 0) continue;
+      const glm::vec3 p0 = mesh.positions[mesh.indices[3 * tri]], p1 = mesh.positions[mesh.indices[3 * tri + 1]],
+                      p2 = mesh.positions[mesh.indices[3 * tri + 2]];
+      const glm::vec3 c = (p0 + p1 + p2) / 3.0f;
+      glm::vec3 nrm = glm::cross(p1 - p0, p2 - p0);
+      const float len = glm::length(nrm);
+      nrm = len > 0.0f ? nrm / len : glm::vec3(0.0f, 0.0f, 1.0f);
+      const std::uint32_t s = owner(c, nrm);
+      tri_surfel_[tri_begin_[t]] = s;
+      tri_position_[tri_begin_[t]] = s == kNoSurfel ? c : surfels.position[s];
+    }
+  }
 }
 
 glm::ivec3 SurfelLocator::cellOf(const glm::vec3& p) const {
@@ -82,6 +137,28 @@ std::uint32_t SurfelLocator::search(const glm::vec3& p, const glm::vec3& n, int 
     }
   }
   return best == kNoSurfel ? kNoSurfel : ids_[best];
+}
+
+std::uint32_t SurfelLocator::ownerOfHit(std::uint32_t mesh, std::uint32_t triangle, const glm::vec3& p,
+                                        const glm::vec3& n) const {
+  if (mesh + 1 < mesh_first_.size()) {
+    const std::uint32_t t = mesh_first_[mesh] + triangle;
+    if (t < tri_use_grid_.size() && !tri_use_grid_[t]) {
+      std::uint32_t best = kNoSurfel;
+      float best_d2 = std::numeric_limits<float>::infinity();
+      for (std::uint32_t k = tri_begin_[t]; k < tri_begin_[t + 1]; ++k) {
+        if (tri_surfel_[k] == kNoSurfel) break;
+        const glm::vec3 d = tri_position_[k] - p;
+        const float d2 = glm::dot(d, d);
+        if (d2 < best_d2) {
+          best_d2 = d2;
+          best = tri_surfel_[k];
+        }
+      }
+      if (best != kNoSurfel) return best;
+    }
+  }
+  return owner(p, n);
 }
 
 std::uint32_t SurfelLocator::owner(const glm::vec3& p, const glm::vec3& n) const {

@@ -7,6 +7,13 @@
 // the surfels (cell ~2 surfel spacings, CSR layout: one offsets array, one id array) makes
 // the query a scan of 27 cells of a few surfels each, with no allocation per query. The
 // locator copies what it needs; the Surfels may go away after construction.
+//
+// Most hits are cheaper than that: the ray tracer already says which triangle was hit, and
+// detailed geometry has only a few surfels per triangle. Each triangle keeps the list of
+// surfels lying on it (or, when none does, the one nearest its centroid); a triangle with
+// at most kTriangleListMax of them answers from that list alone (the owner is then the
+// nearest surfel *on the hit triangle*, a partition of the surface as good as the nearest
+// overall for lighting), and only large triangles fall back to the grid.
 #pragma once
 
 #include <cstdint>
@@ -15,6 +22,7 @@
 
 #include <glm/glm.hpp>
 
+#include "core/scene/scene.h"
 #include "core/surfels/surfels.h"
 
 namespace lightlink::links {
@@ -23,7 +31,13 @@ inline constexpr std::uint32_t kNoSurfel = std::numeric_limits<std::uint32_t>::m
 
 class SurfelLocator {
  public:
-  explicit SurfelLocator(const surfels::Surfels& surfels);
+  static constexpr std::uint32_t kTriangleListMax = 8;
+
+  // `scene` is the scene the surfels were placed on (hits report its mesh/triangle ids).
+  SurfelLocator(const surfels::Surfels& surfels, const scene::Scene& scene);
+
+  // The owner of a hit on triangle `triangle` of mesh `mesh` at p with visible-side normal n.
+  std::uint32_t ownerOfHit(std::uint32_t mesh, std::uint32_t triangle, const glm::vec3& p, const glm::vec3& n) const;
 
   // Nearest surfel to p whose normal is within ~60 degrees of n (unit); falls back to a
   // wider search, then to the nearest surfel regardless of normal, then kNoSurfel.
@@ -33,6 +47,7 @@ class SurfelLocator {
 
  private:
   glm::ivec3 cellOf(const glm::vec3& p) const;
+  void buildTriangleLists(const surfels::Surfels& surfels, const scene::Scene& scene);
   std::uint32_t search(const glm::vec3& p, const glm::vec3& n, int radius, float min_cos) const;
 
   glm::vec3 origin_{0.0f};
@@ -45,6 +60,13 @@ class SurfelLocator {
   // of gathering from the surfel arrays (the owner lookup runs once per link ray).
   std::vector<glm::vec3> cell_position_;
   std::vector<glm::vec3> cell_normal_;
+  // Per-triangle surfel lists (CSR over global triangle ids = mesh_first_[mesh] + triangle);
+  // lists longer than kTriangleListMax are left empty and answered by the grid.
+  std::vector<std::uint32_t> mesh_first_;
+  std::vector<std::uint32_t> tri_begin_;
+  std::vector<std::uint32_t> tri_surfel_;
+  std::vector<glm::vec3> tri_position_;
+  std::vector<std::uint8_t> tri_use_grid_;
 };
 
 }  // namespace lightlink::links
