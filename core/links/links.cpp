@@ -25,16 +25,17 @@ std::uint32_t strataFor(const LinkOptions& options) {
   return static_cast<std::uint32_t>(std::max(1.0, std::floor(std::sqrt(double(options.rays)))));
 }
 
-struct Sample {
-  std::uint32_t surfel;
-  std::uint32_t ray;
-};
+// A credited hit as one sortable key: owner surfel in the high half, ray in the low half,
+// so sorting the keys groups hits by surfel (tree order) with a fixed order inside.
+using Sample = std::uint64_t;
+inline Sample makeSample(std::uint32_t surfel, std::uint32_t ray) { return (Sample(surfel) << 32) | ray; }
+inline std::uint32_t surfelOf(Sample s) { return static_cast<std::uint32_t>(s >> 32); }
+inline std::uint32_t rayOf(Sample s) { return static_cast<std::uint32_t>(s); }
 
 // Per-thread scratch, reused across caches so the hot loop never allocates.
 struct Scratch {
   std::vector<rt::Ray> rays;
   std::vector<rt::Hit> hits;
-  std::vector<glm::vec3> dirs;
   std::vector<Sample> samples;
   std::vector<std::uint32_t> cut;
 };
@@ -51,8 +52,8 @@ struct ChunkResult {
 
 // Number of samples whose surfel lies in [begin, end): samples are sorted by surfel.
 std::uint32_t samplesIn(const std::vector<Sample>& s, std::uint32_t begin, std::uint32_t end) {
-  auto lo = std::lower_bound(s.begin(), s.end(), begin, [](const Sample& a, std::uint32_t v) { return a.surfel < v; });
-  auto hi = std::lower_bound(lo, s.end(), end, [](const Sample& a, std::uint32_t v) { return a.surfel < v; });
+  auto lo = std::lower_bound(s.begin(), s.end(), makeSample(begin, 0));
+  auto hi = std::lower_bound(lo, s.end(), makeSample(end, 0));
   return static_cast<std::uint32_t>(hi - lo);
 }
 
@@ -97,74 +98,83 @@ void chooseCut(const hierarchy::Tree& tree, const std::vector<Sample>& samples, 
   std::sort(cut.begin(), cut.end(), [&](std::uint32_t a, std::uint32_t b) { return tree.begin[a] < tree.begin[b]; });
 }
 
+template <int Bands>
 void linkCache(std::size_t cache, const glm::vec3& p, const glm::vec3& normal, const scene::Scene& scene,
-               const rt::Accel& accel, const hierarchy::Tree& tree,
-               const SurfelLocator& locator, const LinkOptions& options, std::uint32_t strata, Scratch& s,
-               ChunkResult& out) {
+               const rt::Accel& accel, const hierarchy::Tree& tree, const SurfelLocator& locator,
+               const LinkOptions& options, std::uint32_t strata, Scratch& s, ChunkResult& out) {
+  constexpr int kCoeffs = Bands * Bands;
   const bool hemisphere = glm::dot(normal, normal) > 0.0f;
   const std::uint32_t count = strata * strata;
   const glm::vec3 n = hemisphere ? glm::normalize(normal) : glm::vec3(0, 0, 1);
   cacheRays(accel, cache, p, normal, options, std::span<rt::Ray>(s.rays.data(), count));
-  for (std::uint32_t i = 0; i < count; ++i) s.dirs[i] = s.rays[i].dir;
   accel.intersect(std::span<const rt::Ray>(s.rays.data(), count), std::span<rt::Hit>(s.hits.data(), count),
                   rt::Coherence::kCoherent);
 
-  const int nc = options.bands * options.bands;
   const float omega = hemisphere ? 2.0f * kPi : 4.0f * kPi;
   const float w = omega / static_cast<float>(count) / kPi;  // per-ray weight of V/pi
-  float basis[sh::kMaxCoeffs];
-  float sky[sh::kMaxCoeffs] = {};
+  float basis[kCoeffs];
+  float sky[kCoeffs] = {};
   s.samples.clear();
   for (std::uint32_t i = 0; i < count; ++i) {
     const rt::Hit& h = s.hits[i];
+    const glm::vec3& dir = s.rays[i].dir;
     if (!h.hit()) {
       ++out.stats.escaped;
-      sh::evalBasis(options.bands, s.dirs[i], basis);
-      for (int k = 0; k < nc; ++k) sky[k] += w * basis[k];
+      sh::evalBasis<Bands>(dir, basis);
+      for (int k = 0; k < kCoeffs; ++k) sky[k] += w * basis[k];
       continue;
     }
-    const bool back = h.backFacing(s.dirs[i]);
+    const bool back = h.backFacing(dir);
     if (back && !scene.materialOf(scene.meshes[h.mesh]).double_sided) {
       ++out.stats.back_hits;
       continue;
     }
-    const glm::vec3 hit_p = s.rays[i].origin + h.t * s.dirs[i];
-    // The visible side's normal faces the cache.
-    const glm::vec3 ng = glm::normalize(back ? -h.ng : h.ng);
-    const std::uint32_t owner = locator.ownerOfHit(h.mesh, h.triangle, hit_p, ng);
+    // The visible side's normal faces the cache (left unnormalised: the locator only
+    // needs it when it falls back to its grid).
+    const std::uint32_t owner =
+        locator.ownerOfHit(h.mesh, h.triangle, s.rays[i].origin + h.t * dir, back ? -h.ng : h.ng);
     if (owner == kNoSurfel) {
       ++out.stats.unowned;
       continue;
     }
     ++out.stats.front_hits;
-    s.samples.push_back({owner, i});
+    s.samples.push_back(makeSample(owner, i));
   }
   out.stats.rays += count;
-  std::sort(s.samples.begin(), s.samples.end(),
-            [](const Sample& a, const Sample& b) { return a.surfel != b.surfel ? a.surfel < b.surfel : a.ray < b.ray; });
+  std::sort(s.samples.begin(), s.samples.end());
   chooseCut(tree, s.samples, options.max_links, s.cut);
 
   std::size_t k = 0;
   for (std::uint32_t node : s.cut) {
-    while (k < s.samples.size() && s.samples[k].surfel < tree.begin[node]) ++k;
-    float c[sh::kMaxCoeffs] = {};
+    while (k < s.samples.size() && surfelOf(s.samples[k]) < tree.begin[node]) ++k;
+    float c[kCoeffs] = {};
     glm::vec3 mean_dir(0.0f);
     std::uint32_t hits = 0;
-    for (; k < s.samples.size() && s.samples[k].surfel < tree.end[node]; ++k) {
-      const glm::vec3& dir = s.dirs[s.samples[k].ray];
-      sh::evalBasis(options.bands, dir, basis);
-      for (int q = 0; q < nc; ++q) c[q] += w * basis[q];
+    for (; k < s.samples.size() && surfelOf(s.samples[k]) < tree.end[node]; ++k) {
+      const glm::vec3& dir = s.rays[rayOf(s.samples[k])].dir;
+      sh::evalBasis<Bands>(dir, basis);
+      for (int q = 0; q < kCoeffs; ++q) c[q] += w * basis[q];
       mean_dir += dir;
       ++hits;
     }
     out.node.push_back(node);
-    for (int q = 0; q < nc; ++q) out.coeffs.push_back(toHalf(c[q]));
+    for (int q = 0; q < kCoeffs; ++q) out.coeffs.push_back(toHalf(c[q]));
     const float len = glm::length(mean_dir);
     out.direction.push_back(encodeOctahedral(len > 0.0f ? mean_dir / len : n));
     out.solid_angle.push_back(toHalf(w * static_cast<float>(hits)));
   }
   out.count.push_back(static_cast<std::uint32_t>(s.cut.size()));
-  out.sky.insert(out.sky.end(), sky, sky + nc);
+  out.sky.insert(out.sky.end(), sky, sky + kCoeffs);
+}
+
+using LinkCacheFn = decltype(&linkCache<1>);
+LinkCacheFn linkCacheFor(int bands) {
+  switch (bands) {
+    case 1: return &linkCache<1>;
+    case 2: return &linkCache<2>;
+    case 3: return &linkCache<3>;
+    default: return &linkCache<4>;
+  }
 }
 
 }  // namespace
@@ -253,6 +263,7 @@ Expected<Links> generateLinks(const scene::Scene& scene, const rt::Accel& accel,
 
   const auto start = std::chrono::steady_clock::now();
   const SurfelLocator locator(surfels, scene);
+  const LinkCacheFn link_cache = linkCacheFor(options.bands);
   const std::uint32_t strata = strataFor(options);
   const std::size_t n = caches.position.size();
   const std::size_t chunks = (n + kChunk - 1) / kChunk;
@@ -266,12 +277,11 @@ Expected<Links> generateLinks(const scene::Scene& scene, const rt::Accel& accel,
     const std::uint32_t count = strata * strata;
     scratch.rays.resize(count);
     scratch.hits.resize(count);
-    scratch.dirs.resize(count);
     ChunkResult& out = results[chunk];
     const std::size_t end = std::min(n, (chunk + 1) * kChunk);
     if (sink.cancelled()) return;
     for (std::size_t c = chunk * kChunk; c < end; ++c)
-      linkCache(c, caches.position[c], caches.normal[c], scene, accel, tree, locator, options, strata,
+      link_cache(c, caches.position[c], caches.normal[c], scene, accel, tree, locator, options, strata,
                 scratch, out);
     counter.add(end - chunk * kChunk);
   });

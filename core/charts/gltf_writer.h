@@ -1,0 +1,37 @@
+// Writes a glTF back with the lightmap uv as TEXCOORD_1, so an engine samples exactly the
+// uv the lightmap was baked with.
+//
+// The input is re-read with tinygltf and only the primitives of generated static meshes
+// change: every vertex attribute (and morph target) is re-gathered through
+// MeshLightmap::source_vertex, bytes copied as stored, TEXCOORD_1 (float vec2) is
+// set and the index buffer rewritten. A TEXCOORD_1 that was there (and replaced, see the
+// mixed-scene policy in unwrap.h) is kept as the first free TEXCOORD_n (n >= 2), and a
+// material whose core textures sample set 1 is copied with those references moved to n,
+// so the surface looks as before (textures inside material extensions are not remapped).
+// Everything else (nodes, materials, images, extensions, extras, untouched primitives) is
+// written as tinygltf read it. All buffers are merged into one (old bytes kept, new ones
+// appended): the .bin next to a .gltf output is named after it, a .glb output embeds it,
+// so the input's files are never overwritten. External images are copied next to the
+// output when the folders differ.
+//
+// Instancing: the scene gives every instance of a glTF mesh its own charts, so the first
+// static node using a mesh keeps it and every further static node gets its own copy of
+// the mesh (each with its own TEXCOORD_1). If a dynamic node uses the mesh too, it keeps
+// the original untouched and every static node gets a copy.
+#pragma once
+
+#include <string>
+
+#include "core/charts/unwrap.h"
+#include "core/common/status.h"
+#include "core/scene/scene.h"
+
+namespace lightlink::charts {
+
+// `scene` and `atlas` are unwrap()'s output for the scene loaded from `in_path`. The output
+// is glTF JSON or binary .glb by the extension of `out_path`, which must differ from
+// `in_path`.
+Status writeGltfWithLightmapUv(const std::string& in_path, const scene::Scene& scene, const LightmapAtlas& atlas,
+                               const std::string& out_path);
+
+}  // namespace lightlink::charts

@@ -1,0 +1,46 @@
+// Packing: places every chart in one square atlas of texels.
+//
+// Each chart is first rotated so its minimal-area bounding rectangle (rotating calipers on
+// the convex hull of its uv) is axis-aligned and wider than tall. At a texel size (metres
+// per texel) a chart then has a mask: the texels its triangles touch when rasterised
+// conservatively, its box's lower-left corner half a texel inside the first texel. The
+// packer is a skyline packer at texel granularity: the atlas keeps one height per texel
+// column, a chart is described per column by the lowest and highest texel of its mask,
+// so a chart's ragged bottom settles into the ragged top of what lies below instead of
+// resting on bounding boxes. Charts go largest first; each tries its four quarter turns at
+// every column and takes the lowest resulting top (ties: fewer quarter turns, then left).
+// A placed chart raises the heights by its top plus `gutter` over its columns widened by
+// `gutter` on both sides, and the outer `gutter` texels of the atlas stay empty, so two
+// charts (or a chart and the border) are always more than `gutter` texels apart. The
+// strip is packed without a height limit: the height used tells the caller how far the
+// texel size is from filling the square, which drives its search in a few packs.
+// Integer arithmetic in a fixed order: deterministic.
+#pragma once
+
+#include <cstdint>
+#include <vector>
+
+#include "core/charts/flatten.h"
+
+namespace lightlink::charts {
+
+// Rotates the chart's uv (metres) to its minimal-area box, width >= height, min corner at 0.
+void alignToMinimalBox(Chart& chart);
+
+struct Placement {
+  int x = 0, y = 0;          // atlas texel of the rotated mask's lower-left corner
+  int width = 0, height = 0; // mask size in texels before rotation
+  int quarter_turns = 0;     // counter-clockwise, 0..3
+};
+
+// Packs all charts (aligned, uv in metres) at `texel_m` into a strip `resolution` texels
+// wide and as tall as needed. Returns the rows used including the bottom gutter (the
+// charts fit a square atlas iff that is <= resolution - gutter), or -1 if some chart is
+// wider than the strip in every orientation.
+int packCharts(const std::vector<Chart>& charts, double texel_m, int resolution, int gutter,
+               std::vector<Placement>& placements);
+
+// Moves a chart's uv from metres (aligned box) to atlas texel coordinates per placement.
+void applyPlacement(Chart& chart, const Placement& placement, double texel_m);
+
+}  // namespace lightlink::charts

@@ -1,0 +1,403 @@
+#include "core/charts/unwrap.h"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <unordered_map>
+
+#include <tbb/parallel_for.h>
+
+#include "core/charts/flatten.h"
+#include "core/charts/mesh_prep.h"
+#include "core/charts/pack.h"
+#include "core/charts/rasterize.h"
+#include "core/charts/segment.h"
+
+namespace lightlink::charts {
+namespace {
+
+bool finitePositive(float v) { return std::isfinite(v) && v > 0.0f; }
+
+// A vertex of a generated mesh: the original vertex it copies, the chart it lies in and
+// the prepared vertex it was parameterised as (one original vertex can be two prepared
+// vertices of one chart when a non-manifold face was moved onto a copy).
+struct NewVertexKey {
+  std::uint32_t source, chart, prepared;
+  bool operator==(const NewVertexKey&) const = default;
+};
+struct NewVertexHash {
+  std::size_t operator()(const NewVertexKey& k) const {
+    return static_cast<std::size_t>((static_cast<std::uint64_t>(k.source) * 0x9e3779b97f4a7c15ull) ^
+                                    (static_cast<std::uint64_t>(k.chart) * 0xc2b2ae3d27d4eb4full) ^ k.prepared);
+  }
+};
+
+// A segmented chart waiting to be flattened: its faces in one prepared mesh.
+struct SegmentWork {
+  std::uint32_t mesh;
+  std::vector<std::uint32_t> faces;
+};
+
+// Searches the texel size for a fixed resolution: the smallest one (finest texels) whose
+// packing fits. The packer reports the strip height it used; height goes roughly as a
+// power of the texel size (-2 for pure area, flatter where gutters dominate), so each
+// guess is a secant step in log-log space through the last two packs (the first assumes
+// -2), kept inside the bracket of sizes known to fail and to fit. Stops once a packing
+// fills 98 % of the height: a handful of packs where bisection needs a dozen. Returns 0
+// if nothing fits.
+double fitTexelSize(const std::vector<Chart>& charts, double area_m2, int resolution, int gutter,
+                    std::vector<Placement>& placements) {
+  const double limit = resolution - gutter;
+  const double target = 0.99 * limit;
+  std::vector<Placement> trial;
+  double fit = 0.0, fail = 0.0;  // smallest size that fitted, largest that did not
+  double prev_ts = 0.0, prev_used = 0.0;
+  // First guess: the minimal boxes plus one texel of conservative border and the gutter
+  // fill 80 % of the atlas, i.e. x = 1/texel solves sum (w x + c)(h x + c) = 0.8 R^2 with
+  // c = 1 + gutter; gutters dominate small charts, which pure area would ignore.
+  double a = 0.0, b = 0.0, c0 = 0.0;
+  const double c = 1.0 + gutter;
+  for (const Chart& chart : charts) {
+    glm::dvec2 ext(0.0);
+    for (const glm::dvec2& q : chart.uv) ext = glm::max(ext, q);
+    a += ext.x * ext.y;
+    b += (ext.x + ext.y) * c;
+    c0 += c * c;
+  }
+  const double free_texels = 0.8 * resolution * resolution - c0;
+  double ts = std::sqrt(area_m2 / (0.6 * resolution * resolution));
+  if (free_texels > 0.0 && a > 0.0) ts = 2.0 * a / (-b + std::sqrt(b * b + 4.0 * a * free_texels));
+  for (int iter = 0; iter < 80; ++iter) {
+    // The texel size is a float in the scene's result: pack at exactly that value.
+    ts = static_cast<double>(static_cast<float>(ts));
+    const int used = packCharts(charts, ts, resolution, gutter, trial);
+    const bool fits = used >= 0 && used <= limit;
+    if (fits && (fit == 0.0 || ts < fit)) {
+      fit = ts;
+      placements.swap(trial);
+    }
+    if (!fits) fail = std::max(fail, ts);
+    if (fits && used >= 0.98 * limit) break;
+    if (fit > 0.0 && fail > 0.0 && fit / fail < 1.002) break;
+    double next;
+    if (used < 0) {
+      next = ts * 1.5;
+    } else {
+      double exponent = -2.0;
+      if (prev_ts > 0.0 && prev_ts != ts && prev_used > 0.0 && prev_used != used) {
+        const double k = std::log(used / prev_used) / std::log(ts / prev_ts);
+        if (k < -0.25 && k > -8.0) exponent = k;
+      }
+      next = ts * std::pow(target / used, 1.0 / exponent);
+      prev_ts = ts;
+      prev_used = used;
+    }
+    if (fit > 0.0 && next >= fit) next = fail > 0.0 ? std::sqrt(fail * fit) : fit * 0.98;
+    if (fail > 0.0 && next <= fail) next = fit > 0.0 ? std::sqrt(fail * fit) : fail * 1.25;
+    ts = next;
+  }
+  return fit;
+}
+
+double signedUvArea(const glm::vec2& a, const glm::vec2& b, const glm::vec2& c) {
+  return 0.5 * (static_cast<double>(b.x - a.x) * (c.y - a.y) - static_cast<double>(b.y - a.y) * (c.x - a.x));
+}
+
+// Existing uv1: checked at `resolution`, never modified.
+void checkExisting(const scene::Scene& scene, const std::vector<std::uint32_t>& statics, int resolution,
+                   UnwrapReport& report) {
+  AtlasTriangles tris;
+  double surface_m2 = 0.0, uv_texels = 0.0;
+  for (std::uint32_t m : statics) {
+    const scene::MeshInstance& mesh = scene.meshes[m];
+    std::size_t out_of_range = 0, positive = 0, negative = 0;
+    for (const glm::vec2& t : mesh.uv1)
+      out_of_range += !(t.x >= 0.0f && t.x <= 1.0f && t.y >= 0.0f && t.y <= 1.0f);
+    for (std::size_t t = 0; t < mesh.triangleCount(); ++t) {
+      const glm::vec2 a = mesh.uv1[mesh.indices[3 * t]], b = mesh.uv1[mesh.indices[3 * t + 1]],
+                      c = mesh.uv1[mesh.indices[3 * t + 2]];
+      const double area = signedUvArea(a, b, c);
+      positive += area > 0.0;
+      negative += area < 0.0;
+      uv_texels += std::abs(area) * resolution * resolution;
+      const glm::dvec3 p0(mesh.positions[mesh.indices[3 * t]]), p1(mesh.positions[mesh.indices[3 * t + 1]]),
+          p2(mesh.positions[mesh.indices[3 * t + 2]]);
+      surface_m2 += 0.5 * glm::length(glm::cross(p1 - p0, p2 - p0));
+      for (const glm::vec2& q : {a, b, c}) tris.texels.emplace_back(glm::dvec2(q) * static_cast<double>(resolution));
+      tris.chart.push_back(kNoChart);
+    }
+    // Mirrored uv1 is legitimate; triangles against the mesh's majority, or of zero area, are not.
+    const std::size_t flipped = mesh.triangleCount() - std::max(positive, negative);
+    report.flipped += flipped;
+    report.out_of_range += out_of_range;
+    if (out_of_range > 0)
+      report.warnings.push_back(fmt::format("mesh '{}': {} TEXCOORD_1 values outside [0,1]", mesh.name, out_of_range));
+    if (flipped > 0)
+      report.warnings.push_back(fmt::format("mesh '{}': {} TEXCOORD_1 triangles flipped or of zero area", mesh.name, flipped));
+    report.triangles += mesh.triangleCount();
+  }
+  // Mean metres per texel of the existing layout, for the precompute's spacing.
+  report.texel_size_m = uv_texels > 0.0 ? static_cast<float>(std::sqrt(surface_m2 / uv_texels)) : 0.0f;
+  const AtlasCheck check = checkAtlas(tris, resolution, 0);
+  report.overlaps = check.triangle_overlap_texels;
+  report.utilisation = static_cast<double>(check.center_texels) / (static_cast<double>(resolution) * resolution);
+  if (report.overlaps > 0)
+    report.warnings.push_back(fmt::format(
+        "existing TEXCOORD_1: {} texel centres at {}x{} lie in two or more triangles (overlapping lightmap uv)",
+        report.overlaps, resolution, resolution));
+}
+
+}  // namespace
+
+Status validate(const UnwrapOptions& o) {
+  if (o.texel_size_m && !finitePositive(*o.texel_size_m))
+    return invalidInput("unwrap: texel size must be > 0 metres, got {}", *o.texel_size_m);
+  if (o.resolution && (*o.resolution < 1 || *o.resolution > kMaxAtlasResolution))
+    return invalidInput("unwrap: resolution must be in [1, {}] texels, got {}", kMaxAtlasResolution, *o.resolution);
+  if (o.target_resolution < 1 || o.target_resolution > kMaxAtlasResolution)
+    return invalidInput("unwrap: target resolution must be in [1, {}] texels, got {}", kMaxAtlasResolution,
+                        o.target_resolution);
+  if (o.gutter_texels < 0 || o.gutter_texels > 64)
+    return invalidInput("unwrap: gutter must be in [0, 64] texels, got {}", o.gutter_texels);
+  if (!(o.normal_cone_deg > 0.0f && o.normal_cone_deg < 90.0f))
+    return invalidInput("unwrap: normal cone must be in (0, 90) degrees, got {}", o.normal_cone_deg);
+  if (!(o.hard_edge_deg > 0.0f && o.hard_edge_deg <= 180.0f))
+    return invalidInput("unwrap: hard edge angle must be in (0, 180] degrees, got {}", o.hard_edge_deg);
+  if (!(o.planar_deg >= 0.0f && o.planar_deg < 90.0f))
+    return invalidInput("unwrap: planar angle must be in [0, 90) degrees, got {}", o.planar_deg);
+  if (!(o.max_stretch > 1.0f) || !std::isfinite(o.max_stretch))
+    return invalidInput("unwrap: max stretch must be a finite number > 1, got {}", o.max_stretch);
+  if (!(o.min_chart_fill >= 0.0f && o.min_chart_fill < 1.0f))
+    return invalidInput("unwrap: min chart fill must be in [0, 1), got {}", o.min_chart_fill);
+  if (!(o.weld_tolerance >= 0.0f && o.weld_tolerance < 0.01f))
+    return invalidInput("unwrap: weld tolerance must be in [0, 0.01) of the scene size, got {}", o.weld_tolerance);
+  return Status::ok();
+}
+
+Expected<UnwrapResult> unwrap(scene::Scene& scene, const UnwrapOptions& options) {
+  const auto t0 = std::chrono::steady_clock::now();
+  if (Status s = validate(options); !s) return s;
+
+  UnwrapResult result;
+  UnwrapReport& report = result.report;
+  LightmapAtlas& atlas = result.atlas;
+  atlas.meshes.resize(scene.meshes.size());
+  atlas.gutter_texels = options.gutter_texels;
+  report.gutter_texels = options.gutter_texels;
+
+  std::vector<std::uint32_t> statics;
+  std::size_t with_uv1 = 0;
+  for (std::size_t m = 0; m < scene.meshes.size(); ++m) {
+    const scene::MeshInstance& mesh = scene.meshes[m];
+    if (!mesh.is_static || mesh.triangleCount() == 0) continue;
+    statics.push_back(static_cast<std::uint32_t>(m));
+    with_uv1 += mesh.hasLightmapUv();
+  }
+  report.meshes = static_cast<int>(statics.size());
+  if (statics.empty()) return invalidInput("unwrap: '{}' has no static triangle meshes", scene.source_path);
+
+  auto finish = [&]() {
+    report.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    return Expected<UnwrapResult>(std::move(result));
+  };
+
+  if (options.keep_existing_uv1 && with_uv1 == statics.size()) {
+    const int res = options.resolution.value_or(options.target_resolution);
+    atlas.generated = false;
+    atlas.resolution = res;
+    report.resolution = res;
+    for (std::uint32_t m : statics)
+      atlas.meshes[m].triangle_chart.assign(scene.meshes[m].triangleCount(), kNoChart);
+    checkExisting(scene, statics, res, report);
+    atlas.texel_size_m = report.texel_size_m;
+    return finish();
+  }
+  if (with_uv1 > 0) {
+    for (std::uint32_t m : statics) {
+      if (!scene.meshes[m].hasLightmapUv()) continue;
+      report.warnings.push_back(fmt::format(
+          "mesh '{}': existing TEXCOORD_1 replaced ({} of {} static meshes have none; one atlas is generated for all)",
+          scene.meshes[m].name, statics.size() - with_uv1, statics.size()));
+    }
+  }
+
+  // 1-2. Prepare and segment each static mesh (independent: parallel over meshes).
+  const double weld_m = static_cast<double>(options.weld_tolerance) * scene.scale;
+  std::vector<PreparedMesh> prepared(statics.size());
+  std::vector<Segmentation> segments(statics.size());
+  SegmentOptions seg_options;
+  seg_options.normal_cone_deg = options.normal_cone_deg;
+  seg_options.hard_edge_deg = options.hard_edge_deg;
+  tbb::parallel_for(std::size_t{0}, statics.size(), [&](std::size_t i) {
+    prepared[i] = prepareMesh(scene.meshes[statics[i]], weld_m);
+    segments[i] = segmentCharts(prepared[i], seg_options);
+  });
+
+  // 3. Flatten every segmented chart (parallel over charts, results kept in chart order).
+  std::vector<SegmentWork> work;
+  for (std::size_t i = 0; i < statics.size(); ++i) {
+    report.degenerate_removed += prepared[i].degenerate_removed;
+    report.nonmanifold_split += prepared[i].nonmanifold_split;
+    const std::size_t first = work.size();
+    work.resize(first + segments[i].chart_count);
+    for (std::size_t c = first; c < work.size(); ++c) work[c].mesh = static_cast<std::uint32_t>(i);
+    for (std::size_t f = 0; f < segments[i].face_chart.size(); ++f)
+      work[first + segments[i].face_chart[f]].faces.push_back(static_cast<std::uint32_t>(f));
+  }
+  FlattenOptions flat_options;
+  flat_options.planar_deg = options.planar_deg;
+  flat_options.max_area_stretch = options.max_stretch;
+  flat_options.min_box_fill = options.min_chart_fill;
+  std::vector<std::vector<Chart>> flattened(work.size());
+  std::vector<FlattenStats> flat_stats(work.size());
+  tbb::parallel_for(std::size_t{0}, work.size(), [&](std::size_t w) {
+    flattenChart(prepared[work[w].mesh], std::move(work[w].faces), work[w].mesh, flat_options, flattened[w],
+                 flat_stats[w]);
+    for (Chart& c : flattened[w]) alignToMinimalBox(c);
+  });
+  std::vector<Chart> charts;
+  for (std::size_t w = 0; w < work.size(); ++w) {
+    report.planar_charts += flat_stats[w].planar;
+    report.lscm_charts += flat_stats[w].lscm;
+    report.chart_splits += flat_stats[w].splits;
+    for (Chart& c : flattened[w]) charts.push_back(std::move(c));
+  }
+  flattened.clear();
+
+  // 4. Texel size and resolution, then pack.
+  double area_m2 = 0.0;
+  for (const Chart& c : charts) area_m2 += c.area_m2;
+  const int gutter = options.gutter_texels;
+  std::vector<Placement> placements;
+  int res = 0;
+  double texel_m = 0.0;
+  if (options.texel_size_m) {
+    texel_m = *options.texel_size_m;
+    if (options.resolution) {
+      res = *options.resolution;
+      const int used = packCharts(charts, texel_m, res, gutter, placements);
+      if (used < 0 || used > res - gutter)
+        return invalidInput("unwrap: {} charts at {} m/texel do not fit into {}x{} texels; raise the resolution "
+                            "or the texel size", charts.size(), texel_m, res, res);
+    } else {
+      for (int r = 16; r <= kMaxAtlasResolution && res == 0; r *= 2)
+        if (const int used = packCharts(charts, texel_m, r, gutter, placements); used >= 0 && used <= r - gutter)
+          res = r;
+      if (res == 0)
+        return invalidInput("unwrap: {} charts at {} m/texel do not fit into {}x{} texels; raise the texel size",
+                            charts.size(), texel_m, kMaxAtlasResolution, kMaxAtlasResolution);
+    }
+  } else {
+    res = options.resolution.value_or(options.target_resolution);
+    texel_m = fitTexelSize(charts, area_m2, res, gutter, placements);
+    if (texel_m == 0.0)
+      return invalidInput("unwrap: {} charts with a {}-texel gutter cannot fit into {}x{} texels at any texel size; "
+                          "raise the resolution or lower the gutter", charts.size(), gutter, res, res);
+  }
+  atlas.generated = report.generated = true;
+  atlas.resolution = report.resolution = res;
+  atlas.texel_size_m = report.texel_size_m = static_cast<float>(texel_m);
+  atlas.chart_count = static_cast<std::uint32_t>(charts.size());
+  report.charts = static_cast<int>(charts.size());
+  tbb::parallel_for(std::size_t{0}, charts.size(),
+                    [&](std::size_t c) { applyPlacement(charts[c], placements[c], texel_m); });
+
+  // 5. Rewrite the meshes with seam-split vertices and uv1, one new vertex per NewVertexKey.
+  std::vector<std::vector<std::pair<std::uint32_t, std::uint32_t>>> face_ref(statics.size());  // (chart, index in chart)
+  for (std::size_t i = 0; i < statics.size(); ++i) face_ref[i].resize(prepared[i].faceCount());
+  for (std::size_t c = 0; c < charts.size(); ++c) {
+    const Chart& chart = charts[c];
+    for (std::size_t fi = 0; fi < chart.faces.size(); ++fi)
+      face_ref[chart.mesh][chart.faces[fi]] = {static_cast<std::uint32_t>(c), static_cast<std::uint32_t>(fi)};
+  }
+  const double inv_res = 1.0 / res;
+  tbb::parallel_for(std::size_t{0}, statics.size(), [&](std::size_t i) {
+    scene::MeshInstance& mesh = scene.meshes[statics[i]];
+    MeshLightmap& lm = atlas.meshes[statics[i]];
+    const PreparedMesh& pm = prepared[i];
+    std::vector<glm::vec3> positions, normals;
+    std::vector<glm::vec2> uv0, uv1;
+    std::vector<std::uint32_t> indices;
+    std::unordered_map<NewVertexKey, std::uint32_t, NewVertexHash> vertex_of;
+    vertex_of.reserve(mesh.positions.size() * 2);
+    indices.reserve(pm.faceCount() * 3);
+    lm.triangle_chart.reserve(pm.faceCount());
+    for (std::size_t f = 0; f < pm.faceCount(); ++f) {
+      const auto [c, fi] = face_ref[i][f];
+      const Chart& chart = charts[c];
+      for (int k = 0; k < 3; ++k) {
+        const std::uint32_t src = mesh.indices[3 * pm.source_face[f] + k];
+        const NewVertexKey key{src, c, pm.corners[3 * f + k]};
+        auto [it, inserted] = vertex_of.try_emplace(key, static_cast<std::uint32_t>(positions.size()));
+        if (inserted) {
+          positions.push_back(mesh.positions[src]);
+          if (!mesh.normals.empty()) normals.push_back(mesh.normals[src]);
+          if (!mesh.uv0.empty()) uv0.push_back(mesh.uv0[src]);
+          uv1.emplace_back(chart.uv[chart.local_corners[3 * fi + k]] * inv_res);
+          lm.source_vertex.push_back(src);
+        }
+        indices.push_back(it->second);
+      }
+      lm.triangle_chart.push_back(c);
+    }
+    mesh.positions = std::move(positions);
+    mesh.normals = std::move(normals);
+    mesh.uv0 = std::move(uv0);
+    mesh.uv1 = std::move(uv1);
+    mesh.indices = std::move(indices);
+  });
+
+  // 6. Measure what an engine will sample: the float uv1 on the meshes.
+  AtlasTriangles tris;
+  tris.chart_count = atlas.chart_count;
+  double weight = 0.0, sum_stretch = 0.0, sum_angle = 0.0;
+  report.max_area_stretch = report.max_angle_distortion = 1.0;
+  const double texels_per_m2 = 1.0 / (texel_m * texel_m);
+  for (std::uint32_t m : statics) {
+    const scene::MeshInstance& mesh = scene.meshes[m];
+    report.triangles += mesh.triangleCount();
+    for (std::size_t t = 0; t < mesh.triangleCount(); ++t) {
+      glm::dvec3 p[3];
+      glm::dvec2 q[3];
+      for (int k = 0; k < 3; ++k) {
+        p[k] = glm::dvec3(mesh.positions[mesh.indices[3 * t + k]]);
+        q[k] = glm::dvec2(mesh.uv1[mesh.indices[3 * t + k]]) * static_cast<double>(res);
+        tris.texels.push_back(q[k]);
+      }
+      tris.chart.push_back(atlas.meshes[m].triangle_chart[t]);
+      const TriangleDistortion d = triangleDistortion(p[0], p[1], p[2], q[0], q[1], q[2], texels_per_m2);
+      if (!(d.signed_area_ratio > 0.0)) {
+        ++report.flipped;
+        continue;
+      }
+      const double area = 0.5 * glm::length(glm::cross(p[1] - p[0], p[2] - p[0]));
+      report.max_area_stretch = std::max(report.max_area_stretch, d.area_stretch);
+      report.max_angle_distortion = std::max(report.max_angle_distortion, d.angle_distortion);
+      sum_stretch += area * d.area_stretch;
+      sum_angle += area * d.angle_distortion;
+      weight += area;
+    }
+  }
+  if (weight > 0.0) {
+    report.mean_area_stretch = sum_stretch / weight;
+    report.mean_angle_distortion = sum_angle / weight;
+  }
+  const AtlasCheck check = checkAtlas(tris, res, gutter);
+  report.overlaps = check.chart_overlap_texels + check.triangle_overlap_texels;
+  report.gutter_violations = check.gutter_violations;
+  report.utilisation = static_cast<double>(check.covered_texels) / (static_cast<double>(res) * res);
+  std::vector<std::size_t> texels = check.chart_texels;
+  std::sort(texels.begin(), texels.end());
+  if (!texels.empty()) {
+    report.texels_per_chart_min = texels.front();
+    report.texels_per_chart_median = texels[texels.size() / 2];
+    report.texels_per_chart_max = texels.back();
+  }
+  if (report.overlaps > 0 || report.gutter_violations > 0 || report.flipped > 0)
+    report.warnings.push_back(fmt::format("generated atlas: {} overlapping texels, {} gutter violations, {} flipped "
+                                          "triangles after float rounding",
+                                          report.overlaps, report.gutter_violations, report.flipped));
+  return finish();
+}
+
+}  // namespace lightlink::charts

@@ -1,0 +1,236 @@
+// The glTF written back must give, when loaded again, exactly the geometry and uv1 the
+// unwrap produced (bit for bit), keep existing TEXCOORD_1 bit-exactly, give instanced
+// meshes their own uv1, and be byte-identical across runs.
+#include <gtest/gtest.h>
+
+#include <cstring>
+#include <fstream>
+#include <sstream>
+
+#include <nlohmann/json.hpp>
+
+#include "core/charts/gltf_writer.h"
+#include "core/charts/unwrap.h"
+#include "core/charts/unwrap_command.h"
+#include "core/scene/load.h"
+#include "tests/charts/atlas_oracle.h"
+#include "tests/common/testing.h"
+
+namespace lightlink::charts {
+namespace {
+
+namespace fs = std::filesystem;
+
+std::string readBytes(const fs::path& p) {
+  std::ifstream in(p, std::ios::binary);
+  std::stringstream ss;
+  ss << in.rdbuf();
+  return ss.str();
+}
+
+template <typename T>
+bool sameBits(const std::vector<T>& a, const std::vector<T>& b) {
+  return a.size() == b.size() && (a.empty() || std::memcmp(a.data(), b.data(), a.size() * sizeof(T)) == 0);
+}
+
+void expectSameGeometry(const scene::Scene& a, const scene::Scene& b) {
+  ASSERT_EQ(a.meshes.size(), b.meshes.size());
+  for (std::size_t m = 0; m < a.meshes.size(); ++m) {
+    SCOPED_TRACE(a.meshes[m].name);
+    EXPECT_TRUE(sameBits(a.meshes[m].positions, b.meshes[m].positions));
+    EXPECT_TRUE(sameBits(a.meshes[m].uv0, b.meshes[m].uv0));
+    EXPECT_TRUE(sameBits(a.meshes[m].uv1, b.meshes[m].uv1));
+    EXPECT_EQ(a.meshes[m].indices, b.meshes[m].indices);
+  }
+}
+
+fs::path scenePath(const char* folder, const char* file) {
+  const fs::path dir = lightlink::testing::sharedScenesDir();
+  return dir.empty() ? fs::path() : dir / folder / file;
+}
+
+class WriterRoundTrip : public ::testing::TestWithParam<std::pair<const char*, const char*>> {};
+
+TEST_P(WriterRoundTrip, ReloadGivesTheUnwrappedSceneBitExactly) {
+  const fs::path in = scenePath(GetParam().first, GetParam().second);
+  if (in.empty() || !fs::exists(in)) GTEST_SKIP() << "shared scenes not found";
+  Expected<scene::Scene> scene = scene::loadGltf(in.string(), {.load_textures = false});
+  ASSERT_TRUE(scene) << scene.status().toString();
+  Expected<UnwrapResult> result = unwrap(*scene, {});
+  ASSERT_TRUE(result) << result.status().toString();
+  lightlink::testing::TempDir tmp;
+  for (const char* ext : {".gltf", ".glb"}) {
+    const fs::path out = tmp / (std::string("out") + ext);
+    ASSERT_TRUE(writeGltfWithLightmapUv(in.string(), *scene, result->atlas, out.string()));
+    Expected<scene::Scene> again = scene::loadGltf(out.string(), {.load_textures = false});
+    ASSERT_TRUE(again) << again.status().toString();
+    expectSameGeometry(*scene, *again);
+  }
+}
+
+INSTANTIATE_TEST_SUITE_P(
+    SharedScenes, WriterRoundTrip,
+    ::testing::Values(std::pair{"cornell_box_original_gltf", "CornellBox-Original.gltf"},
+                      std::pair{"cornell_box_vinc3r_lightmapuv", "cornellBox-2.80-Eevee-gltf.gltf"},
+                      std::pair{"khronos_LightsPunctualLamp", "LightsPunctualLamp.gltf"},
+                      std::pair{"sauerbraten_zdm2_level_gltf", "zdm2.glb"}),
+    [](const auto& info) { return std::string(info.param.first); });
+
+TEST(GltfWriter, ExistingLightmapUvSurvivesBitExactly) {
+  const fs::path in = scenePath("khronos_MultiUVTest", "MultiUVTest.gltf");
+  if (in.empty() || !fs::exists(in)) GTEST_SKIP() << "shared scenes not found";
+  Expected<scene::Scene> original = scene::loadGltf(in.string(), {.load_textures = false});
+  ASSERT_TRUE(original);
+  scene::Scene scene = *original;
+  Expected<UnwrapResult> result = unwrap(scene, {});
+  ASSERT_TRUE(result);
+  EXPECT_FALSE(result->report.generated);
+  lightlink::testing::TempDir tmp;
+  ASSERT_TRUE(writeGltfWithLightmapUv(in.string(), scene, result->atlas, (tmp / "out.gltf").string()));
+  Expected<scene::Scene> again = scene::loadGltf((tmp / "out.gltf").string(), {.load_textures = false});
+  ASSERT_TRUE(again);
+  expectSameGeometry(*original, *again);
+  // The textures were copied next to the output.
+  EXPECT_TRUE(fs::exists(tmp / "uv1.png"));
+}
+
+TEST(GltfWriter, OutputIsDeterministicAndNeverOverwritesTheInput) {
+  const fs::path in = scenePath("cornell_box_vinc3r_lightmapuv", "cornellBox-2.80-Eevee-gltf.gltf");
+  if (in.empty() || !fs::exists(in)) GTEST_SKIP() << "shared scenes not found";
+  lightlink::testing::TempDir tmp;
+  for (const char* name : {"a", "b"}) {
+    UnwrapCommand cmd;
+    cmd.input_path = in.string();
+    cmd.output_path = (tmp / (std::string(name) + ".gltf")).string();
+    cmd.preview_png = (tmp / (std::string(name) + ".png")).string();
+    Expected<UnwrapReport> report = runUnwrap(cmd);
+    ASSERT_TRUE(report) << report.status().toString();
+  }
+  EXPECT_EQ(readBytes(tmp / "a.bin"), readBytes(tmp / "b.bin"));
+  EXPECT_EQ(readBytes(tmp / "a.png"), readBytes(tmp / "b.png"));
+  std::string a = readBytes(tmp / "a.gltf"), b = readBytes(tmp / "b.gltf");
+  // Only the buffer file name differs.
+  const auto pos = b.find("\"b.bin\"");
+  ASSERT_NE(pos, std::string::npos);
+  b.replace(pos, 7, "\"a.bin\"");
+  EXPECT_EQ(a, b);
+
+  Expected<scene::Scene> scene = scene::loadGltf(in.string(), {.load_textures = false});
+  ASSERT_TRUE(scene);
+  Expected<UnwrapResult> result = unwrap(*scene, {});
+  ASSERT_TRUE(result);
+  const Status s = writeGltfWithLightmapUv(in.string(), *scene, result->atlas, in.string());
+  EXPECT_EQ(s.code(), Code::kInvalidInput) << s.toString();
+}
+
+std::string base64(const std::string& bytes) {
+  static const char* k = "ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
+  std::string out;
+  for (std::size_t i = 0; i < bytes.size(); i += 3) {
+    std::uint32_t v = static_cast<std::uint8_t>(bytes[i]) << 16;
+    if (i + 1 < bytes.size()) v |= static_cast<std::uint8_t>(bytes[i + 1]) << 8;
+    if (i + 2 < bytes.size()) v |= static_cast<std::uint8_t>(bytes[i + 2]);
+    out += k[(v >> 18) & 63];
+    out += k[(v >> 12) & 63];
+    out += i + 1 < bytes.size() ? k[(v >> 6) & 63] : '=';
+    out += i + 2 < bytes.size() ? k[v & 63] : '=';
+  }
+  return out;
+}
+
+TEST(GltfWriter, InstancedMeshGetsOneCopyPerStaticNode) {
+  // One quad mesh (2 triangles) placed by three nodes; the third is mirrored (scale -1)
+  // and the second is dynamic.
+  const float pos[12] = {0, 0, 0, 1, 0, 0, 1, 0, -1, 0, 0, -1};
+  const std::uint16_t idx[6] = {0, 1, 2, 0, 2, 3};
+  std::string bin(reinterpret_cast<const char*>(pos), sizeof(pos));
+  bin.append(reinterpret_cast<const char*>(idx), sizeof(idx));
+  const std::string json = R"({
+    "asset": {"version": "2.0"},
+    "scene": 0, "scenes": [{"nodes": [0, 1, 2]}],
+    "nodes": [{"mesh": 0}, {"mesh": 0, "translation": [3, 0, 0], "extras": {"lightlink": {"static": false}}},
+              {"mesh": 0, "translation": [6, 0, 0], "scale": [-1, 1, 1]}],
+    "meshes": [{"name": "quad", "primitives": [{"attributes": {"POSITION": 0}, "indices": 1}]}],
+    "accessors": [
+      {"bufferView": 0, "componentType": 5126, "count": 4, "type": "VEC3", "min": [0, 0, -1], "max": [1, 0, 0]},
+      {"bufferView": 1, "componentType": 5123, "count": 6, "type": "SCALAR"}],
+    "bufferViews": [{"buffer": 0, "byteOffset": 0, "byteLength": 48}, {"buffer": 0, "byteOffset": 48, "byteLength": 12}],
+    "buffers": [{"byteLength": 60, "uri": "data:application/octet-stream;base64,)" + base64(bin) + R"("}]
+  })";
+  lightlink::testing::TempDir tmp;
+  const std::string in = lightlink::testing::writeFile(tmp / "quads.gltf", json);
+  Expected<scene::Scene> scene = scene::loadGltf(in);
+  ASSERT_TRUE(scene) << scene.status().toString();
+  ASSERT_EQ(scene->meshes.size(), 3u);
+  Expected<UnwrapResult> result = unwrap(*scene, {});
+  ASSERT_TRUE(result) << result.status().toString();
+  EXPECT_EQ(result->report.charts, 2);
+  const std::string out = (tmp / "quads_lm.glb").string();
+  ASSERT_TRUE(writeGltfWithLightmapUv(in, *scene, result->atlas, out));
+  Expected<scene::Scene> again = scene::loadGltf(out);
+  ASSERT_TRUE(again) << again.status().toString();
+  expectSameGeometry(*scene, *again);
+  // The dynamic node keeps the original mesh (no TEXCOORD_1); each static node has a copy.
+  EXPECT_EQ(again->meshes[1].gltf_mesh, 0);
+  EXPECT_TRUE(again->meshes[1].uv1.empty());
+  EXPECT_NE(again->meshes[0].gltf_mesh, 0);
+  EXPECT_NE(again->meshes[2].gltf_mesh, 0);
+  EXPECT_NE(again->meshes[0].gltf_mesh, again->meshes[2].gltf_mesh);
+  EXPECT_NE(again->meshes[0].uv1, again->meshes[2].uv1);
+  const testing::OracleResult oracle = testing::checkWithOracle(*again, result->atlas);
+  EXPECT_EQ(oracle.chart_overlap_texels + oracle.flipped + oracle.gutter_violations, 0u) << oracle.first_problem;
+}
+
+TEST(GltfWriter, ReplacedTexcoord1MovesWithItsMaterial) {
+  // Quad A has TEXCOORD_1, sampled by its material's base colour; quad B has none, so the
+  // mixed-scene policy regenerates both and A's old set must survive as TEXCOORD_2.
+  const float pos[12] = {0, 0, 0, 1, 0, 0, 1, 0, -1, 0, 0, -1};
+  const float uv[8] = {0, 0, 1, 0, 1, 1, 0, 1};
+  const std::uint16_t idx[6] = {0, 1, 2, 0, 2, 3};
+  std::string bin(reinterpret_cast<const char*>(pos), sizeof(pos));
+  bin.append(reinterpret_cast<const char*>(uv), sizeof(uv));
+  bin.append(reinterpret_cast<const char*>(idx), sizeof(idx));
+  const std::string json = R"({
+    "asset": {"version": "2.0"},
+    "scene": 0, "scenes": [{"nodes": [0, 1]}],
+    "nodes": [{"mesh": 0}, {"mesh": 1, "translation": [3, 0, 0]}],
+    "meshes": [{"primitives": [{"attributes": {"POSITION": 0, "TEXCOORD_1": 1}, "indices": 2, "material": 0}]},
+               {"primitives": [{"attributes": {"POSITION": 0}, "indices": 2, "material": 0}]}],
+    "materials": [{"pbrMetallicRoughness": {"baseColorTexture": {"index": 0, "texCoord": 1}}}],
+    "textures": [{"source": 0}], "images": [{"uri": "missing.png"}],
+    "accessors": [
+      {"bufferView": 0, "componentType": 5126, "count": 4, "type": "VEC3", "min": [0, 0, -1], "max": [1, 0, 0]},
+      {"bufferView": 1, "componentType": 5126, "count": 4, "type": "VEC2"},
+      {"bufferView": 2, "componentType": 5123, "count": 6, "type": "SCALAR"}],
+    "bufferViews": [{"buffer": 0, "byteOffset": 0, "byteLength": 48}, {"buffer": 0, "byteOffset": 48, "byteLength": 32},
+                    {"buffer": 0, "byteOffset": 80, "byteLength": 12}],
+    "buffers": [{"byteLength": 92, "uri": "data:application/octet-stream;base64,)" + base64(bin) + R"("}]
+  })";
+  lightlink::testing::TempDir tmp;
+  const std::string in = lightlink::testing::writeFile(tmp / "mixed.gltf", json);
+  Expected<scene::Scene> scene = scene::loadGltf(in, {.load_textures = false});
+  ASSERT_TRUE(scene) << scene.status().toString();
+  Expected<UnwrapResult> result = unwrap(*scene, {});
+  ASSERT_TRUE(result) << result.status().toString();
+  ASSERT_TRUE(result->report.generated);
+  const fs::path out = tmp / "out" / "mixed_lm.gltf";
+  fs::create_directories(out.parent_path());
+  ASSERT_TRUE(writeGltfWithLightmapUv(in, *scene, result->atlas, out.string()));
+  const nlohmann::json j = nlohmann::json::parse(readBytes(out));
+  const nlohmann::json& a = j["meshes"][0]["primitives"][0];
+  const nlohmann::json& b = j["meshes"][1]["primitives"][0];
+  ASSERT_TRUE(a["attributes"].contains("TEXCOORD_2")) << j["meshes"].dump();
+  EXPECT_FALSE(b["attributes"].contains("TEXCOORD_2"));
+  const int material_a = a["material"].get<int>();
+  EXPECT_NE(material_a, 0);
+  EXPECT_EQ(j["materials"][material_a]["pbrMetallicRoughness"]["baseColorTexture"]["texCoord"].get<int>(), 2);
+  EXPECT_EQ(j["materials"][0]["pbrMetallicRoughness"]["baseColorTexture"]["texCoord"].get<int>(), 1);
+  EXPECT_EQ(b["material"].get<int>(), 0);
+  // The old set's values, re-gathered: reload and compare with the input's uv set.
+  Expected<scene::Scene> again = scene::loadGltf(out.string(), {.load_textures = false});
+  ASSERT_TRUE(again) << again.status().toString();
+  expectSameGeometry(*scene, *again);
+}
+
+}  // namespace
+}  // namespace lightlink::charts
