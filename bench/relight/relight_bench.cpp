@@ -165,16 +165,16 @@ int main(int argc, char** argv) {
       const relight::RelightOptions o{.link_form = form, .bands = bands, .max_bounces = 0};
       std::map<std::string, std::vector<double>> stage;
       std::vector<double> total;
+      relight::RelightResult res;  // reused: the steady state of a session (relightInto)
       for (int r = 0; r <= args.repeats; ++r) {
         relighter->invalidate();
-        auto res = relighter->relight(lights, o);
-        if (!res) {
-          std::fprintf(stderr, "%s\n", res.status().toString().c_str());
+        if (Status s = relighter->relightInto(lights, o, res); !s) {
+          std::fprintf(stderr, "%s\n", s.toString().c_str());
           return 2;
         }
         if (r == 0) continue;  // warm-up
-        for (const auto& s : res->timings) stage[s.stage].push_back(s.seconds);
-        total.push_back(res->totalSeconds());
+        for (const auto& s : res.timings) stage[s.stage].push_back(s.seconds);
+        total.push_back(res.totalSeconds());
       }
       nlohmann::ordered_json row;
       row["form"] = form == relight::LinkForm::kProjected ? "projected" : "runtime";
@@ -191,11 +191,12 @@ int main(int argc, char** argv) {
   // ---- cache lighting vs a plain read of the same link bytes -------------------------
   {
     const std::size_t nodes = p->tree.nodeCount();
-    std::vector<float> r(nodes), g(nodes), b(nodes);
+    std::vector<float> rgbx(4 * nodes, 0.0f);
     std::mt19937 rng(7);
     std::uniform_real_distribution<float> u(0.0f, 2.0f);
-    for (std::size_t n = 0; n < nodes; ++n) r[n] = u(rng), g[n] = u(rng), b[n] = u(rng);
-    const relight::detail::NodeRadiance node{r.data(), g.data(), b.data()};
+    for (std::size_t n = 0; n < nodes; ++n)
+      for (int ch = 0; ch < 3; ++ch) rgbx[4 * n + ch] = u(rng);
+    const relight::detail::NodeRadiance node{rgbx.data()};
     const links::LinksView view = lm.view();
     const std::size_t caches = view.cacheCount();
     const int nc = view.bands * view.bands;
@@ -268,13 +269,14 @@ int main(int argc, char** argv) {
     if (!full) return 2;
     std::vector<double> t;
     std::size_t lit = 0, pulled = 0, summed = 0;
-    for (int r = 0; r < args.repeats; ++r) {
+    relight::RelightResult res;
+    for (int r = 0; r <= args.repeats; ++r) {
       lamp.light.position.x += 0.002f * scene->scale * ((r & 1) ? -1.0f : 1.0f);
       if (Status s = inc.modify(lamp); !s) return 2;
-      auto res = relighter->relight(inc, o);
-      if (!res || !res->passes.incremental) return 3;
-      t.push_back(res->totalSeconds());
-      lit = res->counts.surfels_lit, pulled = res->counts.nodes_pulled, summed = res->counts.caches_summed;
+      if (Status s = relighter->relightInto(inc, o, res); !s || !res.passes.incremental) return 3;
+      if (r == 0) continue;  // warm-up (first use of the buffers)
+      t.push_back(res.totalSeconds());
+      lit = res.counts.surfels_lit, pulled = res.counts.nodes_pulled, summed = res.counts.caches_summed;
     }
     fmt::print("\nincremental (point light, range {:.2f} m, moved): {:.3f} ms vs full {:.3f} ms; surfels {}/{}, "
                "nodes {}/{}, caches {}/{}\n",

@@ -22,9 +22,8 @@ SurfelLocator::SurfelLocator(const surfels::Surfels& surfels, const scene::Scene
     cell_begin_.assign(2, 0);
     return;
   }
-  // Mean surfel spacing on the surface is sqrt(area per surfel). One spacing per cell keeps
-  // the 27-cell scan short (a surface crosses ~9 of the cells, ~1-2 surfels each); the true
-  // owner lies within one cell after relaxation, and a miss widens the search to 125 cells.
+  // Mean surfel spacing on the surface is sqrt(area per surfel); two of them per cell keep
+  // the true owner inside the 27-cell neighbourhood even after relaxation.
   const float spacing = static_cast<float>(std::sqrt(area / static_cast<double>(n)));
   const glm::vec3 extent = glm::max(box.extent(), glm::vec3(1e-6f));
   cell_ = std::max(spacing, 1e-6f * glm::length(extent));
@@ -159,8 +158,7 @@ std::uint32_t SurfelLocator::ownerOfHit(std::uint32_t mesh, std::uint32_t triang
       if (best != kNoSurfel) return best;
     }
   }
-  const float len = glm::length(n);
-  return owner(p, len > 0.0f ? n / len : n);
+  return owner(p, n);
 }
 
 std::uint32_t SurfelLocator::owner(const glm::vec3& p, const glm::vec3& n) const {

@@ -4,7 +4,7 @@
 // stands for that piece of surface. Surfels are (after relaxation) close to a Poisson-disc
 // set, so the owner is the nearest surfel on the same side of the same surface: the
 // nearest one whose normal agrees with the hit's shading side. A dense uniform grid over
-// the surfels (cell ~1 surfel spacing, CSR layout: one offsets array, one id array) makes
+// the surfels (cell ~2 surfel spacings, CSR layout: one offsets array, one id array) makes
 // the query a scan of 27 cells of a few surfels each, with no allocation per query. The
 // locator copies what it needs; the Surfels may go away after construction.
 //
@@ -31,13 +31,12 @@ inline constexpr std::uint32_t kNoSurfel = std::numeric_limits<std::uint32_t>::m
 
 class SurfelLocator {
  public:
-  static constexpr std::uint32_t kTriangleListMax = 16;
+  static constexpr std::uint32_t kTriangleListMax = 8;
 
   // `scene` is the scene the surfels were placed on (hits report its mesh/triangle ids).
   SurfelLocator(const surfels::Surfels& surfels, const scene::Scene& scene);
 
-  // The owner of a hit on triangle `triangle` of mesh `mesh` at p with visible-side normal n
-  // (any length; normalised only when the grid is needed).
+  // The owner of a hit on triangle `triangle` of mesh `mesh` at p with visible-side normal n.
   std::uint32_t ownerOfHit(std::uint32_t mesh, std::uint32_t triangle, const glm::vec3& p, const glm::vec3& n) const;
 
   // Nearest surfel to p whose normal is within ~60 degrees of n (unit); falls back to a
