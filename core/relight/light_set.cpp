@@ -1,0 +1,468 @@
+#include "core/relight/light_set.h"
+
+#include <algorithm>
+#include <cmath>
+#include <fstream>
+#include <numbers>
+#include <set>
+#include <sstream>
+
+namespace lightlink::relight {
+namespace {
+
+using json = nlohmann::json;
+constexpr float kPi = std::numbers::pi_v<float>;
+
+const char* kindName(scene::Light::Kind k) {
+  switch (k) {
+    case scene::Light::Kind::kPoint: return "point";
+    case scene::Light::Kind::kSpot: return "spot";
+    case scene::Light::Kind::kDirectional: return "directional";
+  }
+  return "point";
+}
+
+Status checkScalar(float v, std::string_view path) {
+  if (!std::isfinite(v)) return invalidInput("{}: {} is not finite", path, v);
+  if (v < 0.0f) return invalidInput("{}: {} is negative", path, v);
+  if (v > kMaxLightValue) return invalidInput("{}: {} exceeds the limit {:g}", path, v, kMaxLightValue);
+  return {};
+}
+
+Status checkColor(glm::vec3 c, std::string_view path) {
+  for (int i = 0; i < 3; ++i)
+    if (Status s = checkScalar(c[i], fmt::format("{}[{}]", path, i)); !s) return s;
+  return {};
+}
+
+Status checkFinite(glm::vec3 v, std::string_view path) {
+  for (int i = 0; i < 3; ++i)
+    if (!std::isfinite(v[i])) return invalidInput("{}[{}]: {} is not finite", path, i, v[i]);
+  return {};
+}
+
+// ---- JSON readers: each names the field path on error ---------------------------------
+
+Expected<float> readNumber(const json& j, const std::string& path) {
+  if (!j.is_number()) return invalidInput("{}: expected a number, got {}", path, j.type_name());
+  const double d = j.get<double>();
+  if (!std::isfinite(d)) return invalidInput("{}: {} is not finite", path, d);
+  if (std::abs(d) > 3.0e38) return invalidInput("{}: {} is out of float range", path, d);
+  return static_cast<float>(d);
+}
+
+Expected<glm::vec3> readVec3(const json& j, const std::string& path) {
+  if (!j.is_array() || j.size() != 3) return invalidInput("{}: expected an array of 3 numbers", path);
+  glm::vec3 v(0.0f);
+  for (int i = 0; i < 3; ++i) {
+    auto x = readNumber(j[i], fmt::format("{}[{}]", path, i));
+    if (!x) return x.status();
+    v[i] = *x;
+  }
+  return v;
+}
+
+Expected<bool> readBool(const json& j, const std::string& path) {
+  if (!j.is_boolean()) return invalidInput("{}: expected true or false, got {}", path, j.type_name());
+  return j.get<bool>();
+}
+
+Status checkKeys(const json& obj, const std::string& path, std::initializer_list<const char*> allowed) {
+  for (auto it = obj.begin(); it != obj.end(); ++it) {
+    if (std::none_of(allowed.begin(), allowed.end(), [&](const char* k) { return it.key() == k; }))
+      return invalidInput("{}.{}: unknown field", path, it.key());
+  }
+  return {};
+}
+
+// Applies the fields present in `j` to `e` (which holds defaults or the light overridden).
+Status readLightFields(const json& j, const std::string& path, LightEntry& e) {
+  if (Status s = checkKeys(j, path,
+                           {"id", "type", "color", "intensity", "range", "position", "direction",
+                            "inner_cone_angle", "outer_cone_angle", "baked", "remove", "name"});
+      !s)
+    return s;
+  if (j.contains("type")) {
+    const json& t = j["type"];
+    if (!t.is_string()) return invalidInput("{}.type: expected a string", path);
+    const std::string ts = t.get<std::string>();
+    if (ts == "point") e.light.kind = scene::Light::Kind::kPoint;
+    else if (ts == "spot") e.light.kind = scene::Light::Kind::kSpot;
+    else if (ts == "directional") e.light.kind = scene::Light::Kind::kDirectional;
+    else return invalidInput("{}.type: \"{}\" is not point, spot or directional", path, ts);
+  }
+  if (j.contains("name")) {
+    if (!j["name"].is_string()) return invalidInput("{}.name: expected a string", path);
+    e.light.name = j["name"].get<std::string>();
+  }
+  auto vec = [&](const char* key, glm::vec3& out) -> Status {
+    if (!j.contains(key)) return {};
+    auto v = readVec3(j[key], path + "." + key);
+    if (!v) return v.status();
+    out = *v;
+    return {};
+  };
+  auto num = [&](const char* key, float& out) -> Status {
+    if (!j.contains(key)) return {};
+    auto v = readNumber(j[key], path + "." + key);
+    if (!v) return v.status();
+    out = *v;
+    return {};
+  };
+  for (Status s : {vec("color", e.light.color), num("intensity", e.light.intensity), num("range", e.light.range),
+                   vec("position", e.light.position), vec("direction", e.light.direction),
+                   num("inner_cone_angle", e.light.inner_cone_angle),
+                   num("outer_cone_angle", e.light.outer_cone_angle)})
+    if (!s) return s;
+  if (j.contains("baked")) {
+    auto b = readBool(j["baked"], path + ".baked");
+    if (!b) return b.status();
+    e.baked = *b;
+  }
+  return {};
+}
+
+Expected<Sky> readSky(const json& j, const std::string& path) {
+  if (!j.is_object()) return invalidInput("{}: expected an object", path);
+  if (Status s = checkKeys(j, path, {"radiance", "sh"}); !s) return s;
+  Sky sky;
+  if (j.contains("radiance")) {
+    auto v = readVec3(j["radiance"], path + ".radiance");
+    if (!v) return v.status();
+    sky.radiance = *v;
+  }
+  if (j.contains("sh")) {
+    const json& sh = j["sh"];
+    if (!sh.is_array() || sh.size() != 9)
+      return invalidInput("{}.sh: expected 9 RGB coefficients (3 bands, docs/sh.md order)", path);
+    std::array<glm::vec3, 9> c;
+    for (int i = 0; i < 9; ++i) {
+      auto v = readVec3(sh[i], fmt::format("{}.sh[{}]", path, i));
+      if (!v) return v.status();
+      c[i] = *v;
+    }
+    sky.sh = c;
+  }
+  if (Status s = LightSet::validate(sky, path); !s) return s;
+  return sky;
+}
+
+Expected<EmissiveOverride> readEmissive(const json& j, const std::string& path) {
+  if (!j.is_object()) return invalidInput("{}: expected an object", path);
+  if (Status s = checkKeys(j, path, {"material", "scale", "radiance"}); !s) return s;
+  EmissiveOverride e;
+  if (!j.contains("material") || !j["material"].is_number_integer())
+    return invalidInput("{}.material: expected a material index (integer)", path);
+  const auto m = j["material"].get<long long>();
+  if (m < 0 || m > 1'000'000'000) return invalidInput("{}.material: {} is not a material index", path, m);
+  e.material = static_cast<int>(m);
+  if (j.contains("scale") == j.contains("radiance"))
+    return invalidInput("{}: give exactly one of \"scale\" and \"radiance\"", path);
+  const char* key = j.contains("scale") ? "scale" : "radiance";
+  e.mode = j.contains("scale") ? EmissiveOverride::Mode::kScale : EmissiveOverride::Mode::kRadiance;
+  if (j[key].is_number()) {
+    auto v = readNumber(j[key], path + "." + key);
+    if (!v) return v.status();
+    e.value = glm::vec3(*v);
+  } else {
+    auto v = readVec3(j[key], path + "." + key);
+    if (!v) return v.status();
+    e.value = *v;
+  }
+  if (Status s = LightSet::validate(e, path); !s) return s;
+  return e;
+}
+
+nlohmann::ordered_json vec3Json(glm::vec3 v) { return nlohmann::ordered_json::array({v.x, v.y, v.z}); }
+
+}  // namespace
+
+bool Sky::emits() const {
+  if (sh) return std::any_of(sh->begin(), sh->end(), [](glm::vec3 c) { return c != glm::vec3(0.0f); });
+  return radiance != glm::vec3(0.0f);
+}
+
+std::array<glm::vec3, 9> Sky::radianceSh() const {
+  if (sh) return *sh;
+  std::array<glm::vec3, 9> c{};
+  c[0] = radiance * (2.0f * std::sqrt(kPi));  // L_00 of a constant: L * sqrt(4 pi)
+  return c;
+}
+
+bool sameLight(const scene::Light& a, const scene::Light& b) {
+  return a.kind == b.kind && a.color == b.color && a.intensity == b.intensity && a.range == b.range &&
+         a.inner_cone_angle == b.inner_cone_angle && a.outer_cone_angle == b.outer_cone_angle &&
+         a.position == b.position && a.direction == b.direction;
+}
+
+LightSet LightSet::fromScene(const scene::Scene& scene) {
+  LightSet set;
+  std::set<std::string> names;
+  std::set<std::string> duplicated;
+  for (const auto& l : scene.lights)
+    if (!names.insert(l.name).second) duplicated.insert(l.name);
+  for (std::size_t i = 0; i < scene.lights.size(); ++i) {
+    const auto& l = scene.lights[i];
+    LightEntry e{l.name.empty() || duplicated.count(l.name) ? fmt::format("light{}", i) : l.name, l, true};
+    // Scene lights were validated by ingest; a collision of a name with a generated id is
+    // resolved by suffixing, so fromScene never fails.
+    while (set.find(e.id)) e.id += "_";
+    set.lights_.push_back(std::move(e));
+  }
+  set.version_ = 1;
+  return set;
+}
+
+Status LightSet::validate(const LightEntry& e, std::string_view path) {
+  if (e.id.empty()) return invalidInput("{}.id: must not be empty", path);
+  if (e.id.size() > 256) return invalidInput("{}.id: longer than 256 characters", path);
+  const auto& l = e.light;
+  if (Status s = checkColor(l.color, fmt::format("{}.color", path)); !s) return s;
+  if (Status s = checkScalar(l.intensity, fmt::format("{}.intensity", path)); !s) return s;
+  if (Status s = checkScalar(l.range, fmt::format("{}.range", path)); !s) return s;
+  if (Status s = checkFinite(l.position, fmt::format("{}.position", path)); !s) return s;
+  if (Status s = checkFinite(l.direction, fmt::format("{}.direction", path)); !s) return s;
+  if (l.kind != scene::Light::Kind::kPoint && !(glm::length(l.direction) > 1e-6f))
+    return invalidInput("{}.direction: must be a non-zero vector", path);
+  if (l.kind == scene::Light::Kind::kSpot) {
+    if (!std::isfinite(l.outer_cone_angle) || l.outer_cone_angle <= 0.0f || l.outer_cone_angle > 0.5f * kPi + 1e-6f)
+      return invalidInput("{}.outer_cone_angle: {} is outside (0, pi/2]", path, l.outer_cone_angle);
+    if (!std::isfinite(l.inner_cone_angle) || l.inner_cone_angle < 0.0f || l.inner_cone_angle >= l.outer_cone_angle)
+      return invalidInput("{}.inner_cone_angle: {} is outside [0, outer_cone_angle = {})", path,
+                          l.inner_cone_angle, l.outer_cone_angle);
+  }
+  return {};
+}
+
+Status LightSet::validate(const EmissiveOverride& e, std::string_view path) {
+  if (e.material < 0) return invalidInput("{}.material: {} is not a material index", path, e.material);
+  return checkColor(e.value, fmt::format("{}.{}", path, e.mode == EmissiveOverride::Mode::kScale ? "scale" : "radiance"));
+}
+
+Status LightSet::validate(const Sky& sky, std::string_view path) {
+  if (Status s = checkColor(sky.radiance, fmt::format("{}.radiance", path)); !s) return s;
+  if (sky.sh) {
+    // SH coefficients may be negative (only the function must be >= 0), so only finiteness
+    // and magnitude are checked.
+    for (int i = 0; i < 9; ++i)
+      for (int c = 0; c < 3; ++c) {
+        const float v = (*sky.sh)[i][c];
+        if (!std::isfinite(v)) return invalidInput("{}.sh[{}][{}]: {} is not finite", path, i, c, v);
+        if (std::abs(v) > kMaxLightValue)
+          return invalidInput("{}.sh[{}][{}]: {} exceeds the limit {:g}", path, i, c, v, kMaxLightValue);
+      }
+  }
+  return {};
+}
+
+namespace {
+// The direction stored is unit length, whatever length the caller gave.
+void normalizeDirection(LightEntry& e) {
+  const float len = glm::length(e.light.direction);
+  if (len > 0.0f) e.light.direction /= len;
+}
+}  // namespace
+
+const LightEntry* LightSet::find(std::string_view id) const {
+  for (const auto& e : lights_)
+    if (e.id == id) return &e;
+  return nullptr;
+}
+
+bool LightSet::anyBaked() const {
+  return std::any_of(lights_.begin(), lights_.end(), [](const LightEntry& e) { return e.baked; });
+}
+
+Status LightSet::add(LightEntry entry) {
+  if (Status s = validate(entry, fmt::format("lights[\"{}\"]", entry.id)); !s) return s;
+  if (find(entry.id)) return invalidInput("lights[\"{}\"].id: duplicate id", entry.id);
+  normalizeDirection(entry);
+  lights_.push_back(std::move(entry));
+  ++version_;
+  return {};
+}
+
+Status LightSet::modify(const LightEntry& entry) {
+  auto it = std::find_if(lights_.begin(), lights_.end(), [&](const LightEntry& e) { return e.id == entry.id; });
+  if (it == lights_.end()) return invalidInput("lights[\"{}\"].id: unknown id", entry.id);
+  if (Status s = validate(entry, fmt::format("lights[\"{}\"]", entry.id)); !s) return s;
+  *it = entry;
+  normalizeDirection(*it);
+  ++version_;
+  return {};
+}
+
+Status LightSet::remove(std::string_view id) {
+  auto it = std::find_if(lights_.begin(), lights_.end(), [&](const LightEntry& e) { return e.id == id; });
+  if (it == lights_.end()) return invalidInput("lights[\"{}\"].id: unknown id", id);
+  lights_.erase(it);
+  ++version_;
+  return {};
+}
+
+Status LightSet::setEmissive(const EmissiveOverride& e) {
+  if (Status s = validate(e, fmt::format("emissive[material {}]", e.material)); !s) return s;
+  auto it = std::lower_bound(emissive_.begin(), emissive_.end(), e.material,
+                             [](const EmissiveOverride& a, int m) { return a.material < m; });
+  if (it != emissive_.end() && it->material == e.material) *it = e;
+  else emissive_.insert(it, e);
+  ++version_;
+  return {};
+}
+
+Status LightSet::clearEmissive(int material) {
+  auto it = std::find_if(emissive_.begin(), emissive_.end(), [&](const auto& e) { return e.material == material; });
+  if (it == emissive_.end()) return invalidInput("emissive[material {}]: no override to clear", material);
+  emissive_.erase(it);
+  ++version_;
+  return {};
+}
+
+Status LightSet::setSky(const Sky& sky) {
+  if (Status s = validate(sky, "sky"); !s) return s;
+  sky_ = sky;
+  ++version_;
+  return {};
+}
+
+Status LightSet::apply(const json& j) {
+  if (!j.is_object()) return invalidInput("light set: expected a JSON object");
+  if (Status s = checkKeys(j, "light set", {"version", "lights", "sky", "emissive"}); !s) return s;
+  if (!j.contains("version")) return invalidInput("version: missing (this build reads version {})", kLightSetSchemaVersion);
+  if (!j["version"].is_number_integer() || j["version"].get<long long>() != kLightSetSchemaVersion)
+    return invalidInput("version: {} is not supported (this build reads version {})", j["version"].dump(),
+                        kLightSetSchemaVersion);
+  LightSet next = *this;  // all or nothing
+  if (j.contains("lights")) {
+    const json& arr = j["lights"];
+    if (!arr.is_array()) return invalidInput("lights: expected an array");
+    std::set<std::string> seen;
+    for (std::size_t i = 0; i < arr.size(); ++i) {
+      const std::string path = fmt::format("lights[{}]", i);
+      const json& lj = arr[i];
+      if (!lj.is_object()) return invalidInput("{}: expected an object", path);
+      if (!lj.contains("id") || !lj["id"].is_string()) return invalidInput("{}.id: expected a string", path);
+      const std::string id = lj["id"].get<std::string>();
+      if (!seen.insert(id).second) return invalidInput("{}.id: duplicate id \"{}\"", path, id);
+      auto it = std::find_if(next.lights_.begin(), next.lights_.end(), [&](const auto& e) { return e.id == id; });
+      if (lj.contains("remove")) {
+        auto r = readBool(lj["remove"], path + ".remove");
+        if (!r) return r.status();
+        if (*r) {
+          if (it == next.lights_.end()) return invalidInput("{}.id: unknown id \"{}\" cannot be removed", path, id);
+          next.lights_.erase(it);
+          continue;
+        }
+      }
+      LightEntry e = it != next.lights_.end() ? *it : LightEntry{id, {}, true};
+      if (it == next.lights_.end() && !lj.contains("type"))
+        return invalidInput("{}.type: missing for new light \"{}\"", path, id);
+      if (Status s = readLightFields(lj, path, e); !s) return s;
+      if (Status s = validate(e, path); !s) return s;
+      normalizeDirection(e);
+      if (it != next.lights_.end()) *it = std::move(e);
+      else next.lights_.push_back(std::move(e));
+    }
+  }
+  if (j.contains("sky")) {
+    auto sky = readSky(j["sky"], "sky");
+    if (!sky) return sky.status();
+    next.sky_ = *sky;
+  }
+  if (j.contains("emissive")) {
+    const json& arr = j["emissive"];
+    if (!arr.is_array()) return invalidInput("emissive: expected an array");
+    for (std::size_t i = 0; i < arr.size(); ++i) {
+      auto e = readEmissive(arr[i], fmt::format("emissive[{}]", i));
+      if (!e) return e.status();
+      auto it = std::lower_bound(next.emissive_.begin(), next.emissive_.end(), e->material,
+                                 [](const EmissiveOverride& a, int m) { return a.material < m; });
+      if (it != next.emissive_.end() && it->material == e->material) *it = *e;
+      else next.emissive_.insert(it, *e);
+    }
+  }
+  next.version_ = version_ + 1;
+  *this = std::move(next);
+  return {};
+}
+
+Expected<LightSet> LightSet::fromJson(const json& j) {
+  LightSet set;
+  if (Status s = set.apply(j); !s) return s;
+  return set;
+}
+
+namespace {
+Expected<json> parseFile(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  if (!in) return notFound("{}: cannot open light set", path);
+  std::stringstream ss;
+  ss << in.rdbuf();
+  json j = json::parse(ss.str(), nullptr, /*allow_exceptions=*/false);
+  if (j.is_discarded()) return invalidInput("{}: not valid JSON", path);
+  return j;
+}
+}  // namespace
+
+Expected<LightSet> LightSet::load(const std::string& path) {
+  auto j = parseFile(path);
+  if (!j) return j.status();
+  auto set = fromJson(*j);
+  if (!set) return Status(set.status().code(), path + ": " + set.status().message());
+  return set;
+}
+
+Status LightSet::applyFile(const std::string& path) {
+  auto j = parseFile(path);
+  if (!j) return j.status();
+  if (Status s = apply(*j); !s) return Status(s.code(), path + ": " + s.message());
+  return {};
+}
+
+nlohmann::ordered_json LightSet::toJson() const {
+  nlohmann::ordered_json j;
+  j["version"] = kLightSetSchemaVersion;
+  j["lights"] = nlohmann::ordered_json::array();
+  for (const auto& e : lights_) {
+    nlohmann::ordered_json l;
+    l["id"] = e.id;
+    l["type"] = kindName(e.light.kind);
+    if (!e.light.name.empty()) l["name"] = e.light.name;
+    l["color"] = vec3Json(e.light.color);
+    l["intensity"] = e.light.intensity;
+    if (e.light.range > 0.0f) l["range"] = e.light.range;
+    if (e.light.kind != scene::Light::Kind::kDirectional) l["position"] = vec3Json(e.light.position);
+    if (e.light.kind != scene::Light::Kind::kPoint) l["direction"] = vec3Json(e.light.direction);
+    if (e.light.kind == scene::Light::Kind::kSpot) {
+      l["inner_cone_angle"] = e.light.inner_cone_angle;
+      l["outer_cone_angle"] = e.light.outer_cone_angle;
+    }
+    l["baked"] = e.baked;
+    j["lights"].push_back(l);
+  }
+  nlohmann::ordered_json sky;
+  sky["radiance"] = vec3Json(sky_.radiance);
+  if (sky_.sh) {
+    sky["sh"] = nlohmann::ordered_json::array();
+    for (const auto& c : *sky_.sh) sky["sh"].push_back(vec3Json(c));
+  }
+  j["sky"] = sky;
+  j["emissive"] = nlohmann::ordered_json::array();
+  for (const auto& e : emissive_) {
+    nlohmann::ordered_json o;
+    o["material"] = e.material;
+    o[e.mode == EmissiveOverride::Mode::kScale ? "scale" : "radiance"] = vec3Json(e.value);
+    j["emissive"].push_back(o);
+  }
+  return j;
+}
+
+Status LightSet::save(const std::string& path) const {
+  std::ofstream out(path, std::ios::binary | std::ios::trunc);
+  if (!out) return ioError("{}: cannot write light set", path);
+  out << toJson().dump(2) << "\n";
+  if (!out) return ioError("{}: write failed", path);
+  return {};
+}
+
+}  // namespace lightlink::relight

@@ -1,0 +1,175 @@
+// Relighter: the per-light-change half of seed 000 (sec 3, 3.1, 3.2), on the CPU.
+//
+//   LightSet --(a) surfel direct light (shadow rays) + emission--> surfel radiosity B
+//            --(b) pull: flux up the tree, node radiosity B_node = Phi_node / A_node
+//            --(c) cache lighting: L_cache = sum_links B_node F_node (+ sky)
+//            --(d) bounces: surfels gather the caches, B += rho E_ind, repeat (b)-(c)
+//            --(e) fill invalid caches, lightmap texels, dilation
+//            --(f) baked direct light per texel (shadow rays)  --> RelightResult
+//
+// Units (docs/units.md): radiosity B in W/m^2-equivalent (the photometric units of the
+// lights: lux for lights in candela/lux, pi * radiance for emitters), node flux Phi = B * A,
+// cache SH = incident radiance, per texel direct = irradiance. A Relighter keeps references
+// to the static inputs (scene, accel, precomputation, link views): they must outlive it. It
+// owns the per-relight buffers and reuses them, so repeated relights do not allocate, and it
+// remembers the last light set so that a change of exactly one light with bounces off is
+// relit incrementally (only surfels the light reaches, only their tree paths, only caches
+// linked to changed nodes) with the same result as a full relight.
+//
+// Before any work an EffectsPlan (DESIGN.md sec 5) says which passes the scene and light
+// set call for; skipped passes do not run and are counted in RelightResult::passes, so the
+// report shows each saving. Results are identical for any TBB thread count: every parallel
+// loop writes disjoint outputs and every sum runs in a fixed order.
+#pragma once
+
+#include <cstdint>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include <glm/glm.hpp>
+#include <nlohmann/json.hpp>
+
+#include "core/common/status.h"
+#include "core/links/links.h"
+#include "core/precompute/precompute.h"
+#include "core/relight/light_set.h"
+#include "core/rt/accel.h"
+#include "core/scene/scene.h"
+
+namespace lightlink::relight {
+
+// kProjected: links' stored fp16 SH coefficients. kRuntime: direction + solid angle per
+// link, projected as a spherical cap at relight time (seed 000 sec 4.6), any band count.
+enum class LinkForm { kProjected, kRuntime };
+// kAuto: AVX2 + F16C kernels when the CPU has them, else scalar. kScalar forces scalar.
+enum class Kernel { kAuto, kScalar };
+
+struct RelightOptions {
+  LinkForm link_form = LinkForm::kProjected;
+  int bands = 0;                   // output SH bands; 0 = the links' bands. kProjected: <= links' bands
+  int max_bounces = 8;             // cap on indirect bounces (0 = direct + emission only)
+  float bounce_threshold = 1e-3f;  // stop when a bounce adds less than this fraction of the total flux
+  bool incremental = true;         // allow incremental relight when exactly one light changed
+  Kernel kernel = Kernel::kAuto;
+};
+
+// DESIGN.md sec 5: which passes this relight runs, and why.
+struct EffectsPlan {
+  bool punctual = false;      // any light with non-zero power
+  bool emissive = false;      // any surfel emits after overrides
+  bool sky = false;           // the sky emits
+  bool grid = false;          // the precomputation has grid caches
+  bool bounces = false;       // max_bounces > 0 and some light reaches the scene
+  int max_bounces = 0;
+  bool baked_direct = false;  // some baked light has non-zero power
+  std::vector<std::string> reasons;  // one line per decision
+
+  std::string toText() const;
+  nlohmann::ordered_json toJson() const;
+};
+
+// Passes executed (incremented when a pass runs) by one relight, so tests and reports can
+// see what was skipped.
+struct PassCounts {
+  int surfel_direct = 0;     // punctual-light evaluation over surfels
+  int emission = 0;          // emission added to surfel radiosity
+  int pulls = 0;
+  int cache_lighting = 0;    // lightmap-cache summations
+  int grid_lighting = 0;     // grid-cache summations
+  int sky = 0;               // sky term added to caches
+  int bounces = 0;
+  int baked_direct = 0;
+  int fill = 0;
+  int incremental = 0;       // 1 when this relight was incremental
+};
+
+struct BounceRecord {
+  int bounce = 0;              // 1 = first indirect bounce
+  double added_flux = 0.0;     // sum over channels and surfels of |Phi_k - Phi_{k-1}|, lm-equivalent
+  double total_flux = 0.0;     // sum of surfel flux after this bounce
+  double seconds = 0.0;
+};
+
+struct StageTime {
+  std::string stage;
+  double seconds = 0.0;
+};
+
+struct RelightCounts {
+  std::size_t surfels = 0, surfels_lit = 0;     // lit = direct light re-evaluated this relight
+  std::size_t nodes = 0, nodes_pulled = 0;
+  std::size_t caches = 0, caches_summed = 0;    // lightmap caches
+  std::size_t grid_caches = 0, grid_caches_summed = 0;
+  std::size_t links_read = 0;
+  std::size_t shadow_rays = 0;
+  std::size_t texels = 0, texels_filled = 0;    // texels with a value after fill + dilation
+  std::size_t surfels_without_gather = 0;       // bounces: no lightmap texel nor grid to read
+};
+
+struct RelightResult {
+  std::uint64_t version = 0;        // the LightSet version this result is for
+  std::string backend = "cpu";
+  std::string kernel;               // "avx2" or "scalar"
+  LinkForm link_form = LinkForm::kProjected;
+  int bands = 0;
+  int width = 0, height = 0;        // lightmap texels
+  // Per texel (y * width + x), 3 * bands^2 floats: R coefficients, then G, then B (docs/sh.md
+  // order in each): SH of *indirect* incident radiance. Texels without a value are 0 and
+  // have texel_valid = 0.
+  std::vector<float> lightmap_sh;
+  std::vector<glm::vec3> direct;            // per texel: baked direct irradiance (lux), linear RGB
+  std::vector<std::uint8_t> texel_valid;    // 1 = the texel has a cache, a fill or a dilation
+  // Per grid cache (GridCaches order), 3 * bands^2 floats as above; empty without a grid.
+  std::vector<float> grid_sh;
+  std::vector<glm::vec3> surfel_radiosity;  // final B per surfel (tree order)
+  EffectsPlan plan;
+  PassCounts passes;
+  RelightCounts counts;
+  std::vector<StageTime> timings;
+  std::vector<BounceRecord> bounce_log;
+  std::string bounce_stop;          // "threshold", "cap", "disabled" or "no light"
+  std::vector<std::string> warnings;
+
+  int coeffCount() const { return bands * bands; }
+  double totalSeconds() const;
+  nlohmann::ordered_json report() const;
+};
+
+class Relighter {
+ public:
+  // Static inputs; all must outlive the Relighter. `lightmap_links`/`grid_links` are views
+  // of the precomputation's links (in memory or an artifact mapping).
+  static Expected<Relighter> create(const scene::Scene& scene, const rt::Accel& accel,
+                                    const precompute::Precomputation& p, links::LinksView lightmap_links,
+                                    links::LinksView grid_links);
+  // Same, with the links held in `p`.
+  static Expected<Relighter> create(const scene::Scene& scene, const rt::Accel& accel,
+                                    const precompute::Precomputation& p);
+
+  Relighter(Relighter&&) noexcept;
+  Relighter& operator=(Relighter&&) noexcept;
+  ~Relighter();
+
+  EffectsPlan plan(const LightSet& lights, const RelightOptions& options) const;
+  Expected<RelightResult> relight(const LightSet& lights, const RelightOptions& options = {});
+  // Same, into `out`, reusing its arrays' capacity: the steady state of a daemon or an editor
+  // session relighting the same scene allocates nothing. On error `out` is unspecified.
+  Status relightInto(const LightSet& lights, const RelightOptions& options, RelightResult& out);
+  // Forgets the last light set, so the next relight is a full one.
+  void invalidate();
+  // True when this CPU runs the AVX2 + F16C kernels.
+  static bool simdAvailable();
+
+ private:
+  struct Impl;
+  explicit Relighter(std::unique_ptr<Impl> impl);
+  std::unique_ptr<Impl> impl_;
+};
+
+// Exposed for tests and the benchmark: the cap projection of seed 000 sec 4.6 in closed form
+// (polynomials of cos(half angle) = 1 - omega / 2pi, no trigonometry). Writes band factors
+// k_l with coefficient (l, m) = k_l * Y_lm(direction); equals projectRuntimeLink.
+void capBandFactors(float omega_over_pi, float* k /* kMaxBands */);
+
+}  // namespace lightlink::relight
