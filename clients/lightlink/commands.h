@@ -45,4 +45,18 @@ struct PrecomputeArgs {
 };
 int runPrecompute(const PrecomputeArgs& args);
 
+struct BakeArgs {
+  std::string scene_path;
+  std::string output_dir;
+  std::string preset = "medium";   // draft | medium | high
+  std::string lights_path;         // light-set JSON adding to / overriding the scene's lights
+  std::string cache_dir;           // artifacts by cache key; empty = <output_dir>/cache
+  std::string link_form = "projected";  // projected | runtime
+  int max_bounces = 8;
+  bool float_exr = false;
+  bool no_cache = false;           // recompute even when a matching artifact exists
+  bool quiet = false;
+};
+int runBake(const BakeArgs& args);
+
 }  // namespace lightlink::cli

@@ -45,6 +45,19 @@ int main(int argc, char** argv) {
   pre_cmd->add_option("--subdivide", pre.subdivide, "Split every triangle into 4^N first (0..4)");
   pre_cmd->add_flag("-q,--quiet", pre.quiet, "No progress bar, no summary");
 
+  BakeArgs bake;
+  auto* bake_cmd = app.add_subcommand("bake", "Unwrap, precompute (or reuse), relight and write lightmaps, grid, report");
+  bake_cmd->add_option("scene", bake.scene_path, "glTF scene (.gltf or .glb)")->required();
+  bake_cmd->add_option("-o,--output", bake.output_dir, "Output directory")->required();
+  bake_cmd->add_option("--preset", bake.preset, "Quality: draft, medium or high")->capture_default_str();
+  bake_cmd->add_option("--lights", bake.lights_path, "Light-set JSON adding to or overriding the scene's lights");
+  bake_cmd->add_option("--cache-dir", bake.cache_dir, "Artifact cache directory (default OUTPUT/cache)");
+  bake_cmd->add_option("--link-form", bake.link_form, "projected or runtime")->capture_default_str();
+  bake_cmd->add_option("--bounces", bake.max_bounces, "Most indirect bounces")->capture_default_str();
+  bake_cmd->add_flag("--float", bake.float_exr, "32-bit float EXR instead of half");
+  bake_cmd->add_flag("--no-cache", bake.no_cache, "Recompute even when a matching artifact exists");
+  bake_cmd->add_flag("-q,--quiet", bake.quiet, "No progress bar, no summary");
+
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
@@ -54,5 +67,6 @@ int main(int argc, char** argv) {
   if (*inspect_cmd) return runInspect(inspect);
   if (*unwrap_cmd) return runUnwrap(unwrap);
   if (*pre_cmd) return runPrecompute(pre);
+  if (*bake_cmd) return runBake(bake);
   return kExitUsage;
 }

@@ -115,6 +115,30 @@ Status PrecomputeOptions::validate() const {
   return {};
 }
 
+Expected<PrecomputeOptions> preset(std::string_view name) {
+  PrecomputeOptions o;
+  if (name == "draft") {
+    o.surfels = 8192;
+    o.links = 64;
+    o.rays = 256;
+    o.target_resolution = 64;
+  } else if (name == "medium") {
+    o.surfels = 32768;
+    o.links = 128;
+    o.rays = 1024;
+    o.target_resolution = 128;
+  } else if (name == "high") {
+    o.surfels = 131072;
+    o.links = 254;
+    o.bands = 4;
+    o.rays = 4096;
+    o.target_resolution = 256;
+  } else {
+    return invalidInput("--preset '{}' must be draft, medium or high", name);
+  }
+  return o;
+}
+
 std::string PrecomputeOptions::canonical() const {
   return fmt::format(
       "surfels={};links={};bands={};rays={};builder={};grid={};grid_spacing={:a};grid_resolution={};"
@@ -123,6 +147,14 @@ std::string PrecomputeOptions::canonical() const {
       static_cast<int>(grid), grid_spacing_m, grid_resolution,
       texel_size_m ? fmt::format("{:a}", *texel_size_m) : "auto",
       lightmap_resolution ? std::to_string(*lightmap_resolution) : "auto", target_resolution, validity_rays, seed);
+}
+
+Expected<charts::UnwrapResult> unwrapFor(scene::Scene& scene, const PrecomputeOptions& options) {
+  charts::UnwrapOptions u;
+  u.texel_size_m = options.texel_size_m;
+  u.resolution = options.lightmap_resolution;
+  u.target_resolution = options.target_resolution;
+  return charts::unwrap(scene, u);
 }
 
 Expected<Precomputation> run(scene::Scene& scene, const PrecomputeOptions& options, Progress* progress) {
@@ -142,11 +174,7 @@ Expected<Precomputation> run(scene::Scene& scene, const PrecomputeOptions& optio
   };
 
   Status s = stage("unwrap", [&]() -> Status {
-    charts::UnwrapOptions u;
-    u.texel_size_m = options.texel_size_m;
-    u.resolution = options.lightmap_resolution;
-    u.target_resolution = options.target_resolution;
-    auto r = charts::unwrap(scene, u);
+    auto r = unwrapFor(scene, options);
     if (!r) return r.status();
     p.atlas = std::move(r->atlas);
     p.notes.push_back(p.atlas.generated ? fmt::format("lightmap UVs generated: {} charts in {}x{}",

@@ -15,6 +15,7 @@
 #include <optional>
 #include <span>
 #include <string>
+#include <string_view>
 #include <vector>
 
 #include <nlohmann/json.hpp>
@@ -53,6 +54,11 @@ struct PrecomputeOptions {
   std::string canonical() const;
 };
 
+// Named quality presets for `lightlink bake` and the daemon: "draft", "medium" (seed 000
+// Table 2 setting 2: nS 32k, nL 128, 3 bands) and "high". Provisional until the accuracy
+// study (issue 6) derives them from its Pareto front.
+Expected<PrecomputeOptions> preset(std::string_view name);
+
 struct StageTime {
   std::string stage;
   double seconds = 0.0;
@@ -75,6 +81,10 @@ struct Precomputation {
   // Report: counts, time per stage, memory per structure, rays and rays/s.
   nlohmann::ordered_json report() const;
 };
+
+// The unwrap stage alone, with the options precompute uses: a caller that reuses an artifact
+// runs it to give the scene the same lightmap UVs (and triangle ids) the artifact was made on.
+Expected<charts::UnwrapResult> unwrapFor(scene::Scene& scene, const PrecomputeOptions& options);
 
 // Runs every stage. `scene` is modified: the unwrap writes uv1 (and splits seam vertices).
 Expected<Precomputation> run(scene::Scene& scene, const PrecomputeOptions& options,
