@@ -129,6 +129,52 @@ TEST(Unwrap, WritesGltfWithLightmapUvs) {
   EXPECT_FALSE(j["lightmap_uv"]["unwrap_needed"].get<bool>());
 }
 
+TEST(Bake, WritesEverythingThenReusesTheArtifact) {
+  testing::TempDir dir;
+  const std::string cmd = kCli + " bake " + demoScene().string() + " -o " + (dir / "out").string() +
+                          " --preset draft --bounces 2 -q";
+  const auto first = runCommand(cmd);
+  ASSERT_EQ(first.exit_code, 0) << first.output;
+  for (const char* f : {"lightmap.exr", "lightmap.png", "report.json", "grid.exr", "grid.json", "grid.raw",
+                        "cornell_box_lm.gltf"})
+    EXPECT_TRUE(std::filesystem::exists(dir / "out" / f)) << f;
+  auto report = nlohmann::json::parse(readAll(dir / "out" / "report.json"));
+  EXPECT_EQ(report["artifact"].get<std::string>().rfind("computed", 0), 0u) << report["artifact"];
+  EXPECT_TRUE(report["effects_plan"].is_object());
+  EXPECT_EQ(report["relight"]["backend"], "cpu");
+
+  const auto second = runCommand(cmd);
+  ASSERT_EQ(second.exit_code, 0) << second.output;
+  report = nlohmann::json::parse(readAll(dir / "out" / "report.json"));
+  EXPECT_EQ(report["artifact"].get<std::string>().rfind("reused", 0), 0u) << report["artifact"];
+
+  // A damaged cached artifact is never used: the bake recomputes and replaces it.
+  for (const auto& e : std::filesystem::directory_iterator(dir / "out" / "cache")) {
+    std::string bytes = readAll(e.path());
+    bytes[bytes.size() / 2] ^= 0x5a;
+    testing::writeFile(e.path(), bytes);
+  }
+  const auto third = runCommand(cmd);
+  ASSERT_EQ(third.exit_code, 0) << third.output;
+  report = nlohmann::json::parse(readAll(dir / "out" / "report.json"));
+  EXPECT_NE(report["artifact"].get<std::string>().find("unusable"), std::string::npos) << report["artifact"];
+  const auto fourth = runCommand(cmd);
+  report = nlohmann::json::parse(readAll(dir / "out" / "report.json"));
+  EXPECT_EQ(report["artifact"].get<std::string>().rfind("reused", 0), 0u) << report["artifact"];
+}
+
+TEST(Bake, BadLightSetAndPresetAreBadInput) {
+  testing::TempDir dir;
+  const auto lights = testing::writeFile(
+      dir / "lights.json", R"({"version": 1, "lights": [{"id": "sun", "type": "directional", "intensity": -5}]})");
+  auto r = runCommand(kCli + " bake " + demoScene().string() + " -o " + (dir / "out").string() + " -q --lights " + lights);
+  EXPECT_EQ(r.exit_code, cli::kExitBadInput) << r.output;
+  EXPECT_NE(r.output.find("lights[0].intensity"), std::string::npos) << r.output;
+  r = runCommand(kCli + " bake " + demoScene().string() + " -o " + (dir / "out").string() + " -q --preset ultra");
+  EXPECT_EQ(r.exit_code, cli::kExitBadInput) << r.output;
+  EXPECT_NE(r.output.find("--preset"), std::string::npos) << r.output;
+}
+
 TEST(Cli, UnknownSubcommandIsUsageError) {
   const auto r = runCommand(kCli + " frobnicate");
   EXPECT_EQ(r.exit_code, cli::kExitUsage) << r.output;
