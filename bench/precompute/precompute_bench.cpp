@@ -56,14 +56,6 @@ bool parse(int argc, char** argv, Args& a) {
   return true;
 }
 
-std::string cpuModel() {
-  std::ifstream in("/proc/cpuinfo");
-  std::string line;
-  while (std::getline(in, line))
-    if (line.rfind("model name", 0) == 0) return line.substr(line.find(':') + 2);
-  return "unknown";
-}
-
 double seconds(std::chrono::steady_clock::time_point t0) {
   return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
 }
@@ -120,7 +112,7 @@ int main(int argc, char** argv) {
   const double hac_s = seconds(t0);
 
   nlohmann::ordered_json j;
-  j["machine"] = {{"cpu", cpuModel()}, {"threads", tbb::info::default_concurrency()}};
+  j["machine"] = {{"cpu", bench::cpuModel()}, {"threads", tbb::info::default_concurrency()}};
   j["scene"] = args.scene;
   j["subdivide"] = args.subdivide;
   j["triangles"] = triangles;
@@ -132,7 +124,7 @@ int main(int argc, char** argv) {
   j["tree_build_seconds"] = {{"kd", kd_s}, {"hac", hac_s}, {"hac_over_kd", kd_s > 0 ? hac_s / kd_s : 0.0},
                              {"ok", bool(kd) && bool(hac)}};
   const auto& t = report["seconds"];
-  fmt::print("scene {} ({} triangles, subdivide {}) on {} x {}\n", args.scene, triangles, args.subdivide, cpuModel(),
+  fmt::print("scene {} ({} triangles, subdivide {}) on {} x {}\n", args.scene, triangles, args.subdivide, bench::cpuModel(),
              tbb::info::default_concurrency());
   fmt::print("caches: {} lightmap, {} grid; surfels {}; links/cache {:.1f}\n",
              report["counts"]["lightmap_caches"].get<std::size_t>(), report["counts"]["grid_caches"].get<std::size_t>(),

@@ -24,6 +24,7 @@
 #include <tbb/parallel_for.h>
 #include <tbb/parallel_reduce.h>
 
+#include "bench/rt/throughput.h"
 #include "core/precompute/precompute.h"
 #include "core/relight/cache_lighting.h"
 #include "core/relight/relight.h"
@@ -61,14 +62,6 @@ bool parse(int argc, char** argv, Args& a) {
     else return false;
   }
   return true;
-}
-
-std::string cpuModel() {
-  std::ifstream in("/proc/cpuinfo");
-  std::string line;
-  while (std::getline(in, line))
-    if (line.rfind("model name", 0) == 0) return line.substr(line.find(':') + 2);
-  return "unknown";
 }
 
 double median(std::vector<double> v) {
@@ -140,14 +133,14 @@ int main(int argc, char** argv) {
   }
 
   nlohmann::ordered_json j;
-  j["machine"] = {{"cpu", cpuModel()}, {"threads", tbb::info::default_concurrency()},
+  j["machine"] = {{"cpu", bench::cpuModel()}, {"threads", tbb::info::default_concurrency()},
                   {"avx2_f16c", relight::Relighter::simdAvailable()}};
   j["scene"] = args.scene;
   j["triangles"] = scene->triangleCount();
   j["precompute_seconds"] = precompute_s;
   j["counts"] = p->report()["counts"];
   const auto& lm = p->lightmap_links;
-  fmt::print("scene {} ({} triangles) on {} x {}\n", args.scene, scene->triangleCount(), cpuModel(),
+  fmt::print("scene {} ({} triangles) on {} x {}\n", args.scene, scene->triangleCount(), bench::cpuModel(),
              tbb::info::default_concurrency());
   fmt::print("surfels {}, lightmap caches {} ({} valid), grid caches {}, links {} ({:.1f}/cache), link bands {}\n",
              p->surfels.size(), p->lightmap.size(), p->lightmap.validCount(), p->grid.size(), lm.linkCount(),
