@@ -5,9 +5,8 @@
 #include <cstdint>
 #include <vector>
 
-#include <png.h>
-
 #include "core/charts/rasterize.h"
+#include "core/common/png.h"
 
 namespace lightlink::charts {
 namespace {
@@ -71,17 +70,7 @@ Status writeChartPreviewPng(const scene::Scene& scene, const LightmapAtlas& atla
   for (std::size_t i = 0; i < wire.size(); ++i)
     if (wire[i])
       for (int c = 0; c < 3; ++c) rgb[3 * i + c] = static_cast<std::uint8_t>(rgb[3 * i + c] / 3);
-  png_image image{};
-  image.version = PNG_IMAGE_VERSION;
-  image.width = static_cast<png_uint_32>(size);
-  image.height = static_cast<png_uint_32>(size);
-  image.format = PNG_FORMAT_RGB;
-  if (!png_image_write_to_file(&image, png_path.c_str(), 0, rgb.data(), size * 3, nullptr)) {
-    const std::string why = image.message;
-    png_image_free(&image);
-    return ioError("chart preview: cannot write '{}': {}", png_path, why);
-  }
-  return Status::ok();
+  return writePngRgb8(png_path, size, size, rgb, "chart preview");
 }
 
 }  // namespace lightlink::charts

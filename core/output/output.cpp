@@ -12,9 +12,9 @@
 #include <OpenEXR/ImfIntAttribute.h>
 #include <OpenEXR/ImfOutputFile.h>
 #include <OpenEXR/ImfStringAttribute.h>
-#include <png.h>
 
 #include "core/common/half.h"
+#include "core/common/png.h"
 #include "core/sh/sh.h"
 
 namespace lightlink::output {
@@ -216,11 +216,6 @@ Status writeIrradiancePng(const relight::RelightResult& result, const caches::Li
     ++n;
   }
   const float exposure = options.exposure > 0.0f ? options.exposure : (sum > 0.0 ? float(n / sum) : 1.0f);
-  auto srgb = [](float v) {
-    v = std::clamp(v, 0.0f, 1.0f);
-    const float s = v <= 0.0031308f ? 12.92f * v : 1.055f * std::pow(v, 1.0f / 2.4f) - 0.055f;
-    return std::uint8_t(std::lround(s * 255.0f));
-  };
   std::vector<std::uint8_t> rgb(texels * 3, 0);
   for (std::size_t t = 0; t < texels; ++t) {
     if (!lit[t]) {
@@ -229,20 +224,10 @@ Status writeIrradiancePng(const relight::RelightResult& result, const caches::Li
     }
     for (int ch = 0; ch < 3; ++ch) {
       const float x = e[t][ch] * exposure;
-      rgb[3 * t + ch] = srgb(x / (1.0f + x));  // Reinhard
+      rgb[3 * t + ch] = encodeSrgb8(x / (1.0f + x));  // Reinhard
     }
   }
-  png_image image{};
-  image.version = PNG_IMAGE_VERSION;
-  image.width = static_cast<png_uint_32>(w);
-  image.height = static_cast<png_uint_32>(h);
-  image.format = PNG_FORMAT_RGB;
-  if (!png_image_write_to_file(&image, path.c_str(), 0, rgb.data(), w * 3, nullptr)) {
-    const std::string why = image.message;
-    png_image_free(&image);
-    return ioError("irradiance preview: cannot write '{}': {}", path, why);
-  }
-  return {};
+  return writePngRgb8(path, w, h, rgb, "irradiance preview");
 }
 
 Status writeReportJson(const nlohmann::ordered_json& report, const std::string& path) {
