@@ -6,6 +6,7 @@
 #include <cstdint>
 #include <optional>
 #include <string>
+#include <vector>
 
 namespace lightlink::cli {
 
@@ -58,5 +59,18 @@ struct BakeArgs {
   bool quiet = false;
 };
 int runBake(const BakeArgs& args);
+
+struct RenderArgs {
+  std::string scene_path;    // the *_lm.gltf a bake wrote (static meshes carry TEXCOORD_1)
+  std::string bake_dir;      // lightmap.exr (+ grid.raw)
+  std::string output_png;
+  std::string lights_path;   // same light set as the bake
+  std::vector<float> eye, target;  // 3 values each; empty = defaultCamera()
+  float fov_deg = 40.0f;
+  int width = 512, height = 512;
+  float exposure = 0.0f;
+  bool quiet = false;
+};
+int runRender(const RenderArgs& args);
 
 }  // namespace lightlink::cli

@@ -58,6 +58,20 @@ int main(int argc, char** argv) {
   bake_cmd->add_flag("--no-cache", bake.no_cache, "Recompute even when a matching artifact exists");
   bake_cmd->add_flag("-q,--quiet", bake.quiet, "No progress bar, no summary");
 
+  RenderArgs render;
+  auto* render_cmd = app.add_subcommand("render", "Render a camera view lit by a bake's lightmap and grid, to PNG");
+  render_cmd->add_option("scene", render.scene_path, "The *_lm.gltf written by bake")->required();
+  render_cmd->add_option("--bake", render.bake_dir, "Bake output directory (lightmap.exr, grid.raw)")->required();
+  render_cmd->add_option("-o,--output", render.output_png, "PNG to write")->required();
+  render_cmd->add_option("--lights", render.lights_path, "Light-set JSON (the one given to bake)");
+  render_cmd->add_option("--eye", render.eye, "Camera position x,y,z (m)")->expected(3)->delimiter(',');
+  render_cmd->add_option("--target", render.target, "Point looked at x,y,z (m)")->expected(3)->delimiter(',');
+  render_cmd->add_option("--fov", render.fov_deg, "Vertical field of view, degrees")->capture_default_str();
+  render_cmd->add_option("--width", render.width, "Image width")->capture_default_str();
+  render_cmd->add_option("--height", render.height, "Image height")->capture_default_str();
+  render_cmd->add_option("--exposure", render.exposure, "Exposure scale (0 = auto)");
+  render_cmd->add_flag("-q,--quiet", render.quiet, "No summary");
+
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
@@ -68,5 +82,6 @@ int main(int argc, char** argv) {
   if (*unwrap_cmd) return runUnwrap(unwrap);
   if (*pre_cmd) return runPrecompute(pre);
   if (*bake_cmd) return runBake(bake);
+  if (*render_cmd) return runRender(render);
   return kExitUsage;
 }

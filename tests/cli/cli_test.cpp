@@ -163,6 +163,26 @@ TEST(Bake, WritesEverythingThenReusesTheArtifact) {
   EXPECT_EQ(report["artifact"].get<std::string>().rfind("reused", 0), 0u) << report["artifact"];
 }
 
+TEST(Render, DrawsTheBakedCornellBox) {
+  testing::TempDir dir;
+  const auto out = dir / "out";
+  auto r = runCommand(kCli + " bake " + demoScene().string() + " -o " + out.string() + " --preset draft --bounces 1 -q");
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  const auto png = dir / "frame.png";
+  r = runCommand(kCli + " render " + (out / "cornell_box_lm.gltf").string() + " --bake " + out.string() + " -o " +
+                 png.string() + " --width 96 --height 96");
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_GT(std::filesystem::file_size(png), 1000u);
+  // The room is lit from the lightmap, the dynamic probe from the grid, nothing unlit.
+  EXPECT_NE(r.output.find(" 0 unlit"), std::string::npos) << r.output;
+  EXPECT_EQ(r.output.find(" 0 from the grid"), std::string::npos) << r.output;
+  EXPECT_EQ(r.output.find(" 0 pixels from the lightmap"), std::string::npos) << r.output;
+  // The source scene has no lightmap UVs: a clear error, not a black picture.
+  r = runCommand(kCli + " render " + demoScene().string() + " --bake " + out.string() + " -o " + png.string());
+  EXPECT_EQ(r.exit_code, cli::kExitBadInput) << r.output;
+  EXPECT_NE(r.output.find("TEXCOORD_1"), std::string::npos) << r.output;
+}
+
 TEST(Bake, BadLightSetAndPresetAreBadInput) {
   testing::TempDir dir;
   const auto lights = testing::writeFile(

@@ -1,0 +1,41 @@
+// BakedLighting: what a game client has after a bake or a poll — the SH lightmap (with
+// baked direct light and validity) and the SH irradiance grid — read back from the files
+// `lightlink bake` writes (lightmap.exr, grid.raw; docs/outputs.md), plus the lookups an
+// engine does with them: bilinear texel interpolation at a lightmap UV for static surfaces,
+// trilinear grid interpolation at a world position for dynamic ones. Invalid texels and
+// grid points carry no weight, so an edge never blends in black.
+#pragma once
+
+#include <string>
+#include <vector>
+
+#include <glm/glm.hpp>
+
+#include "core/common/status.h"
+
+namespace lightlink::viewer {
+
+struct BakedLighting {
+  int bands = 0;
+  int width = 0, height = 0;          // lightmap texels
+  std::vector<float> lightmap_sh;     // per texel 3 * bands^2: R coefficients, then G, then B
+  std::vector<glm::vec3> direct;      // per texel: baked direct irradiance
+  std::vector<float> valid;           // per texel: 1 or 0
+  bool has_grid = false;
+  glm::ivec3 dims{0};
+  glm::vec3 origin{0.0f};
+  float spacing_m = 0.0f;
+  std::vector<float> grid_sh;         // per grid point, as lightmap_sh
+  std::vector<float> grid_valid;
+
+  // Indirect irradiance (SH evaluated for `normal`) + baked direct at lightmap UV `uv`.
+  // Returns false when no valid texel surrounds uv.
+  bool sampleLightmap(glm::vec2 uv, const glm::vec3& normal, glm::vec3& irradiance) const;
+  // Indirect irradiance from the grid at world position p for `normal`.
+  bool sampleGrid(const glm::vec3& p, const glm::vec3& normal, glm::vec3& irradiance) const;
+};
+
+// Reads `dir`/lightmap.exr and, when present, `dir`/grid.raw.
+Expected<BakedLighting> loadBakedLighting(const std::string& dir);
+
+}  // namespace lightlink::viewer
