@@ -2,7 +2,7 @@
 //
 //  - time per precompute stage and memory per structure (seed 000 Table 4);
 //  - link generation throughput as a ratio to raw Embree throughput on the *same rays*
-//    (links::cacheRays regenerates exactly the rays link generation traced), measured in the
+//    (links::LinkRays regenerates exactly the rays link generation traced), measured in the
 //    same process right after the precompute (target >= 0.7);
 //  - HAC build time vs kd build time on the same surfels.
 // Usage: precompute_bench [--scene F] [--subdivide N] [--surfels N] [--links N] [--bands B]
@@ -88,10 +88,11 @@ int main(int argc, char** argv) {
   auto accel = rt::Accel::build(*scene);
   const links::LinkOptions lo{.rays = args.options.rays, .max_links = args.options.links,
                               .bands = args.options.bands, .seed = args.options.seed};
-  const std::uint32_t per_cache = links::raysPerCache(lo);
+  const links::LinkRays pattern(lo);
+  const std::uint32_t per_cache = pattern.count();
   std::vector<rt::Ray> rays(std::size_t(per_cache) * p->lightmap.size());
   for (std::size_t c = 0; c < p->lightmap.size(); ++c)
-    links::cacheRays(*accel, c, p->lightmap.position[c], p->lightmap.normal[c], lo,
+    pattern.generate(*accel, c, p->lightmap.position[c], p->lightmap.normal[c],
                      std::span<rt::Ray>(rays.data() + c * per_cache, per_cache));
   bench::ThroughputOptions to;
   to.api = bench::RayApi::kPacket16;

@@ -104,12 +104,22 @@ Expected<Links> generateLinks(const scene::Scene& scene, const rt::Accel& accel,
                               const CacheQuery& caches, const LinkOptions& options,
                               Progress* progress = nullptr);
 
-// The rays link generation traces for one cache (strata^2 of them, strata =
-// floor(sqrt(options.rays))): exposed so a benchmark can trace exactly the same rays through
-// the bare BVH and compare throughput. `rays.size()` must be at least strata^2.
-std::uint32_t raysPerCache(const LinkOptions& options);
-void cacheRays(const rt::Accel& accel, std::size_t cache, const glm::vec3& position, const glm::vec3& normal,
-               const LinkOptions& options, std::span<rt::Ray> rays);
+// The rays link generation traces for each cache: a strata x strata stratified grid
+// (strata = floor(sqrt(options.rays))) over the hemisphere around the cache normal (or the
+// sphere for a zero normal), jittered per cache from (seed, cache). Exposed so a benchmark
+// can trace exactly the same rays through the bare BVH and compare throughput.
+class LinkRays {
+ public:
+  explicit LinkRays(const LinkOptions& options);
+  std::uint32_t count() const { return strata_ * strata_; }
+  // Fills rays[0 .. count()).
+  void generate(const rt::Accel& accel, std::size_t cache, const glm::vec3& position, const glm::vec3& normal,
+                std::span<rt::Ray> rays) const;
+
+ private:
+  std::uint32_t strata_;
+  std::uint64_t seed_;
+};
 
 // Zonal SH coefficients z_l (l < bands) of the indicator of a spherical cap of solid angle
 // `omega` (sr) around +z, divided by pi: the runtime-projection link shape. Rotated to
