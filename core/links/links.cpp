@@ -158,7 +158,7 @@ void linkCache(std::size_t cache, const glm::vec3& p, const glm::vec3& normal, c
     // The visible side's normal faces the cache (left unnormalised: the locator only
     // needs it when it falls back to its grid).
     const std::uint32_t owner =
-        locator.ownerOfHit(h.mesh, h.triangle, s.rays[i].origin + h.t * dir, back ? -h.ng : h.ng);
+        locator.ownerOfHit(h.mesh, h.triangle, h.u, h.v, s.rays[i].origin + h.t * dir, back ? -h.ng : h.ng);
     if (owner == kNoSurfel) {
       ++out.stats.unowned;
       continue;

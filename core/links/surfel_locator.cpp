@@ -90,6 +90,44 @@ void SurfelLocator::buildTriangleLists(const surfels::Surfels& surfels, const sc
     tri_position_[fill[t]] = surfels.position[i];
     ++fill[t];
   }
+  // Big triangles: bin their surfels by barycentric cell.
+  big_of_tri_.assign(tris, kNoSurfel);
+  std::vector<std::uint32_t> cell_count;
+  for (std::uint32_t t = 0; t < tris; ++t) {
+    if (!tri_use_grid_[t]) continue;
+    BigTriangle big;
+    big.g = static_cast<std::uint32_t>(std::ceil(std::sqrt(double(count[t]))));
+    big.first_cell = static_cast<std::uint32_t>(cell_count.size());
+    big_of_tri_[t] = static_cast<std::uint32_t>(big_.size());
+    big_.push_back(big);
+    cell_count.resize(cell_count.size() + std::size_t(big.g) * big.g, 0);
+  }
+  auto cellOfBary = [](const BigTriangle& big, glm::vec2 uv) {
+    const auto g = static_cast<int>(big.g);
+    const int iu = std::clamp(static_cast<int>(uv.x * float(g)), 0, g - 1);
+    const int iv = std::clamp(static_cast<int>(uv.y * float(g)), 0, g - 1);
+    return big.first_cell + static_cast<std::uint32_t>(iv * g + iu);
+  };
+  std::vector<std::uint32_t> big_cell_of(n, kNoSurfel);
+  for (std::size_t i = 0; i < n; ++i) {
+    if (surfels.mesh[i] >= meshes) continue;
+    const std::uint32_t t = mesh_first_[surfels.mesh[i]] + surfels.triangle[i];
+    if (big_of_tri_[t] == kNoSurfel) continue;
+    big_cell_of[i] = cellOfBary(big_[big_of_tri_[t]], surfels.barycentric[i]);
+    ++cell_count[big_cell_of[i]];
+  }
+  big_cell_begin_.assign(cell_count.size() + 1, 0);
+  for (std::size_t c = 0; c < cell_count.size(); ++c) big_cell_begin_[c + 1] = big_cell_begin_[c] + cell_count[c];
+  big_surfel_.assign(big_cell_begin_.back(), kNoSurfel);
+  big_position_.assign(big_cell_begin_.back(), glm::vec3(0.0f));
+  std::vector<std::uint32_t> cell_fill(big_cell_begin_.begin(), big_cell_begin_.end() - 1);
+  for (std::size_t i = 0; i < n; ++i) {
+    if (big_cell_of[i] == kNoSurfel) continue;
+    const std::uint32_t k = cell_fill[big_cell_of[i]]++;
+    big_surfel_[k] = static_cast<std::uint32_t>(i);
+    big_position_[k] = surfels.position[i];
+  }
+
   // Triangles too small to hold a surfel of their own (their area went into a neighbour's
   // slice) are represented by the surfel nearest to their centroid.
   for (std::size_t m = 0; m < meshes; ++m) {
@@ -140,10 +178,40 @@ std::uint32_t SurfelLocator::search(const glm::vec3& p, const glm::vec3& n, int 
   return best == kNoSurfel ? kNoSurfel : ids_[best];
 }
 
-std::uint32_t SurfelLocator::ownerOfHit(std::uint32_t mesh, std::uint32_t triangle, const glm::vec3& p,
-                                        const glm::vec3& n) const {
+std::uint32_t SurfelLocator::ownerOnBigTriangle(const BigTriangle& big, float u, float v, const glm::vec3& p) const {
+  const auto g = static_cast<int>(big.g);
+  const int iu = std::clamp(static_cast<int>(u * float(g)), 0, g - 1);
+  const int iv = std::clamp(static_cast<int>(v * float(g)), 0, g - 1);
+  std::uint32_t best = kNoSurfel;
+  float best_d2 = std::numeric_limits<float>::infinity();
+  // 3 x 3 cells first; if they are all empty (a hole in the surfel cover), the whole triangle.
+  for (int radius : {1, g}) {
+    for (int cv = std::max(0, iv - radius); cv <= std::min(g - 1, iv + radius); ++cv) {
+      const std::uint32_t row = big.first_cell + static_cast<std::uint32_t>(cv * g);
+      const std::uint32_t begin = big_cell_begin_[row + static_cast<std::uint32_t>(std::max(0, iu - radius))];
+      const std::uint32_t end = big_cell_begin_[row + static_cast<std::uint32_t>(std::min(g - 1, iu + radius)) + 1];
+      for (std::uint32_t k = begin; k < end; ++k) {
+        const glm::vec3 d = big_position_[k] - p;
+        const float d2 = glm::dot(d, d);
+        if (d2 < best_d2) {
+          best_d2 = d2;
+          best = big_surfel_[k];
+        }
+      }
+    }
+    if (best != kNoSurfel) break;
+  }
+  return best;
+}
+
+std::uint32_t SurfelLocator::ownerOfHit(std::uint32_t mesh, std::uint32_t triangle, float u, float v,
+                                        const glm::vec3& p, const glm::vec3& n) const {
   if (mesh + 1 < mesh_first_.size()) {
     const std::uint32_t t = mesh_first_[mesh] + triangle;
+    if (t < big_of_tri_.size() && big_of_tri_[t] != kNoSurfel) {
+      const std::uint32_t s = ownerOnBigTriangle(big_[big_of_tri_[t]], u, v, p);
+      if (s != kNoSurfel) return s;
+    }
     if (t < tri_use_grid_.size() && !tri_use_grid_[t]) {
       std::uint32_t best = kNoSurfel;
       float best_d2 = std::numeric_limits<float>::infinity();

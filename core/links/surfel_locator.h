@@ -13,7 +13,10 @@
 // surfels lying on it (or, when none does, the one nearest its centroid); a triangle with
 // at most kTriangleListMax of them answers from that list alone (the owner is then the
 // nearest surfel *on the hit triangle*, a partition of the surface as good as the nearest
-// overall for lighting), and only large triangles fall back to the grid.
+// overall for lighting). A triangle with more surfels (walls of a box, floors of a level)
+// bins them in a small grid over its barycentric square, and a hit scans the 3 x 3 cells
+// around its own (u, v): ~20 candidates instead of the 3D grid's ~200. The 3D grid remains
+// for hits without a triangle answer.
 #pragma once
 
 #include <cstdint>
@@ -37,7 +40,9 @@ class SurfelLocator {
   SurfelLocator(const surfels::Surfels& surfels, const scene::Scene& scene);
 
   // The owner of a hit on triangle `triangle` of mesh `mesh` at p with visible-side normal n.
-  std::uint32_t ownerOfHit(std::uint32_t mesh, std::uint32_t triangle, const glm::vec3& p, const glm::vec3& n) const;
+  // (u, v): the hit's barycentrics on that triangle (Embree's convention, as Hit::u/v).
+  std::uint32_t ownerOfHit(std::uint32_t mesh, std::uint32_t triangle, float u, float v, const glm::vec3& p,
+                           const glm::vec3& n) const;
 
   // Nearest surfel to p whose normal is within ~60 degrees of n (unit); falls back to a
   // wider search, then to the nearest surfel regardless of normal, then kNoSurfel.
@@ -67,6 +72,17 @@ class SurfelLocator {
   std::vector<std::uint32_t> tri_surfel_;
   std::vector<glm::vec3> tri_position_;
   std::vector<std::uint8_t> tri_use_grid_;
+  // Triangles with more than kTriangleListMax surfels: a g x g grid over (u, v) each.
+  struct BigTriangle {
+    std::uint32_t g = 0;           // cells per side
+    std::uint32_t first_cell = 0;  // into big_cell_begin_
+  };
+  std::vector<std::uint32_t> big_of_tri_;  // global triangle -> index into big_, or kNoSurfel
+  std::vector<BigTriangle> big_;
+  std::vector<std::uint32_t> big_cell_begin_;  // CSR over all big triangles' cells
+  std::vector<std::uint32_t> big_surfel_;
+  std::vector<glm::vec3> big_position_;
+  std::uint32_t ownerOnBigTriangle(const BigTriangle& big, float u, float v, const glm::vec3& p) const;
 };
 
 }  // namespace lightlink::links
