@@ -305,6 +305,12 @@ Expected<Links> generateLinks(const scene::Scene& scene, const rt::Accel& accel,
     ChunkResult& out = results[chunk];
     const std::size_t end = std::min(n, (chunk + 1) * kChunk);
     if (sink.cancelled()) return;
+    // Worst case up front: growing these vectors cost page faults in the profile.
+    const std::size_t most = (end - chunk * kChunk) * static_cast<std::size_t>(options.max_links);
+    out.node.reserve(most);
+    out.coeffs.reserve(most * static_cast<std::size_t>(options.bands * options.bands));
+    out.direction.reserve(most);
+    out.solid_angle.reserve(most);
     for (std::size_t c = chunk * kChunk; c < end; ++c)
       link_cache(c, caches.position[c], caches.normal[c], scene, accel, tree, locator, options, pattern,
                  surfel_bits, scratch, out);
@@ -317,6 +323,13 @@ Expected<Links> generateLinks(const scene::Scene& scene, const rt::Accel& accel,
   links.bands = options.bands;
   links.offsets.reserve(n + 1);
   links.offsets.push_back(0);
+  std::size_t total = 0;
+  for (const auto& r : results) total += r.node.size();
+  links.node.reserve(total);
+  links.coeffs.reserve(total * static_cast<std::size_t>(options.bands * options.bands));
+  links.direction.reserve(total);
+  links.solid_angle.reserve(total);
+  links.sky.reserve(n * static_cast<std::size_t>(options.bands * options.bands));
   for (auto& r : results) {
     for (std::uint32_t c : r.count) links.offsets.push_back(links.offsets.back() + c);
     links.node.insert(links.node.end(), r.node.begin(), r.node.end());
