@@ -231,10 +231,12 @@ void LinkRays::generate(const rt::Accel& accel, std::size_t cache, const glm::ve
   const float c = std::cos(angle), s = std::sin(angle);
   const glm::vec3 tr = c * t + s * b, br = c * b - s * t;
   const std::vector<glm::vec3>& local = hemisphere ? hemisphere_ : sphere_;
+  // Every hemisphere direction leaves on the normal's side, so one offset origin serves all.
+  const glm::vec3 origin = hemisphere ? accel.offsetOrigin(p, n, n) : p;
   for (std::uint32_t i = 0; i < count(); ++i) {
     const glm::vec3& l = local[i];
     const glm::vec3 dir = l.x * tr + l.y * br + l.z * n;
-    rays[i].origin = hemisphere ? accel.offsetOrigin(p, n, dir) : p;
+    rays[i].origin = origin;
     rays[i].dir = dir;
     rays[i].tnear = 0.0f;
     rays[i].tfar = std::numeric_limits<float>::infinity();
