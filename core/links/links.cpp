@@ -205,16 +205,7 @@ LinkCacheFn linkCacheFor(int bands) {
 
 }  // namespace
 
-LinkRays::LinkRays(const LinkOptions& options) : strata_(strataFor(options)), seed_(options.seed) {
-  const std::uint32_t count = strata_ * strata_;
-  hemisphere_.resize(count);
-  sphere_.resize(count);
-  for (std::uint32_t i = 0; i < count; ++i) {
-    const glm::vec2 u = stratifiedSample(i, strata_, options.seed);
-    hemisphere_[i] = uniformHemisphere(u.x, u.y);
-    sphere_[i] = uniformSphere(u.x, u.y);
-  }
-}
+LinkRays::LinkRays(const LinkOptions& options) : strata_(strataFor(options)), seed_(options.seed) {}
 
 void LinkRays::generate(const rt::Accel& accel, std::size_t cache, const glm::vec3& p, const glm::vec3& normal,
                         std::span<rt::Ray> rays) const {
@@ -224,20 +215,18 @@ void LinkRays::generate(const rt::Accel& accel, std::size_t cache, const glm::ve
     n = glm::normalize(normal);
     orthonormalBasis(n, t, b);
   }
-  // One jittered pattern, mapped to directions once; per cache a random rotation about the
-  // normal (stratification survives it), so neighbouring caches do not share their error.
-  const float angle =
-      2.0f * kPi * unitFloat(mixBits(seed_ ^ (std::uint64_t(cache) * 0xd1b54a32d192ed03ULL)));
-  const float c = std::cos(angle), s = std::sin(angle);
-  const glm::vec3 tr = c * t + s * b, br = c * b - s * t;
-  const std::vector<glm::vec3>& local = hemisphere ? hemisphere_ : sphere_;
+  // Jitter per cache, seeded by (seed, cache), so every cache's sampling error is
+  // independent of its neighbours'. (A shared pattern rotated per cache was 20 % faster, but
+  // its error is common to all caches: the mean sky irradiance over a plane came out 0.3 %
+  // off in tests/relight, a bias that independent jitter averages away.)
+  const std::uint64_t seed = mixBits(seed_ ^ (std::uint64_t(cache) * 0xd1b54a32d192ed03ULL));
   // Every hemisphere direction leaves on the normal's side, so one offset origin serves all.
   const glm::vec3 origin = hemisphere ? accel.offsetOrigin(p, n, n) : p;
   for (std::uint32_t i = 0; i < count(); ++i) {
-    const glm::vec3& l = local[i];
-    const glm::vec3 dir = l.x * tr + l.y * br + l.z * n;
+    const glm::vec2 u = stratifiedSample(i, strata_, seed);
+    const glm::vec3 local = hemisphere ? uniformHemisphere(u.x, u.y) : uniformSphere(u.x, u.y);
     rays[i].origin = origin;
-    rays[i].dir = dir;
+    rays[i].dir = glm::normalize(local.x * t + local.y * b + local.z * n);
     rays[i].tnear = 0.0f;
     rays[i].tfar = std::numeric_limits<float>::infinity();
   }

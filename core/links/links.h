@@ -104,12 +104,10 @@ Expected<Links> generateLinks(const scene::Scene& scene, const rt::Accel& accel,
                               const CacheQuery& caches, const LinkOptions& options,
                               Progress* progress = nullptr);
 
-// The rays link generation traces for each cache: one strata x strata jittered stratified
-// pattern (strata = floor(sqrt(options.rays))) over the hemisphere around the cache normal
-// (or the sphere for a zero normal), mapped to directions once and rotated about the normal
-// by a random angle per (seed, cache). Measured against per-cache jitter on one machine,
-// same run: link generation 20 % faster on zdm2 and 15 % on the Cornell box (no trig per
-// ray). Exposed so a benchmark can trace exactly the same rays through the bare BVH.
+// The rays link generation traces for each cache: a strata x strata jittered stratified
+// grid (strata = floor(sqrt(options.rays))) over the hemisphere around the cache normal (or
+// the sphere for a zero normal), jittered per (seed, cache). Exposed so a benchmark can
+// trace exactly the same rays through the bare BVH and compare throughput.
 class LinkRays {
  public:
   explicit LinkRays(const LinkOptions& options);
@@ -121,8 +119,6 @@ class LinkRays {
  private:
   std::uint32_t strata_;
   std::uint64_t seed_;
-  std::vector<glm::vec3> hemisphere_;  // the pattern in the local frame, +z = normal
-  std::vector<glm::vec3> sphere_;
 };
 
 // Zonal SH coefficients z_l (l < bands) of the indicator of a spherical cap of solid angle

@@ -325,9 +325,15 @@ Status LightSet::setSky(const Sky& sky) {
   return {};
 }
 
+Status LightSet::setEmissiveBaked(bool baked) {
+  emissive_baked_ = baked;
+  ++version_;
+  return {};
+}
+
 Status LightSet::apply(const json& j) {
   if (!j.is_object()) return invalidInput("light set: expected a JSON object");
-  if (Status s = checkKeys(j, "light set", {"version", "lights", "sky", "emissive"}); !s) return s;
+  if (Status s = checkKeys(j, "light set", {"version", "lights", "sky", "emissive", "emissive_baked"}); !s) return s;
   if (!j.contains("version")) return invalidInput("version: missing (this build reads version {})", kLightSetSchemaVersion);
   if (!j["version"].is_number_integer() || j["version"].get<long long>() != kLightSetSchemaVersion)
     return invalidInput("version: {} is not supported (this build reads version {})", j["version"].dump(),
@@ -380,6 +386,11 @@ Status LightSet::apply(const json& j) {
       if (it != next.emissive_.end() && it->material == e->material) *it = *e;
       else next.emissive_.insert(it, *e);
     }
+  }
+  if (j.contains("emissive_baked")) {
+    auto b = readBool(j["emissive_baked"], "emissive_baked");
+    if (!b) return b.status();
+    next.emissive_baked_ = *b;
   }
   next.version_ = version_ + 1;
   *this = std::move(next);
@@ -454,6 +465,7 @@ nlohmann::ordered_json LightSet::toJson() const {
     o[e.mode == EmissiveOverride::Mode::kScale ? "scale" : "radiance"] = vec3Json(e.value);
     j["emissive"].push_back(o);
   }
+  j["emissive_baked"] = emissive_baked_;
   return j;
 }
 

@@ -5,7 +5,9 @@
 // fields plus a `baked` flag), per-material emission overrides and a sky. A light marked
 // baked also has its direct irradiance written into lightmap texels; a realtime light
 // (baked = false) contributes only through indirect light, because the engine renders its
-// direct part (DESIGN.md sec 4 "Direct light").
+// direct part (DESIGN.md sec 4 "Direct light"). Emissive surfaces are one more kind of light
+// with one set-wide flag, `emissiveBaked()`: baked (the default), their direct light is
+// sampled into lightmap texels with soft shadows; not baked, the engine draws it.
 //
 // Every successful change bumps `version()` (monotonic uint64, never reused by one
 // LightSet), so the service and the relight can name the state they computed. Values are
@@ -90,11 +92,15 @@ class LightSet {
   Status setEmissive(const EmissiveOverride& override_);
   Status clearEmissive(int material);
   Status setSky(const Sky& sky);
+  // Baked (default): the direct light of emissive surfaces is written into lightmap texels.
+  // Not baked: it is left to the engine, only its bounced light is in the lightmap.
+  Status setEmissiveBaked(bool baked);
 
   std::uint64_t version() const { return version_; }
   const std::vector<LightEntry>& lights() const { return lights_; }
   const std::vector<EmissiveOverride>& emissive() const { return emissive_; }
   const Sky& sky() const { return sky_; }
+  bool emissiveBaked() const { return emissive_baked_; }
   const LightEntry* find(std::string_view id) const;
   bool anyBaked() const;
 
@@ -107,6 +113,7 @@ class LightSet {
   std::vector<LightEntry> lights_;
   std::vector<EmissiveOverride> emissive_;  // sorted by material, one per material
   Sky sky_;
+  bool emissive_baked_ = true;
   std::uint64_t version_ = 0;
 };
 

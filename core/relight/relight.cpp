@@ -12,6 +12,8 @@
 
 #include "core/common/check.h"
 #include "core/relight/cache_lighting.h"
+#include "core/relight/emitter_direct.h"
+#include "core/common/sampling.h"
 #include "core/scene/light_eval.h"
 #include "core/sh/sh.h"
 
@@ -36,6 +38,13 @@ void forChunks(std::size_t n, std::size_t size, F&& body) {
   tbb::parallel_for(tbb::blocked_range<std::size_t>(0, chunks, 1), [&](const tbb::blocked_range<std::size_t>& r) {
     for (std::size_t c = r.begin(); c < r.end(); ++c) body(c, c * size, std::min(n, (c + 1) * size));
   });
+}
+
+bool sameEmissive(const std::vector<EmissiveOverride>& a, const std::vector<EmissiveOverride>& b) {
+  if (a.size() != b.size()) return false;
+  for (std::size_t i = 0; i < a.size(); ++i)
+    if (a[i].material != b[i].material || a[i].mode != b[i].mode || a[i].value != b[i].value) return false;
+  return true;
 }
 
 bool lightEmits(const scene::Light& l) {
@@ -91,6 +100,7 @@ std::string EffectsPlan::toText() const {
   line("grid", grid);
   s += fmt::format("  {:<13} {}\n", "bounces", bounces ? fmt::format("up to {}", max_bounces) : "skipped");
   line("baked direct", baked_direct);
+  line("emitter direct", emissive_direct);
   for (const auto& r : reasons) s += "  - " + r + "\n";
   return s;
 }
@@ -98,7 +108,7 @@ std::string EffectsPlan::toText() const {
 nlohmann::ordered_json EffectsPlan::toJson() const {
   return {{"punctual", punctual}, {"emissive", emissive},        {"sky", sky},
           {"grid", grid},         {"bounces", bounces},          {"max_bounces", max_bounces},
-          {"baked_direct", baked_direct}, {"reasons", reasons}};
+          {"baked_direct", baked_direct}, {"emissive_direct", emissive_direct}, {"reasons", reasons}};
 }
 
 double RelightResult::totalSeconds() const {
@@ -119,12 +129,15 @@ nlohmann::ordered_json RelightResult::report() const {
   j["passes"] = {{"surfel_direct", passes.surfel_direct}, {"emission", passes.emission}, {"pulls", passes.pulls},
                  {"cache_lighting", passes.cache_lighting}, {"grid_lighting", passes.grid_lighting},
                  {"sky", passes.sky}, {"bounces", passes.bounces}, {"baked_direct", passes.baked_direct},
+                 {"emissive_direct", passes.emissive_direct}, {"emission_caches", passes.emission_caches},
                  {"fill", passes.fill}, {"incremental", passes.incremental}};
   j["counts"] = {{"surfels", counts.surfels}, {"surfels_lit", counts.surfels_lit}, {"nodes", counts.nodes},
                  {"nodes_pulled", counts.nodes_pulled}, {"caches", counts.caches},
                  {"caches_summed", counts.caches_summed}, {"grid_caches", counts.grid_caches},
                  {"grid_caches_summed", counts.grid_caches_summed}, {"links_read", counts.links_read},
-                 {"shadow_rays", counts.shadow_rays}, {"texels", counts.texels},
+                 {"shadow_rays", counts.shadow_rays}, {"emitter_triangles", counts.emitter_triangles},
+                 {"emitter_direct_reused", counts.emitter_direct_reused},
+                 {"texels", counts.texels},
                  {"texels_filled", counts.texels_filled},
                  {"surfels_without_gather", counts.surfels_without_gather}};
   nlohmann::ordered_json t = nlohmann::ordered_json::object();
@@ -165,18 +178,35 @@ struct Relighter::Impl {
   std::vector<std::vector<glm::vec3>> per_light_surfel;  // E per surfel per light (lux)
   std::vector<std::vector<glm::vec3>> per_light_cache;   // baked direct E per lightmap cache
   std::vector<EmissiveOverride> last_emissive;
+  bool last_emissive_baked = true;
   Sky last_sky;
   RelightOptions last_options;
   bool last_valid = false;
   bool last_bounced = false;
 
+  // Surfel radiosity is kept in two parts, emitted pi * L_e and reflected rho * E, because the
+  // lightmap caches gather only the reflected part (the emitters' direct light goes to
+  // `direct` by sampling), while grid caches and bounce gathers need both.
+  bool has_emission = false;           // some surfel emits (plan.emissive of the last full relight)
   std::vector<glm::vec3> emission_b;   // pi * L_emit per surfel (after overrides)
   std::vector<glm::vec3> direct_e;     // sum of per-light E per surfel, in light order
-  std::vector<glm::vec3> b0, b;        // radiosity without / with indirect
-  std::vector<float> flux[3];          // per node, planar (the pull adds channel by channel)
-  std::vector<float> rad_rgbx;         // per node radiosity, (R, G, B, 0): what the kernels read
+  std::vector<glm::vec3> b0, b;        // reflected radiosity rho * E without / with indirect
+  std::vector<float> flux[3];          // reflected flux per node, planar (the pull adds channel by channel)
+  std::vector<float> rad_rgbx;         // reflected node radiosity, (R, G, B, 0): what the kernels read
+  std::vector<glm::vec3> emit_flux;    // emitted flux per node (pull scratch, kept for its capacity)
+  std::vector<float> rad_emit_rgbx;    // emitted node radiosity (constant while emission is)
+  std::vector<float> rad_full_rgbx;    // reflected + emitted: what grid caches read
   std::vector<float> lm_sh, grid_sh;   // per cache, 3 * nc
+  std::vector<float> lm_emit_sh;       // lightmap caches lit by emitted radiosity alone (bounces)
   std::vector<glm::vec3> cache_direct; // per lightmap cache
+  std::vector<glm::vec3> emitter_cache;  // emitter direct E per lightmap cache; empty when not baked
+  // What emitter_cache was computed for: it depends only on the static scene, the emissive
+  // overrides and the sample count, so full relights that change only punctual lights, sky or
+  // bounces reuse it (the pass costs N shadow rays per texel, the bulk of a relight).
+  bool emitter_valid = false;
+  std::vector<EmissiveOverride> emitter_overrides;
+  int emitter_samples = 0;
+  std::size_t emitter_triangles = 0;
   std::vector<float> sky_matrix[3];    // nc_out x nc_links per channel
 
   // Inverted index node -> caches (lazily built, for incremental relights).
@@ -195,10 +225,14 @@ struct Relighter::Impl {
                     std::size_t& rays) const;
   void bakedDirect(const scene::Light& light, std::vector<glm::vec3>& out,
                    const std::vector<std::uint32_t>* subset, std::size_t& rays) const;
+  void emitterDirect(const LightSet& lights, int samples, RelightCounts& counts);
   void setLeafFlux(std::size_t s);
   void pullAll();
+  void pullEmission();
+  void sumFullRadiosity(const std::vector<std::uint32_t>* nodes_subset);
+  const float* gridRadiosity() const { return has_emission ? rad_full_rgbx.data() : rad_rgbx.data(); }
   void lightCaches(const links::LinksView& view, std::vector<float>& out, const std::vector<std::uint8_t>& valid,
-                   const std::vector<std::uint32_t>* subset, int bands, LinkForm form, bool sky);
+                   const std::vector<std::uint32_t>* subset, int bands, LinkForm form, bool sky, const float* rad);
   void buildSkyMatrix(const Sky& sky, int bands_out, int bands_links);
   void applyFill(const caches::FillPlan& plan, float* data, std::size_t stride) const;
 };
@@ -210,7 +244,10 @@ Relighter::~Relighter() = default;
 
 bool Relighter::simdAvailable() { return detail::cpuSupportsAvx2F16c(); }
 
-void Relighter::invalidate() { impl_->last_valid = false; }
+void Relighter::invalidate() {
+  impl_->last_valid = false;
+  impl_->emitter_valid = false;
+}
 
 Expected<Relighter> Relighter::create(const scene::Scene& scene, const rt::Accel& accel,
                                       const precompute::Precomputation& p) {
@@ -396,6 +433,16 @@ EffectsPlan Relighter::Impl::makePlan(const LightSet& lights, const RelightOptio
   plan.baked_direct = baked > 0;
   plan.reasons.push_back(plan.baked_direct ? fmt::format("{} baked lights: direct light written to texels", baked)
                                            : "no baked light: baked direct skipped");
+  // Emitter direct needs emitting triangles, not surfels: a lamp smaller than a surfel's
+  // footprint still lights its surroundings directly.
+  const bool triangles_emit = detail::anyEmitter(scene, lights.emissive());
+  plan.emissive_direct = triangles_emit && lights.emissiveBaked();
+  plan.reasons.push_back(plan.emissive_direct
+                             ? fmt::format("emissive surfaces baked: their direct light sampled into texels ({} "
+                                           "samples per texel)",
+                                           o.emitter_samples)
+                         : !triangles_emit ? "no emitting triangle: emitter direct skipped"
+                                           : "emissive_baked = false: emitter direct left to the engine");
   return plan;
 }
 
@@ -494,6 +541,52 @@ void Relighter::Impl::bakedDirect(const scene::Light& light, std::vector<glm::ve
   for (std::size_t c : chunk_rays) rays += c;
 }
 
+void Relighter::Impl::emitterDirect(const LightSet& lights, int samples, RelightCounts& counts) {
+  const detail::EmitterSampler sampler(scene, accel, lights.emissive());
+  counts.emitter_triangles = sampler.triangleCount();
+  const std::size_t n = p.lightmap.size();
+  emitter_cache.assign(n, glm::vec3(0.0f));
+  std::vector<std::size_t> chunk_rays((n + kCacheChunk - 1) / kCacheChunk, 0);
+  forChunks(n, kCacheChunk, [&](std::size_t chunk, std::size_t begin, std::size_t end) {
+    detail::EmitterSampler::Scratch scratch;
+    std::size_t rays = 0;
+    for (std::size_t c = begin; c < end; ++c) {
+      if (!p.lightmap.valid[c]) continue;
+      // Seeded by the texel, so a texel's noise does not depend on the cache order or split.
+      const std::uint64_t seed = mixBits(0x6c6c656d69747465ULL ^ p.lightmap.texel[c]);
+      emitter_cache[c] = sampler.irradiance(p.lightmap.position[c], p.lightmap.normal[c], samples, seed, scratch, rays);
+    }
+    chunk_rays[chunk] = rays;
+  });
+  for (std::size_t r : chunk_rays) counts.shadow_rays += r;
+}
+
+void Relighter::Impl::pullEmission() {
+  // Emitted flux up the tree once per emission state; reflected flux is pulled per bounce.
+  const auto& t = p.tree;
+  const std::size_t nodes = t.nodeCount();
+  std::vector<glm::vec3>& fl = emit_flux;
+  fl.assign(nodes, glm::vec3(0.0f));
+  for (std::size_t s = 0; s < p.surfels.size(); ++s) fl[t.leaf_of_surfel[s]] = emission_b[s] * p.surfels.area[s];
+  rad_emit_rgbx.assign(4 * nodes, 0.0f);
+  for (std::size_t n = nodes; n-- > 0;) {
+    if (t.left[n] >= 0) fl[n] = fl[t.left[n]] + fl[t.right[n]];
+    const float inv_area = t.area[n] > 0.0f ? 1.0f / t.area[n] : 0.0f;
+    for (int ch = 0; ch < 3; ++ch) rad_emit_rgbx[4 * n + ch] = fl[n][ch] * inv_area;
+  }
+}
+
+void Relighter::Impl::sumFullRadiosity(const std::vector<std::uint32_t>* nodes_subset) {
+  if (!has_emission) return;
+  rad_full_rgbx.resize(rad_rgbx.size());
+  if (nodes_subset) {
+    for (std::uint32_t n : *nodes_subset)
+      for (int k = 0; k < 4; ++k) rad_full_rgbx[4 * n + k] = rad_rgbx[4 * n + k] + rad_emit_rgbx[4 * n + k];
+  } else {
+    for (std::size_t i = 0; i < rad_rgbx.size(); ++i) rad_full_rgbx[i] = rad_rgbx[i] + rad_emit_rgbx[i];
+  }
+}
+
 void Relighter::Impl::setLeafFlux(std::size_t s) {
   const std::uint32_t leaf = p.tree.leaf_of_surfel[s];
   const glm::vec3 phi = b[s] * p.surfels.area[s];
@@ -547,13 +640,13 @@ void Relighter::Impl::buildSkyMatrix(const Sky& sky, int bands_out, int bands_li
 
 void Relighter::Impl::lightCaches(const links::LinksView& view, std::vector<float>& out,
                                   const std::vector<std::uint8_t>& valid, const std::vector<std::uint32_t>* subset,
-                                  int bands, LinkForm form, bool sky) {
+                                  int bands, LinkForm form, bool sky, const float* rad) {
   const int nc = bands * bands;
   const int ncl = view.bands * view.bands;
   const std::size_t stride = std::size_t(3) * nc;
   out.resize(view.cacheCount() * stride);
   const std::size_t n = subset ? subset->size() : view.cacheCount();
-  const detail::NodeRadiance node{rad_rgbx.data()};
+  const detail::NodeRadiance node{rad};
   auto kernel = form == LinkForm::kProjected
                     ? (simd ? detail::lightCacheProjectedAvx2 : detail::lightCacheProjectedScalar)
                     : (simd ? detail::lightCacheRuntimeAvx2 : detail::lightCacheRuntimeScalar);
@@ -616,6 +709,8 @@ Status Relighter::relightInto(const LightSet& lights, const RelightOptions& o, R
   if (o.max_bounces < 0 || o.max_bounces > 1000) return invalidInput("relight: max_bounces {} not in 0..1000", o.max_bounces);
   if (!(o.bounce_threshold >= 0.0f) || !std::isfinite(o.bounce_threshold))
     return invalidInput("relight: bounce_threshold {} must be finite and >= 0", o.bounce_threshold);
+  if (o.emitter_samples < 1 || o.emitter_samples > 4096)
+    return invalidInput("relight: emitter_samples {} not in 1..4096", o.emitter_samples);
   for (std::size_t i = 0; i < lights.emissive().size(); ++i)
     if (lights.emissive()[i].material >= int(m.scene.materials.size()))
       return invalidInput("emissive[{}].material: {} is not a material of the scene ({} materials)", i,
@@ -659,12 +754,8 @@ Status Relighter::relightInto(const LightSet& lights, const RelightOptions& o, R
   bool eligible = o.incremental && m.last_valid && !plan.bounces && !m.last_bounced &&
                   o.link_form == m.last_options.link_form && bands == last_bands && o.kernel == m.last_options.kernel &&
                   lights.sky().radiance == m.last_sky.radiance && lights.sky().sh == m.last_sky.sh &&
-                  lights.emissive().size() == m.last_emissive.size();
-  if (eligible)
-    for (std::size_t i = 0; i < lights.emissive().size(); ++i) {
-      const auto &a = lights.emissive()[i], &b = m.last_emissive[i];
-      eligible &= a.material == b.material && a.mode == b.mode && a.value == b.value;
-    }
+                  sameEmissive(lights.emissive(), m.last_emissive) && lights.emissiveBaked() == m.last_emissive_baked &&
+                  o.emitter_samples == m.last_options.emitter_samples;
   if (eligible) {
     const std::size_t nl = L.size(), ol = m.last_ids.size();
     auto same = [&](std::size_t i, std::size_t j) {
@@ -725,7 +816,7 @@ Status Relighter::relightInto(const LightSet& lights, const RelightOptions& o, R
         glm::vec3 e(0.0f);
         for (const auto& pl : m.per_light_surfel) e += pl[s];
         m.direct_e[s] = e;
-        m.b0[s] = m.p.surfels.albedo[s] * e + m.emission_b[s];
+        m.b0[s] = m.p.surfels.albedo[s] * e;
         m.b[s] = m.b0[s];
         m.setLeafFlux(s);
       }
@@ -750,6 +841,7 @@ Status Relighter::relightInto(const LightSet& lights, const RelightOptions& o, R
         const float inv_area = t.area[n] > 0.0f ? 1.0f / t.area[n] : 0.0f;
         for (int ch = 0; ch < 3; ++ch) m.rad_rgbx[4 * n + ch] = m.flux[ch][n] * inv_area;
       }
+      m.sumFullRadiosity(&changed_nodes);
       res.counts.nodes_pulled = changed_nodes.size();
       res.passes.pulls = 1;
     });
@@ -768,14 +860,16 @@ Status Relighter::relightInto(const LightSet& lights, const RelightOptions& o, R
         return list;
       };
       const auto lm_list = affected(m.lm_inv_begin, m.lm_inv, m.lm_links.cacheCount());
-      m.lightCaches(m.lm_links, m.lm_sh, m.p.lightmap.valid, &lm_list, bands, o.link_form, plan.sky);
+      m.lightCaches(m.lm_links, m.lm_sh, m.p.lightmap.valid, &lm_list, bands, o.link_form, plan.sky,
+                    m.rad_rgbx.data());
       res.counts.caches_summed = lm_list.size();
       for (std::uint32_t c : lm_list) res.counts.links_read += m.lm_links.offsets[c + 1] - m.lm_links.offsets[c];
       res.passes.cache_lighting = 1;
       res.passes.sky = plan.sky ? 1 : 0;
       if (plan.grid) {
         const auto g_list = affected(m.grid_inv_begin, m.grid_inv, m.grid_links.cacheCount());
-        m.lightCaches(m.grid_links, m.grid_sh, m.p.grid.valid, &g_list, bands, o.link_form, plan.sky);
+        m.lightCaches(m.grid_links, m.grid_sh, m.p.grid.valid, &g_list, bands, o.link_form, plan.sky,
+                      m.gridRadiosity());
         res.counts.grid_caches_summed = g_list.size();
         res.passes.grid_lighting = 1;
       }
@@ -797,6 +891,9 @@ Status Relighter::relightInto(const LightSet& lights, const RelightOptions& o, R
       for (const auto& pc : m.per_light_cache)
         if (!pc.empty())
           for (std::size_t c = 0; c < m.cache_direct.size(); ++c) m.cache_direct[c] += pc[c];
+      // Emission and its sampling are unchanged (eligibility): the kept emitter direct.
+      if (!m.emitter_cache.empty())
+        for (std::size_t c = 0; c < m.cache_direct.size(); ++c) m.cache_direct[c] += m.emitter_cache[c];
     });
   } else {
     // ---- full relight ---------------------------------------------------------------
@@ -816,15 +913,18 @@ Status Relighter::relightInto(const LightSet& lights, const RelightOptions& o, R
       res.counts.surfels_lit = plan.punctual ? ns : 0;
     });
     timed("emission", [&] {
+      m.has_emission = plan.emissive;
       if (plan.emissive) {
         m.computeEmission(lights);
+        m.pullEmission();
         res.passes.emission = 1;
       } else {
         m.emission_b.assign(ns, glm::vec3(0.0f));
+        m.rad_emit_rgbx.clear(), m.rad_full_rgbx.clear();
       }
     });
     m.b0.resize(ns);
-    for (std::size_t s = 0; s < ns; ++s) m.b0[s] = m.p.surfels.albedo[s] * m.direct_e[s] + m.emission_b[s];
+    for (std::size_t s = 0; s < ns; ++s) m.b0[s] = m.p.surfels.albedo[s] * m.direct_e[s];
     m.b = m.b0;
     if (plan.sky) m.buildSkyMatrix(lights.sky(), bands, link_bands);
 
@@ -832,17 +932,20 @@ Status Relighter::relightInto(const LightSet& lights, const RelightOptions& o, R
       timed(pull_stage, [&] {
         for (std::size_t s = 0; s < ns; ++s) m.setLeafFlux(s);
         m.pullAll();
+        m.sumFullRadiosity(nullptr);
         res.passes.pulls++;
         res.counts.nodes_pulled = nodes;
       });
       timed(cache_stage, [&] {
-        m.lightCaches(m.lm_links, m.lm_sh, m.p.lightmap.valid, nullptr, bands, o.link_form, plan.sky);
+        m.lightCaches(m.lm_links, m.lm_sh, m.p.lightmap.valid, nullptr, bands, o.link_form, plan.sky,
+                      m.rad_rgbx.data());
         res.passes.cache_lighting++;
         res.passes.sky += plan.sky ? 1 : 0;
         res.counts.caches_summed = m.lm_links.cacheCount();
         res.counts.links_read += m.lm_links.linkCount();
         if (plan.grid) {
-          m.lightCaches(m.grid_links, m.grid_sh, m.p.grid.valid, nullptr, bands, o.link_form, plan.sky);
+          m.lightCaches(m.grid_links, m.grid_sh, m.p.grid.valid, nullptr, bands, o.link_form, plan.sky,
+                        m.gridRadiosity());
           res.passes.grid_lighting++;
           res.counts.grid_caches_summed = m.grid_links.cacheCount();
           res.counts.links_read += m.grid_links.linkCount();
@@ -850,6 +953,18 @@ Status Relighter::relightInto(const LightSet& lights, const RelightOptions& o, R
       });
     };
     pullAndLight("pull", "cache_lighting");
+    // Surfels gathering from lightmap caches must receive the emitters' light too (the caches
+    // hold reflected light only): light the lightmap caches once more with the emitted
+    // radiosity alone; bounces gather the sum. Emission is constant, so once per relight.
+    const bool gather_emission = plan.bounces && plan.emissive;
+    if (gather_emission)
+      timed("emission_caches", [&] {
+        m.lightCaches(m.lm_links, m.lm_emit_sh, m.p.lightmap.valid, nullptr, bands, o.link_form, false,
+                      m.rad_emit_rgbx.data());
+        m.applyFill(m.p.lightmap_fill, m.lm_emit_sh.data(), stride);
+        res.passes.emission_caches = 1;
+        res.counts.links_read += m.lm_links.linkCount();
+      });
 
     if (!(plan.punctual || plan.emissive || plan.sky)) res.bounce_stop = "no light";
     else if (o.max_bounces == 0) res.bounce_stop = "disabled";
@@ -869,11 +984,18 @@ Status Relighter::relightInto(const LightSet& lights, const RelightOptions& o, R
           float acc[3 * sh::kMaxCoeffs];
           for (std::size_t s = begin; s < end; ++s) {
             std::fill(acc, acc + stride, 0.0f);
-            const float* base = m.gather_from_grid[s] ? m.grid_sh.data() : m.lm_sh.data();
+            const bool from_grid = m.gather_from_grid[s];
+            const float* base = from_grid ? m.grid_sh.data() : m.lm_sh.data();
             for (std::uint32_t g = m.gather_begin[s]; g < m.gather_begin[s + 1]; ++g) {
-              const float* src = base + std::size_t(m.gather_cache[g]) * stride;
+              const std::size_t off = std::size_t(m.gather_cache[g]) * stride;
+              const float* src = base + off;
               const float wt = m.gather_weight[g];
-              for (std::size_t i = 0; i < stride; ++i) acc[i] += wt * src[i];
+              if (gather_emission && !from_grid) {
+                const float* emit = m.lm_emit_sh.data() + off;
+                for (std::size_t i = 0; i < stride; ++i) acc[i] += wt * (src[i] + emit[i]);
+              } else {
+                for (std::size_t i = 0; i < stride; ++i) acc[i] += wt * src[i];
+              }
             }
             const glm::vec3 n = m.p.surfels.normal[s];
             const glm::vec3 e(sh::irradiance(bands, acc, n), sh::irradiance(bands, acc + nc, n),
@@ -881,7 +1003,7 @@ Status Relighter::relightInto(const LightSet& lights, const RelightOptions& o, R
             const glm::vec3 nb = m.b0[s] + m.p.surfels.albedo[s] * e;
             const glm::vec3 d = glm::abs(nb - m.b[s]) * m.p.surfels.area[s];
             added += double(d.x) + d.y + d.z;
-            const glm::vec3 phi = nb * m.p.surfels.area[s];
+            const glm::vec3 phi = (nb + m.emission_b[s]) * m.p.surfels.area[s];
             total += double(phi.x) + phi.y + phi.z;
             m.b[s] = nb;
           }
@@ -913,6 +1035,27 @@ Status Relighter::relightInto(const LightSet& lights, const RelightOptions& o, R
       for (const auto& pc : m.per_light_cache)
         if (!pc.empty())
           for (std::size_t c = 0; c < m.cache_direct.size(); ++c) m.cache_direct[c] += pc[c];
+    });
+
+    timed("emissive_direct", [&] {
+      if (!plan.emissive_direct) {
+        m.emitter_cache.clear();
+        m.emitter_valid = false;
+        return;
+      }
+      if (m.emitter_valid && m.emitter_samples == o.emitter_samples &&
+          sameEmissive(m.emitter_overrides, lights.emissive())) {
+        res.counts.emitter_direct_reused = 1;
+        res.counts.emitter_triangles = m.emitter_triangles;
+      } else {
+        m.emitterDirect(lights, o.emitter_samples, res.counts);
+        m.emitter_valid = true;
+        m.emitter_overrides = lights.emissive();
+        m.emitter_samples = o.emitter_samples;
+        m.emitter_triangles = res.counts.emitter_triangles;
+        res.passes.emissive_direct = 1;
+      }
+      for (std::size_t c = 0; c < m.cache_direct.size(); ++c) m.cache_direct[c] += m.emitter_cache[c];
     });
   }
   m.cache_direct.resize(m.p.lightmap.size(), glm::vec3(0.0f));
@@ -966,7 +1109,8 @@ Status Relighter::relightInto(const LightSet& lights, const RelightOptions& o, R
     res.counts.texels = texels;
     res.counts.texels_filled = std::size_t(std::count(res.texel_valid.begin(), res.texel_valid.end(), 1));
     if (plan.grid) res.grid_sh = m.grid_sh;
-    res.surfel_radiosity = m.b;
+    res.surfel_radiosity.resize(ns);
+    for (std::size_t s = 0; s < ns; ++s) res.surfel_radiosity[s] = m.b[s] + m.emission_b[s];
   });
   if (res.passes.incremental) res.bounce_stop = "disabled";
 
@@ -974,6 +1118,7 @@ Status Relighter::relightInto(const LightSet& lights, const RelightOptions& o, R
   m.last_lights.clear(), m.last_ids.clear(), m.last_baked.clear();
   for (const auto& e : L) m.last_lights.push_back(e.light), m.last_ids.push_back(e.id), m.last_baked.push_back(e.baked);
   m.last_emissive = lights.emissive();
+  m.last_emissive_baked = lights.emissiveBaked();
   m.last_sky = lights.sky();
   m.last_options = o;
   m.last_bounced = plan.bounces;

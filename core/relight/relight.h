@@ -5,7 +5,14 @@
 //            --(c) cache lighting: L_cache = sum_links B_node F_node (+ sky)
 //            --(d) bounces: surfels gather the caches, B += rho E_ind, repeat (b)-(c)
 //            --(e) fill invalid caches, lightmap texels, dilation
-//            --(f) baked direct light per texel (shadow rays)  --> RelightResult
+//            --(f) baked direct light per texel: punctual lights (shadow rays) and emissive
+//                  surfaces (emitter area sampled, soft shadows)  --> RelightResult
+//
+// Direct and indirect are disjoint in the lightmap: the lightmap caches gather only the
+// *reflected* surfel radiosity rho * E, never the emitted pi * L_e, because the emitters'
+// direct light is sampled into `direct` (docs/relight.md "Direct vs indirect"). Surfels and
+// grid caches still see emitted radiosity (surfels must reflect the emitters' light; dynamic
+// objects have no baked direct).
 //
 // Units (docs/units.md): radiosity B in W/m^2-equivalent (the photometric units of the
 // lights: lux for lights in candela/lux, pi * radiance for emitters), node flux Phi = B * A,
@@ -52,6 +59,9 @@ struct RelightOptions {
   float bounce_threshold = 1e-3f;  // stop when a bounce adds less than this fraction of the total flux
   bool incremental = true;         // allow incremental relight when exactly one light changed
   Kernel kernel = Kernel::kAuto;
+  // Samples (one shadow ray each) per lightmap texel for the direct light of emissive
+  // surfaces, 1..4096; the Monte Carlo noise of a texel's direct falls as 1/sqrt(samples).
+  int emitter_samples = 32;
 };
 
 // DESIGN.md sec 5: which passes this relight runs, and why.
@@ -63,6 +73,7 @@ struct EffectsPlan {
   bool bounces = false;       // max_bounces > 0 and some light reaches the scene
   int max_bounces = 0;
   bool baked_direct = false;  // some baked light has non-zero power
+  bool emissive_direct = false;  // some static triangle emits and the light set bakes emitters
   std::vector<std::string> reasons;  // one line per decision
 
   std::string toText() const;
@@ -80,6 +91,8 @@ struct PassCounts {
   int sky = 0;               // sky term added to caches
   int bounces = 0;
   int baked_direct = 0;
+  int emissive_direct = 0;   // emitter-sampled direct light into lightmap texels
+  int emission_caches = 0;   // lightmap caches lit by emitted radiosity alone (bounce gathers)
   int fill = 0;
   int incremental = 0;       // 1 when this relight was incremental
 };
@@ -102,7 +115,9 @@ struct RelightCounts {
   std::size_t caches = 0, caches_summed = 0;    // lightmap caches
   std::size_t grid_caches = 0, grid_caches_summed = 0;
   std::size_t links_read = 0;
-  std::size_t shadow_rays = 0;
+  std::size_t shadow_rays = 0;                  // punctual and emitter shadow rays
+  std::size_t emitter_triangles = 0;            // triangles sampled for emitter direct light
+  std::size_t emitter_direct_reused = 0;        // 1: emission unchanged, the last emitter direct reused
   std::size_t texels = 0, texels_filled = 0;    // texels with a value after fill + dilation
   std::size_t surfels_without_gather = 0;       // bounces: no lightmap texel nor grid to read
 };
@@ -115,14 +130,18 @@ struct RelightResult {
   int bands = 0;
   int width = 0, height = 0;        // lightmap texels
   // Per texel (y * width + x), 3 * bands^2 floats: R coefficients, then G, then B (docs/sh.md
-  // order in each): SH of *indirect* incident radiance. Texels without a value are 0 and
-  // have texel_valid = 0.
+  // order in each): SH of *indirect* incident radiance: light reflected by surfaces (of any
+  // light, emitters included) and the sky; no radiance straight from an emitter. Texels
+  // without a value are 0 and have texel_valid = 0.
   std::vector<float> lightmap_sh;
-  std::vector<glm::vec3> direct;            // per texel: baked direct irradiance (lux), linear RGB
+  // Per texel: direct irradiance (lux), linear RGB, of baked punctual lights (hard shadows)
+  // plus, when the light set bakes emitters, of emissive surfaces (sampled, soft shadows).
+  std::vector<glm::vec3> direct;
   std::vector<std::uint8_t> texel_valid;    // 1 = the texel has a cache, a fill or a dilation
   // Per grid cache (GridCaches order), 3 * bands^2 floats as above; empty without a grid.
+  // All light arriving from surfaces, emitters' direct light included, and the sky.
   std::vector<float> grid_sh;
-  std::vector<glm::vec3> surfel_radiosity;  // final B per surfel (tree order)
+  std::vector<glm::vec3> surfel_radiosity;  // final B = rho * E + pi * L_e per surfel (tree order)
   EffectsPlan plan;
   PassCounts passes;
   RelightCounts counts;
@@ -156,7 +175,8 @@ class Relighter {
   // Same, into `out`, reusing its arrays' capacity: the steady state of a daemon or an editor
   // session relighting the same scene allocates nothing. On error `out` is unspecified.
   Status relightInto(const LightSet& lights, const RelightOptions& options, RelightResult& out);
-  // Forgets the last light set, so the next relight is a full one.
+  // Forgets the last light set, so the next relight is a full one that recomputes everything
+  // (the emitter direct light included).
   void invalidate();
   // True when this CPU runs the AVX2 + F16C kernels.
   static bool simdAvailable();

@@ -58,7 +58,7 @@ TEST(RelightFurnace, ConvergedRadiosityIsE0OverOneMinusRho) {
   const auto& f = furnace();
   ASSERT_TRUE(f.baked);
   Relighter r = f.baked->relighter();
-  auto res = r.relight(LightSet{}, {.max_bounces = 40, .bounce_threshold = 1e-4f});
+  auto res = r.relight(LightSet{}, {.max_bounces = 40, .bounce_threshold = 1e-4f, .emitter_samples = 256});
   ASSERT_TRUE(res) << res.status().toString();
   const float e0 = kPi * Furnace::kEmit;
   const float expected = e0 / (1.0f - Furnace::kRho);
@@ -69,16 +69,22 @@ TEST(RelightFurnace, ConvergedRadiosityIsE0OverOneMinusRho) {
   }
   EXPECT_NEAR(b_area / area, expected, 0.01 * expected) << "bounces " << res->bounce_log.size();
   EXPECT_EQ(res->bounce_stop, "threshold");
-  // Every wall texel sees radiosity B all around: irradiance B.
+  // Every wall texel sees radiosity B all around: irradiance B, the emitters' pi L sampled
+  // into direct and the reflected rho B in the indirect SH.
   const auto& lm = f.baked->p.lightmap;
   const int nc = res->coeffCount();
   double sum = 0.0;
   int n = 0;
   for (std::size_t c = 0; c < lm.size(); ++c) {
     if (!lm.valid[c]) continue;
-    const float e = irradianceR(res->lightmap_sh.data() + std::size_t(lm.texel[c]) * 3 * nc, res->bands, lm.normal[c]);
+    const float e = res->direct[lm.texel[c]].x +
+                    irradianceR(res->lightmap_sh.data() + std::size_t(lm.texel[c]) * 3 * nc, res->bands, lm.normal[c]);
     sum += e, ++n;
-    EXPECT_NEAR(e, expected, 0.06 * expected) << "cache " << c;
+    // Texels half a texel from an edge see the adjacent wall as a near-field emitter; the
+    // solid-angle sampling of the direct light keeps them within the same tolerance.
+    EXPECT_NEAR(e, expected, 0.06 * expected) << "cache " << c << " at " << lm.position[c].x << ","
+                                               << lm.position[c].y << "," << lm.position[c].z << " direct "
+                                               << res->direct[lm.texel[c]].x;
   }
   ASSERT_GT(n, 100);
   EXPECT_NEAR(sum / n, expected, 0.02 * expected);
@@ -149,7 +155,9 @@ TEST(RelightFurnace, FillAndDilationLeaveNoBlackTexelNextToAValidOne) {
   const auto& f = furnace();
   ASSERT_TRUE(f.baked);
   Relighter r = f.baked->relighter();
-  auto res = r.relight(LightSet{}, {.max_bounces = 0});
+  // One bounce: the emitting walls' direct light and their reflection (indirect) both have
+  // a value at every valid texel.
+  auto res = r.relight(LightSet{}, {.max_bounces = 1});
   ASSERT_TRUE(res);
   const auto& lm = f.baked->p.lightmap;
   const int nc = res->coeffCount();
@@ -170,6 +178,7 @@ TEST(RelightFurnace, FillAndDilationLeaveNoBlackTexelNextToAValidOne) {
       ++checked;
       EXPECT_TRUE(res->texel_valid[t]) << "texel " << x << "," << y;
       EXPECT_GT(res->lightmap_sh[t * 3 * nc], 0.1f) << "black texel " << x << "," << y;
+      EXPECT_GT(res->direct[t].x, 0.1f) << "no direct light at texel " << x << "," << y;
     }
   EXPECT_GT(checked, lm.size());  // the gutter texels were checked too
   EXPECT_EQ(res->passes.fill, 1);
@@ -460,13 +469,15 @@ TEST(RelightKernels, RuntimeFormAgreesWithProjectedForm) {
   const auto& f = furnace();
   ASSERT_TRUE(f.baked);
   Relighter r = f.baked->relighter();
-  auto a = r.relight(LightSet{}, {.link_form = LinkForm::kProjected, .max_bounces = 0});
-  auto b = r.relight(LightSet{}, {.link_form = LinkForm::kRuntime, .max_bounces = 0});
+  // One bounce, so the (reflected-only) lightmap SH has a value.
+  auto a = r.relight(LightSet{}, {.link_form = LinkForm::kProjected, .max_bounces = 1});
+  auto b = r.relight(LightSet{}, {.link_form = LinkForm::kRuntime, .max_bounces = 1});
   ASSERT_TRUE(a && b);
-  // Uniform radiosity: both forms integrate the same visible solid angle, so L00 agrees.
+  // Near-uniform radiosity: both forms integrate the same visible solid angle, so L00 agrees.
   const int nc = a->coeffCount();
   for (std::size_t t = 0; t < a->texel_valid.size(); ++t)
     if (a->texel_valid[t]) {
+      ASSERT_GT(a->lightmap_sh[t * 3 * nc], 0.0f);
       EXPECT_NEAR(a->lightmap_sh[t * 3 * nc], b->lightmap_sh[t * 3 * nc], 0.01f * a->lightmap_sh[t * 3 * nc]);
     }
 }
@@ -551,20 +562,26 @@ TEST(RelightOptionsCheck, RejectsBadOptions) {
   EXPECT_NE(bad.status().message().find("emissive[0].material"), std::string::npos) << bad.status().message();
 }
 
-TEST(RelightEmissive, OverrideScalesTheLampsIndirectLight) {
+TEST(RelightEmissive, OverrideScalesTheLampsDirectAndIndirectLight) {
   const auto& rm = room();
   ASSERT_TRUE(rm.baked);
   Relighter r = rm.baked->relighter();
-  auto base = r.relight(LightSet{}, {.max_bounces = 0});
+  // One bounce: the lamp's direct light is sampled into `direct`, its reflection is in the SH.
+  auto base = r.relight(LightSet{}, {.max_bounces = 1});
   LightSet set;
   ASSERT_TRUE(set.setEmissive({.material = 1, .mode = EmissiveOverride::Mode::kScale, .value = glm::vec3(3.0f)}));
-  auto scaled = r.relight(set, {.max_bounces = 0});
+  auto scaled = r.relight(set, {.max_bounces = 1});
   ASSERT_TRUE(base && scaled);
   EXPECT_TRUE(base->plan.emissive);
+  EXPECT_EQ(base->passes.emissive_direct, 1);
   double a = 0, b = 0;
   for (std::size_t i = 0; i < base->lightmap_sh.size(); ++i) a += base->lightmap_sh[i], b += scaled->lightmap_sh[i];
   EXPECT_GT(a, 0.0);
   EXPECT_NEAR(b / a, 3.0, 1e-3);
+  double da = 0, db = 0;
+  for (std::size_t t = 0; t < base->direct.size(); ++t) da += base->direct[t].x, db += scaled->direct[t].x;
+  EXPECT_GT(da, 0.0);
+  EXPECT_NEAR(db / da, 3.0, 1e-3);
   LightSet off;
   ASSERT_TRUE(off.setEmissive({.material = 1, .mode = EmissiveOverride::Mode::kRadiance, .value = glm::vec3(0.0f)}));
   auto dark = r.relight(off, {});

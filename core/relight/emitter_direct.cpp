@@ -1,0 +1,247 @@
+#include "core/relight/emitter_direct.h"
+
+#include <algorithm>
+#include <cmath>
+#include <numbers>
+
+#include "core/common/sampling.h"
+#include "core/scene/material_eval.h"
+
+namespace lightlink::relight::detail {
+namespace {
+
+// The override of each material (or none), as the relight applies it to surfels.
+struct MaterialEmission {
+  bool replace = false;   // kRadiance
+  glm::vec3 value{1.0f};  // radiance (replace) or factor
+};
+
+std::vector<MaterialEmission> materialEmission(const scene::Scene& scene, std::span<const EmissiveOverride> overrides) {
+  std::vector<MaterialEmission> out(scene.materials.size());
+  for (const auto& o : overrides)
+    if (o.material >= 0 && o.material < int(out.size()))
+      out[o.material] = {o.mode == EmissiveOverride::Mode::kRadiance, o.value};
+  return out;
+}
+
+// Upper bound of a mesh's emitted radiance (textures only darken: glTF textures are <= 1).
+glm::vec3 emissionBound(const scene::Scene& scene, const scene::MeshInstance& mesh,
+                        const std::vector<MaterialEmission>& me) {
+  const MaterialEmission o = mesh.material >= 0 ? me[mesh.material] : MaterialEmission{};
+  if (o.replace) return o.value;
+  const scene::Material& m = scene.materialOf(mesh);
+  if (!m.isEmissive()) return glm::vec3(0.0f);
+  return m.emissive_factor * m.emissive_strength * o.value;
+}
+
+bool emits(glm::vec3 v) { return v.x > 0.0f || v.y > 0.0f || v.z > 0.0f; }
+
+// Angle between unit vectors, accurate for nearly parallel and nearly opposite ones.
+double angleBetween(const glm::dvec3& a, const glm::dvec3& b) {
+  if (glm::dot(a, b) < 0.0) return std::numbers::pi - 2.0 * std::asin(std::min(1.0, glm::length(a + b) * 0.5));
+  return 2.0 * std::asin(std::min(1.0, glm::length(b - a) * 0.5));
+}
+
+// Solid angle subtended at the origin by a spherical triangle, in [3e-4, 6.22] sr: below
+// that, Arvo's construction loses its digits (area sampling is then as good, the emitter
+// being far); above, the receiver nearly touches the triangle's plane.
+constexpr double kMinSphericalSr = 3e-4, kMaxSphericalSr = 6.22;
+
+// Arvo's uniform sampling of the spherical triangle (a, b, c unit directions from the
+// receiver; "Stratified sampling of spherical triangles", SIGGRAPH 1995, as in pbrt-v4), in
+// double precision. The set-up (angles, solid angle) depends only on the receiver and the
+// triangle, so it is done once per run of samples on the same triangle.
+struct SphericalTriangle {
+  bool ok = false;  // false: degenerate, or solid angle outside [kMinSphericalSr, kMaxSphericalSr]
+  glm::dvec3 a, b, c_perp;  // c_perp: unit, c orthogonalised against a
+  double alpha = 0.0, cos_alpha = 0.0, sin_alpha = 0.0, cos_ab = 0.0;
+  double omega_sr = 0.0;  // pdf = 1 / omega_sr
+};
+
+SphericalTriangle setUpSphericalTriangle(const glm::dvec3& a, const glm::dvec3& b, const glm::dvec3& c) {
+  SphericalTriangle t;
+  glm::dvec3 n_ab = glm::cross(a, b), n_bc = glm::cross(b, c), n_ca = glm::cross(c, a);
+  const double l_ab = glm::length(n_ab), l_bc = glm::length(n_bc), l_ca = glm::length(n_ca);
+  if (!(l_ab > 0.0 && l_bc > 0.0 && l_ca > 0.0)) return t;
+  n_ab /= l_ab, n_bc /= l_bc, n_ca /= l_ca;
+  t.alpha = angleBetween(n_ab, -n_ca);
+  t.omega_sr = t.alpha + angleBetween(n_bc, -n_ab) + angleBetween(n_ca, -n_bc) - std::numbers::pi;
+  if (!(t.omega_sr >= kMinSphericalSr && t.omega_sr <= kMaxSphericalSr)) return t;
+  const glm::dvec3 c_perp = c - glm::dot(c, a) * a;
+  const double lc = glm::length(c_perp);
+  if (!(lc > 0.0)) return t;
+  t.a = a, t.b = b, t.c_perp = c_perp / lc;
+  t.cos_alpha = std::cos(t.alpha), t.sin_alpha = std::sin(t.alpha);
+  t.cos_ab = glm::dot(a, b);
+  t.ok = true;
+  return t;
+}
+
+// The direction for (u0, u1) in [0, 1)^2, uniform in solid angle; false on a degenerate case.
+bool sampleSphericalTriangle(const SphericalTriangle& t, double u0, double u1, glm::dvec3& w) {
+  // Sub-triangle of area u0 * omega: its third vertex c' on the arc from a to c.
+  const double ap_pi = std::numbers::pi + u0 * t.omega_sr;
+  const double sin_ap = std::sin(ap_pi), cos_ap = std::cos(ap_pi);
+  const double sin_phi = sin_ap * t.cos_alpha - cos_ap * t.sin_alpha;
+  const double cos_phi = cos_ap * t.cos_alpha + sin_ap * t.sin_alpha;
+  const double k1 = cos_phi + t.cos_alpha;
+  const double k2 = sin_phi - t.sin_alpha * t.cos_ab;
+  const double denom = (k2 * sin_phi + k1 * cos_phi) * t.sin_alpha;
+  if (denom == 0.0) return false;
+  const double cos_bp = std::clamp((k2 + (k2 * cos_phi - k1 * sin_phi) * t.cos_alpha) / denom, -1.0, 1.0);
+  const double sin_bp = std::sqrt(std::max(0.0, 1.0 - cos_bp * cos_bp));
+  const glm::dvec3 cp = cos_bp * t.a + sin_bp * t.c_perp;
+  // Then uniformly in solid angle along the arc from b to c'.
+  const double cos_theta = 1.0 - u1 * (1.0 - glm::dot(cp, t.b));
+  const double sin_theta = std::sqrt(std::max(0.0, 1.0 - cos_theta * cos_theta));
+  const glm::dvec3 cp_perp = cp - glm::dot(cp, t.b) * t.b;
+  const double lp = glm::length(cp_perp);
+  w = lp > 0.0 ? cos_theta * t.b + sin_theta * (cp_perp / lp) : t.b;
+  return true;
+}
+
+}  // namespace
+
+bool anyEmitter(const scene::Scene& scene, std::span<const EmissiveOverride> overrides) {
+  const auto me = materialEmission(scene, overrides);
+  for (const auto& mesh : scene.meshes)
+    if (mesh.is_static && mesh.triangleCount() > 0 && emits(emissionBound(scene, mesh, me))) return true;
+  return false;
+}
+
+EmitterSampler::EmitterSampler(const scene::Scene& scene, const rt::Accel& accel,
+                               std::span<const EmissiveOverride> overrides)
+    : scene_(scene), accel_(accel) {
+  const auto me = materialEmission(scene, overrides);
+  std::vector<double> weight;
+  for (std::uint32_t mi = 0; mi < scene.meshes.size(); ++mi) {
+    const auto& mesh = scene.meshes[mi];
+    if (!mesh.is_static) continue;
+    const glm::vec3 bound = emissionBound(scene, mesh, me);
+    if (!emits(bound)) continue;
+    const MaterialEmission o = mesh.material >= 0 ? me[mesh.material] : MaterialEmission{};
+    const bool two_sided = scene.materialOf(mesh).double_sided;
+    for (std::uint32_t t = 0; t < mesh.triangleCount(); ++t) {
+      const glm::vec3 a = mesh.positions[mesh.indices[3 * t]], b = mesh.positions[mesh.indices[3 * t + 1]],
+                      c = mesh.positions[mesh.indices[3 * t + 2]];
+      const glm::vec3 cr = glm::cross(b - a, c - a);
+      const float len = glm::length(cr);
+      if (!(len > 0.0f)) continue;
+      const double area_m2 = 0.5 * double(len);
+      p0_.push_back(a), e1_.push_back(b - a), e2_.push_back(c - a);
+      normal_.push_back(cr / len);
+      mesh_.push_back(mi), triangle_.push_back(t);
+      double_sided_.push_back(two_sided);
+      replace_.push_back(o.replace);
+      value_.push_back(o.value);
+      weight.push_back(area_m2 * (double(bound.x) + bound.y + bound.z));
+      inv_pdf_area_.push_back(float(area_m2));  // times W / w_t below
+    }
+  }
+  double total = 0.0;
+  for (double w : weight) total += w;
+  cdf_.resize(weight.size());
+  double run = 0.0;
+  for (std::size_t i = 0; i < weight.size(); ++i) {
+    run += weight[i];
+    cdf_[i] = run / total;
+    inv_pick_.push_back(float(total / weight[i]));
+    inv_pdf_area_[i] = float(double(inv_pdf_area_[i]) * total / weight[i]);
+  }
+  if (!cdf_.empty()) cdf_.back() = 1.0;
+}
+
+glm::vec3 EmitterSampler::radianceAt(std::size_t e, glm::vec2 barycentric) const {
+  if (replace_[e]) return value_[e];
+  return scene::emissionAt(scene_, scene_.meshes[mesh_[e]], triangle_[e], barycentric) * value_[e];
+}
+
+glm::vec3 EmitterSampler::irradiance(glm::vec3 position, glm::vec3 normal, int samples, std::uint64_t seed,
+                                     Scratch& scratch, std::size_t& rays) const {
+  if (cdf_.empty() || samples <= 0) return glm::vec3(0.0f);
+  const std::size_t n = std::size_t(samples);
+  scratch.rays.resize(n), scratch.contrib.resize(n), scratch.blocked.resize(n);
+  // Cranley-Patterson rotation of the Hammersley set: the receiver's own stratified pattern.
+  const std::uint64_t bits = mixBits(seed);
+  const double r0 = unitFloat(bits), r1 = unitFloat(mixBits(bits));
+  std::size_t count = 0;
+  // Stratified picks visit triangles in CDF order (one wrap-around): the set-up of the last
+  // triangle serves the whole run of samples on it.
+  std::size_t tri_of_setup = cdf_.size();
+  SphericalTriangle tri;
+  for (std::size_t i = 0; i < n; ++i) {
+    double u = double(i) / double(n) + r0;
+    u -= std::floor(u);
+    double v = radicalInverse(i, 2) + r1;
+    v -= std::floor(v);
+    const std::size_t e =
+        std::min<std::size_t>(std::size_t(std::upper_bound(cdf_.begin(), cdf_.end(), u) - cdf_.begin()),
+                              cdf_.size() - 1);
+    const double lo = e ? cdf_[e - 1] : 0.0;
+    // The pick's remainder is a fresh uniform in [0, 1): keeps the stratification inside t.
+    const double ur = std::clamp((u - lo) / std::max(cdf_[e] - lo, 1e-300), 0.0, 1.0);
+    // Uniform in the solid angle the triangle subtends (no 1/d^2 peak for a receiver next to
+    // an emitter); far or grazing triangles fall back to uniform area sampling.
+    glm::vec2 bary;
+    float weight = 0.0f;  // cos_r (cos_e / d^2) / pdf, without L_e
+    float cos_r = 0.0f, cos_e = 0.0f;
+    const glm::dvec3 x(position), v0(p0_[e]), ed1(e1_[e]), ed2(e2_[e]);
+    if (e != tri_of_setup) {
+      tri_of_setup = e;
+      tri = setUpSphericalTriangle(glm::normalize(v0 - x), glm::normalize(v0 + ed1 - x), glm::normalize(v0 + ed2 - x));
+    }
+    glm::dvec3 dir;
+    bool spherical = tri.ok && sampleSphericalTriangle(tri, ur, v, dir);
+    if (spherical) {
+      // Where the sampled direction meets the triangle (Moller-Trumbore barycentrics).
+      const glm::dvec3 s1 = glm::cross(dir, ed2);
+      const double div = glm::dot(s1, ed1);
+      spherical = div != 0.0;
+      if (spherical) {
+        const glm::dvec3 sv = x - v0;
+        double b1 = std::clamp(glm::dot(sv, s1) / div, 0.0, 1.0);
+        double b2 = std::clamp(glm::dot(dir, glm::cross(sv, ed1)) / div, 0.0, 1.0);
+        if (b1 + b2 > 1.0) {
+          const double sum = b1 + b2;
+          b1 /= sum, b2 /= sum;
+        }
+        bary = glm::vec2(float(b1), float(b2));
+        cos_r = float(glm::dot(glm::dvec3(normal), dir));
+        cos_e = -float(glm::dot(glm::dvec3(normal_[e]), dir));
+        weight = cos_r * float(tri.omega_sr) * inv_pick_[e];
+      }
+    }
+    if (!spherical) {
+      const float su = float(std::sqrt(ur));
+      bary = glm::vec2(su * float(v), su * (1.0f - float(v)));  // uniform on the triangle
+      const glm::vec3 w = p0_[e] + bary.x * e1_[e] + bary.y * e2_[e] - position;
+      const float d2 = glm::dot(w, w);
+      if (!(d2 > 0.0f)) continue;
+      const float inv_d = 1.0f / std::sqrt(d2);
+      cos_r = glm::dot(normal, w) * inv_d;
+      cos_e = -glm::dot(normal_[e], w) * inv_d;
+      weight = cos_r * std::abs(cos_e) / d2 * inv_pdf_area_[e];
+    }
+    if (double_sided_[e]) cos_e = std::abs(cos_e);
+    if (cos_r <= 0.0f || cos_e <= 0.0f) continue;  // behind the receiver or the emitter's back
+    const glm::vec3 q = p0_[e] + bary.x * e1_[e] + bary.y * e2_[e];
+    const glm::vec3 w = q - position;
+    const glm::vec3 le = radianceAt(e, bary);
+    if (!emits(le)) continue;
+    rt::Ray ray;
+    ray.origin = accel_.offsetOrigin(position, normal, w);
+    ray.dir = q - ray.origin;
+    // Stop short of the emitter by the ray epsilon, so the emitter does not shadow itself.
+    ray.tfar = std::max(0.0f, 1.0f - accel_.rayEpsilon() / std::max(glm::length(ray.dir), 1e-30f));
+    scratch.rays[count] = ray;
+    scratch.contrib[count++] = le * weight;
+  }
+  accel_.occluded(std::span(scratch.rays.data(), count), std::span(scratch.blocked.data(), count));
+  rays += count;
+  glm::vec3 sum(0.0f);  // in sample order: the same for any thread count
+  for (std::size_t k = 0; k < count; ++k)
+    if (!scratch.blocked[k]) sum += scratch.contrib[k];
+  return sum / float(n);
+}
+
+}  // namespace lightlink::relight::detail
