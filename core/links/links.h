@@ -119,6 +119,7 @@ class LinkRays {
  private:
   std::uint32_t strata_;
   std::uint64_t seed_;
+  std::vector<glm::vec2> column_cos_sin_;  // cos, sin of each azimuth stratum's start angle
 };
 
 // Zonal SH coefficients z_l (l < bands) of the indicator of a spherical cap of solid angle

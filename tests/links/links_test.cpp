@@ -8,6 +8,7 @@
 #include <gtest/gtest.h>
 #include <tbb/global_control.h>
 
+#include "core/common/sampling.h"
 #include "core/sh/sh.h"
 
 namespace lightlink::links {
@@ -215,6 +216,35 @@ TEST(Links, RejectsAbsurdOptions) {
     auto r = generateLinks(fixture.scene, fixture.accel, fixture.surfels, fixture.tree, {p, n}, bad);
     EXPECT_FALSE(r);
     EXPECT_EQ(r.status().code(), Code::kInvalidInput);
+  }
+}
+
+TEST(LinkRays, AreTheStratifiedSamplesOfTheCache) {
+  // The fast generator must produce the directions of stratifiedSample + the equal-area
+  // hemisphere map for the cache's seed, to float precision, for strata above and below 16.
+  Scene s;
+  addQuad(s, {-1, 0, -1}, {-1, 0, 1}, {1, 0, 1}, {1, 0, -1});
+  finish(s);
+  auto accel = rt::Accel::build(s);
+  ASSERT_TRUE(accel);
+  for (int rays : {64, 1024}) {
+    const LinkOptions o{.rays = rays, .seed = 77};
+    const LinkRays pattern(o);
+    std::vector<rt::Ray> r(pattern.count());
+    const glm::vec3 n = glm::normalize(glm::vec3(0.3f, 1.0f, -0.2f));
+    pattern.generate(*accel, 5, {0, 0, 0}, n, r);
+    glm::vec3 t, b;
+    orthonormalBasis(n, t, b);
+    const auto strata = static_cast<std::uint32_t>(std::sqrt(double(rays)));
+    const std::uint64_t seed = mixBits(77 ^ (std::uint64_t(5) * 0xd1b54a32d192ed03ULL));
+    for (std::uint32_t i = 0; i < pattern.count(); ++i) {
+      const glm::vec2 u = stratifiedSample(i, strata, seed);
+      const glm::vec3 l = uniformHemisphere(u.x, u.y);
+      const glm::vec3 expected = l.x * t + l.y * b + l.z * n;
+      EXPECT_GT(glm::dot(glm::normalize(r[i].dir), expected), 1.0f - 1e-6f) << "ray " << i << " of " << rays;
+      EXPECT_NEAR(glm::length(r[i].dir), 1.0f, 1e-5f);
+      EXPECT_GE(glm::dot(r[i].dir, n), 0.0f);
+    }
   }
 }
 
