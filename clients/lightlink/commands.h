@@ -73,4 +73,18 @@ struct RenderArgs {
 };
 int runRender(const RenderArgs& args);
 
+struct CompareArgs {
+  std::string scene_path;
+  std::string against = "reference";
+  std::string preset = "medium";
+  std::string lights_path;
+  std::string output_dir;         // compare.json and error heat maps
+  int max_points = 4096;          // valid lightmap caches compared (evenly strided)
+  float target_error = 0.01f;     // the reference's relative standard error per point
+  double time_budget_s = 0.0;     // for the reference; 0 = none
+  int max_bounces = 64;           // the baker's bounce cap (threshold 1e-4)
+  bool quiet = false;
+};
+int runCompare(const CompareArgs& args);
+
 }  // namespace lightlink::cli

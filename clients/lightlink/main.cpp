@@ -72,6 +72,20 @@ int main(int argc, char** argv) {
   render_cmd->add_option("--exposure", render.exposure, "Exposure scale (0 = auto)");
   render_cmd->add_flag("-q,--quiet", render.quiet, "No summary");
 
+  CompareArgs cmp;
+  auto* cmp_cmd = app.add_subcommand("compare", "Bake a scene and measure its lightmap against the path-traced reference");
+  cmp_cmd->add_option("scene", cmp.scene_path, "glTF scene (.gltf or .glb)")->required();
+  cmp_cmd->add_option("--against", cmp.against, "What to compare with: reference")->capture_default_str();
+  cmp_cmd->add_option("--preset", cmp.preset, "Bake quality: draft, medium or high")->capture_default_str();
+  cmp_cmd->add_option("--lights", cmp.lights_path, "Light-set JSON adding to or overriding the scene's lights");
+  cmp_cmd->add_option("-o,--output", cmp.output_dir, "Directory for compare.json and error heat maps");
+  cmp_cmd->add_option("--max-points", cmp.max_points, "Most lightmap caches compared")->capture_default_str();
+  cmp_cmd->add_option("--target-error", cmp.target_error, "Reference relative standard error per point")
+      ->capture_default_str();
+  cmp_cmd->add_option("--time-budget", cmp.time_budget_s, "Seconds for the reference (0 = none)");
+  cmp_cmd->add_option("--bounces", cmp.max_bounces, "Baker's bounce cap")->capture_default_str();
+  cmp_cmd->add_flag("-q,--quiet", cmp.quiet, "No progress bar, no summary");
+
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
@@ -83,5 +97,6 @@ int main(int argc, char** argv) {
   if (*pre_cmd) return runPrecompute(pre);
   if (*bake_cmd) return runBake(bake);
   if (*render_cmd) return runRender(render);
+  if (*cmp_cmd) return runCompare(cmp);
   return kExitUsage;
 }

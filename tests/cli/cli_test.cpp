@@ -183,6 +183,28 @@ TEST(Render, DrawsTheBakedCornellBox) {
   EXPECT_NE(r.output.find("TEXCOORD_1"), std::string::npos) << r.output;
 }
 
+TEST(Compare, MeasuresTheBakeAgainstTheReference) {
+  testing::TempDir dir;
+  const auto out = dir / "cmp";
+  const auto r = runCommand(kCli + " compare " + demoScene().string() + " --preset draft --max-points 40 " +
+                            "--target-error 0.05 -q -o " + out.string());
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  const auto j = nlohmann::json::parse(readAll(out / "compare.json"));
+  EXPECT_EQ(j["points"], 40);
+  for (const char* part : {"total", "indirect"}) {
+    const double rmse = j[part]["rel_rmse"].get<double>(), bias = j[part]["bias"].get<double>();
+    // A draft bake of the Cornell box is within tens of percent of the truth, not orders
+    // of magnitude off: this catches unit or convention mismatches between the two.
+    EXPECT_GT(rmse, 0.0) << part;
+    EXPECT_LT(rmse, 0.5) << part;
+    EXPECT_NEAR(bias, 1.0, 0.3) << part;
+  }
+  EXPECT_TRUE(std::filesystem::exists(out / "error_total.png"));
+  EXPECT_TRUE(std::filesystem::exists(out / "error_indirect.png"));
+  const auto bad = runCommand(kCli + " compare " + demoScene().string() + " --against guesswork -q");
+  EXPECT_EQ(bad.exit_code, cli::kExitBadInput) << bad.output;
+}
+
 TEST(Bake, BadLightSetAndPresetAreBadInput) {
   testing::TempDir dir;
   const auto lights = testing::writeFile(
