@@ -466,10 +466,16 @@ void Relighter::Impl::computeEmission(const LightSet& lights) {
   }
 }
 
-void Relighter::Impl::lightSurfels(const scene::Light& light, std::vector<glm::vec3>& out,
-                                   const std::vector<std::uint32_t>* subset, std::size_t& rays) const {
-  const std::size_t n = subset ? subset->size() : p.surfels.size();
-  out.resize(p.surfels.size());
+namespace {
+
+// Shadowed direct irradiance of one light at a set of points (surfels or lightmap caches):
+// irradianceFrom() times one shadow ray, batched per chunk. `valid` (optional) masks points
+// that get no light; `subset` (optional) restricts the work to those indices.
+void shadowedLight(const rt::Accel& accel, const scene::Light& light, std::span<const glm::vec3> position,
+                   std::span<const glm::vec3> normal, std::span<const std::uint8_t> valid,
+                   const std::vector<std::uint32_t>* subset, std::vector<glm::vec3>& out, std::size_t& rays) {
+  const std::size_t n = subset ? subset->size() : position.size();
+  out.resize(position.size());
   std::vector<std::size_t> chunk_rays((n + kChunk - 1) / kChunk, 0);
   forChunks(n, kChunk, [&](std::size_t chunk, std::size_t begin, std::size_t end) {
     std::array<rt::Ray, kChunk> ray_buf;
@@ -477,10 +483,11 @@ void Relighter::Impl::lightSurfels(const scene::Light& light, std::vector<glm::v
     std::array<std::uint8_t, kChunk> blocked;
     std::size_t count = 0;
     for (std::size_t i = begin; i < end; ++i) {
-      const std::uint32_t s = subset ? (*subset)[i] : std::uint32_t(i);
-      const glm::vec3 pos = p.surfels.position[s], nrm = p.surfels.normal[s];
-      const glm::vec3 e = reaches(light, pos) ? scene::irradianceFrom(light, pos, nrm) : glm::vec3(0.0f);
-      out[s] = e;
+      const std::uint32_t k = subset ? (*subset)[i] : std::uint32_t(i);
+      const glm::vec3 pos = position[k], nrm = normal[k];
+      const bool lit = (valid.empty() || valid[k]) && reaches(light, pos);
+      const glm::vec3 e = lit ? scene::irradianceFrom(light, pos, nrm) : glm::vec3(0.0f);
+      out[k] = e;
       if (e == glm::vec3(0.0f)) continue;
       rt::Ray ray;
       if (light.kind == scene::Light::Kind::kDirectional) {
@@ -494,7 +501,7 @@ void Relighter::Impl::lightSurfels(const scene::Light& light, std::vector<glm::v
         ray.tfar = std::max(0.0f, 1.0f - accel.rayEpsilon() / std::max(glm::length(ray.dir), 1e-30f));
       }
       ray_buf[count] = ray;
-      who[count++] = s;
+      who[count++] = k;
     }
     accel.occluded(std::span(ray_buf.data(), count), std::span(blocked.data(), count));
     for (std::size_t k = 0; k < count; ++k)
@@ -504,41 +511,16 @@ void Relighter::Impl::lightSurfels(const scene::Light& light, std::vector<glm::v
   for (std::size_t c : chunk_rays) rays += c;
 }
 
+}  // namespace
+
+void Relighter::Impl::lightSurfels(const scene::Light& light, std::vector<glm::vec3>& out,
+                                   const std::vector<std::uint32_t>* subset, std::size_t& rays) const {
+  shadowedLight(accel, light, p.surfels.position, p.surfels.normal, {}, subset, out, rays);
+}
+
 void Relighter::Impl::bakedDirect(const scene::Light& light, std::vector<glm::vec3>& out,
                                   const std::vector<std::uint32_t>* subset, std::size_t& rays) const {
-  const std::size_t n = subset ? subset->size() : p.lightmap.size();
-  out.resize(p.lightmap.size());
-  std::vector<std::size_t> chunk_rays((n + kChunk - 1) / kChunk, 0);
-  forChunks(n, kChunk, [&](std::size_t chunk, std::size_t begin, std::size_t end) {
-    std::array<rt::Ray, kChunk> ray_buf;
-    std::array<std::uint32_t, kChunk> who;
-    std::array<std::uint8_t, kChunk> blocked;
-    std::size_t count = 0;
-    for (std::size_t i = begin; i < end; ++i) {
-      const std::uint32_t c = subset ? (*subset)[i] : std::uint32_t(i);
-      const glm::vec3 pos = p.lightmap.position[c], nrm = p.lightmap.normal[c];
-      const glm::vec3 e = p.lightmap.valid[c] && reaches(light, pos) ? scene::irradianceFrom(light, pos, nrm)
-                                                                      : glm::vec3(0.0f);
-      out[c] = e;
-      if (e == glm::vec3(0.0f)) continue;
-      rt::Ray ray;
-      if (light.kind == scene::Light::Kind::kDirectional) {
-        ray.dir = -light.direction;
-        ray.origin = accel.offsetOrigin(pos, nrm, ray.dir);
-      } else {
-        ray.origin = accel.offsetOrigin(pos, nrm, light.position - pos);
-        ray.dir = light.position - ray.origin;
-        ray.tfar = std::max(0.0f, 1.0f - accel.rayEpsilon() / std::max(glm::length(ray.dir), 1e-30f));
-      }
-      ray_buf[count] = ray;
-      who[count++] = c;
-    }
-    accel.occluded(std::span(ray_buf.data(), count), std::span(blocked.data(), count));
-    for (std::size_t k = 0; k < count; ++k)
-      if (blocked[k]) out[who[k]] = glm::vec3(0.0f);
-    chunk_rays[chunk] = count;
-  });
-  for (std::size_t c : chunk_rays) rays += c;
+  shadowedLight(accel, light, p.lightmap.position, p.lightmap.normal, p.lightmap.valid, subset, out, rays);
 }
 
 void Relighter::Impl::emitterDirect(const LightSet& lights, int samples, RelightCounts& counts) {
