@@ -10,6 +10,7 @@
 
 #include "core/common/sampling.h"
 #include "core/sh/sh.h"
+#include "tests/common/scene_builders.h"
 
 namespace lightlink::links {
 namespace {
@@ -18,35 +19,10 @@ using scene::MeshInstance;
 using scene::Scene;
 constexpr float kPi = std::numbers::pi_v<float>;
 
-void addQuad(Scene& s, glm::vec3 p0, glm::vec3 p1, glm::vec3 p2, glm::vec3 p3) {
-  MeshInstance m;
-  m.name = "quad" + std::to_string(s.meshes.size());
-  m.positions = {p0, p1, p2, p3};
-  const glm::vec3 n = glm::normalize(glm::cross(p1 - p0, p2 - p0));
-  m.normals = {n, n, n, n};
-  m.indices = {0, 1, 2, 0, 2, 3};
-  s.meshes.push_back(m);
-}
+using lightlink::testing::addBox;
+using lightlink::testing::addQuad;
 
-// Axis-aligned box; inward = true gives a room (faces point inside), false a solid block.
-void addBox(Scene& s, glm::vec3 lo, glm::vec3 hi, bool inward) {
-  const glm::vec3 c[8] = {{lo.x, lo.y, lo.z}, {hi.x, lo.y, lo.z}, {hi.x, hi.y, lo.z}, {lo.x, hi.y, lo.z},
-                          {lo.x, lo.y, hi.z}, {hi.x, lo.y, hi.z}, {hi.x, hi.y, hi.z}, {lo.x, hi.y, hi.z}};
-  const int faces[6][4] = {{0, 3, 2, 1}, {4, 5, 6, 7}, {0, 1, 5, 4}, {2, 3, 7, 6}, {0, 4, 7, 3}, {1, 2, 6, 5}};
-  for (const auto& f : faces) {
-    if (inward)
-      addQuad(s, c[f[3]], c[f[2]], c[f[1]], c[f[0]]);
-    else
-      addQuad(s, c[f[0]], c[f[1]], c[f[2]], c[f[3]]);
-  }
-}
-
-void finish(Scene& s) {
-  s.bounds = Aabb();
-  for (const auto& m : s.meshes)
-    for (const auto& p : m.positions) s.bounds.grow(p);
-  s.scale = s.bounds.diagonal();
-}
+void finish(Scene& s) { lightlink::testing::finishScene(s); }
 
 // Everything link generation needs, built the way precompute builds it.
 struct LinkFixture {

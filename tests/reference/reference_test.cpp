@@ -23,6 +23,7 @@
 
 #include "core/common/sampling.h"
 #include "core/sh/sh.h"
+#include "tests/common/scene_builders.h"
 
 namespace lightlink::reference {
 namespace {
@@ -31,29 +32,9 @@ using scene::MeshInstance;
 using scene::Scene;
 constexpr float kPi = std::numbers::pi_v<float>;
 
-void addQuad(Scene& s, glm::vec3 p0, glm::vec3 p1, glm::vec3 p2, glm::vec3 p3, int material) {
-  MeshInstance m;
-  m.name = "quad" + std::to_string(s.meshes.size());
-  m.positions = {p0, p1, p2, p3};
-  const glm::vec3 n = glm::normalize(glm::cross(p1 - p0, p2 - p0));
-  m.normals = {n, n, n, n};
-  m.indices = {0, 1, 2, 0, 2, 3};
-  m.material = material;
-  s.meshes.push_back(m);
-}
-
-// Axis-aligned box; inward = true gives a room (faces point inside).
-void addBox(Scene& s, glm::vec3 lo, glm::vec3 hi, bool inward, int material) {
-  const glm::vec3 c[8] = {{lo.x, lo.y, lo.z}, {hi.x, lo.y, lo.z}, {hi.x, hi.y, lo.z}, {lo.x, hi.y, lo.z},
-                          {lo.x, lo.y, hi.z}, {hi.x, lo.y, hi.z}, {hi.x, hi.y, hi.z}, {lo.x, hi.y, hi.z}};
-  const int faces[6][4] = {{0, 3, 2, 1}, {4, 5, 6, 7}, {0, 1, 5, 4}, {2, 3, 7, 6}, {0, 4, 7, 3}, {1, 2, 6, 5}};
-  for (const auto& f : faces) {
-    if (inward)
-      addQuad(s, c[f[3]], c[f[2]], c[f[1]], c[f[0]], material);
-    else
-      addQuad(s, c[f[0]], c[f[1]], c[f[2]], c[f[3]], material);
-  }
-}
+using lightlink::testing::addBox;
+using lightlink::testing::addMaterial;
+using lightlink::testing::addQuad;
 
 // Latitude-longitude sphere facing inwards, flat-shaded: closed, triangles of unequal area.
 void addInwardSphere(Scene& s, glm::vec3 centre, float radius, int material) {
@@ -85,16 +66,6 @@ void addInwardSphere(Scene& s, glm::vec3 centre, float radius, int material) {
   s.meshes.push_back(m);
 }
 
-int addMaterial(Scene& s, glm::vec3 albedo, glm::vec3 emission = glm::vec3(0.0f), bool double_sided = false) {
-  scene::Material m;
-  m.name = "m" + std::to_string(s.materials.size());
-  m.base_color_factor = glm::vec4(albedo, 1.0f);
-  m.emissive_factor = emission;
-  m.double_sided = double_sided;
-  s.materials.push_back(m);
-  return int(s.materials.size()) - 1;
-}
-
 // A scene, its accel and a renderer over a light set, built in that order.
 struct World {
   Scene scene;
@@ -104,9 +75,7 @@ struct World {
   static std::unique_ptr<World> make(Scene s, const relight::LightSet& lights = {}) {
     auto w = std::make_unique<World>();
     s.source_path = "test-scene";
-    for (const auto& m : s.meshes)
-      for (const auto& p : m.positions) s.bounds.grow(p);
-    s.scale = s.bounds.diagonal();
+    lightlink::testing::finishScene(s);
     w->scene = std::move(s);
     auto a = rt::Accel::build(w->scene);
     EXPECT_TRUE(a) << a.status().toString();
