@@ -1,0 +1,43 @@
+// Backend choice for `lightlink bake --backend` and the daemon: cpu, gpu or auto.
+//
+// This is the one place that knows both backends: the CPU relight of core/relight and the
+// EGL + GL compute relight of this folder. `auto` takes the GPU when a usable headless
+// context exists (EGL, OpenGL 4.5 core, compute shaders) and falls back to the CPU with a
+// note saying why; an explicit `gpu` that cannot run is an error naming the reason. Builds
+// without LIGHTLINK_BUILD_GPU compile only the CPU path and say so.
+#pragma once
+
+#include <memory>
+#include <string>
+#include <string_view>
+
+#include "core/common/status.h"
+#include "core/relight/backend.h"
+
+namespace lightlink::gpu {
+
+enum class BackendChoice { kAuto, kCpu, kGpu };
+
+// "auto" | "cpu" | "gpu"; anything else is invalidInput naming `field`.
+Expected<BackendChoice> parseBackendChoice(std::string_view text, std::string_view field = "backend");
+
+struct GpuProbe {
+  bool available = false;
+  std::string renderer;  // GL_RENDERER, e.g. "llvmpipe (LLVM 15.0.6, 256 bits)"
+  std::string version;   // GL_VERSION
+  std::string error;     // why it is not available
+};
+
+// Creates (once per process, then cached) a headless context and reports what it found.
+const GpuProbe& probeGpu();
+
+// The backend for one resident scene (inputs must outlive it). `note`, when given, receives
+// a line for the report ("gpu: llvmpipe ..." or "cpu: fallback, no EGL display").
+Expected<std::unique_ptr<relight::RelightBackend>> makeBackend(BackendChoice choice, const scene::Scene& scene,
+                                                               const rt::Accel& accel,
+                                                               const precompute::Precomputation& p,
+                                                               links::LinksView lightmap_links,
+                                                               links::LinksView grid_links,
+                                                               std::string* note = nullptr);
+
+}  // namespace lightlink::gpu
