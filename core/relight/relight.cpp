@@ -130,7 +130,8 @@ nlohmann::ordered_json RelightResult::report() const {
                  {"cache_lighting", passes.cache_lighting}, {"grid_lighting", passes.grid_lighting},
                  {"sky", passes.sky}, {"bounces", passes.bounces}, {"baked_direct", passes.baked_direct},
                  {"emissive_direct", passes.emissive_direct}, {"emission_caches", passes.emission_caches},
-                 {"fill", passes.fill}, {"incremental", passes.incremental}};
+                 {"fill", passes.fill}, {"incremental", passes.incremental},
+                 {"unchanged", passes.unchanged}};
   j["counts"] = {{"surfels", counts.surfels}, {"surfels_lit", counts.surfels_lit}, {"nodes", counts.nodes},
                  {"nodes_pulled", counts.nodes_pulled}, {"caches", counts.caches},
                  {"caches_summed", counts.caches_summed}, {"grid_caches", counts.grid_caches},
@@ -183,6 +184,8 @@ struct Relighter::Impl {
   RelightOptions last_options;
   bool last_valid = false;
   bool last_bounced = false;
+  std::vector<BounceRecord> last_bounce_log;  // re-reported when nothing changed
+  std::string last_bounce_stop;
 
   // Surfel radiosity is kept in two parts, emitted pi * L_e and reflected rho * E, because the
   // lightmap caches gather only the reflected part (the emitters' direct light goes to
@@ -738,11 +741,22 @@ Status Relighter::relightInto(const LightSet& lights, const RelightOptions& o, R
                   lights.sky().radiance == m.last_sky.radiance && lights.sky().sh == m.last_sky.sh &&
                   sameEmissive(lights.emissive(), m.last_emissive) && lights.emissiveBaked() == m.last_emissive_baked &&
                   o.emitter_samples == m.last_options.emitter_samples;
+  auto same = [&](std::size_t i, std::size_t j) {
+    return L[i].id == m.last_ids[j] && sameLight(L[i].light, m.last_lights[j]) && L[i].baked == bool(m.last_baked[j]);
+  };
+  // Nothing changed (an editor re-sending the same state, a daemon update that set values
+  // to what they were): the kept per-cache state *is* the answer, bounces included, so only
+  // the texel pass below runs. Every option that changes the result must match.
+  bool unchanged = o.incremental && m.last_valid && o.link_form == m.last_options.link_form && bands == last_bands &&
+                   o.kernel == m.last_options.kernel && o.max_bounces == m.last_options.max_bounces &&
+                   o.bounce_threshold == m.last_options.bounce_threshold &&
+                   o.emitter_samples == m.last_options.emitter_samples && lights.sky().radiance == m.last_sky.radiance &&
+                   lights.sky().sh == m.last_sky.sh && sameEmissive(lights.emissive(), m.last_emissive) &&
+                   lights.emissiveBaked() == m.last_emissive_baked && L.size() == m.last_ids.size();
+  for (std::size_t i = 0; unchanged && i < L.size(); ++i) unchanged = same(i, i);
+  if (unchanged) eligible = false;
   if (eligible) {
     const std::size_t nl = L.size(), ol = m.last_ids.size();
-    auto same = [&](std::size_t i, std::size_t j) {
-      return L[i].id == m.last_ids[j] && sameLight(L[i].light, m.last_lights[j]) && L[i].baked == bool(m.last_baked[j]);
-    };
     if (nl == ol) {
       int diffs = 0;
       for (std::size_t i = 0; i < nl && diffs <= 1; ++i) {
@@ -768,7 +782,11 @@ Status Relighter::relightInto(const LightSet& lights, const RelightOptions& o, R
     }
   }
 
-  if (eligible) {
+  if (unchanged) {
+    res.passes.unchanged = 1;
+    res.bounce_log = m.last_bounce_log;
+    res.counts.emitter_triangles = m.emitter_triangles;
+  } else if (eligible) {
     // ---- incremental relight --------------------------------------------------------
     res.passes.incremental = 1;
     scene::Light dark;  // stands for "no light": reaches() is false for zero intensity
@@ -1095,6 +1113,9 @@ Status Relighter::relightInto(const LightSet& lights, const RelightOptions& o, R
     for (std::size_t s = 0; s < ns; ++s) res.surfel_radiosity[s] = m.b[s] + m.emission_b[s];
   });
   if (res.passes.incremental) res.bounce_stop = "disabled";
+  if (res.passes.unchanged) res.bounce_stop = m.last_bounce_stop;
+  m.last_bounce_log = res.bounce_log;
+  m.last_bounce_stop = res.bounce_stop;
 
   // Remember what was computed, for the next incremental relight.
   m.last_lights.clear(), m.last_ids.clear(), m.last_baked.clear();

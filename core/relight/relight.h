@@ -95,6 +95,8 @@ struct PassCounts {
   int emission_caches = 0;   // lightmap caches lit by emitted radiosity alone (bounce gathers)
   int fill = 0;
   int incremental = 0;       // 1 when this relight was incremental
+  int unchanged = 0;         // 1 when the light set and options equal the last relight's: only
+                             // the texels were rewritten from the kept state
 };
 
 struct BounceRecord {

@@ -423,6 +423,44 @@ TEST(RelightIncremental, OneLightChangeMatchesAFullRelight) {
   EXPECT_EQ(two->passes.incremental, 0);
 }
 
+TEST(RelightIncremental, UnchangedLightSetReEmitsTheKeptResult) {
+  const auto& rm = room();
+  ASSERT_TRUE(rm.baked);
+  Relighter r = rm.baked->relighter();
+  LightSet set;
+  ASSERT_TRUE(set.add(pointLight("a", {1, 1, 1}, 3.0f, 1.5f)));
+  const RelightOptions opt;  // bounces on, emitter in the room: the expensive case
+  auto first = r.relight(set, opt);
+  ASSERT_TRUE(first);
+  ASSERT_GT(first->passes.bounces, 0);
+  EXPECT_EQ(first->passes.unchanged, 0);
+  // The same values written again (a new version, as a daemon update would make).
+  ASSERT_TRUE(set.modify(pointLight("a", {1, 1, 1}, 3.0f, 1.5f)));
+  auto again = r.relight(set, opt);
+  ASSERT_TRUE(again);
+  EXPECT_EQ(again->passes.unchanged, 1);
+  EXPECT_EQ(again->passes.bounces, 0);
+  EXPECT_EQ(again->passes.surfel_direct + again->passes.pulls + again->passes.cache_lighting, 0);
+  EXPECT_EQ(again->version, set.version());
+  EXPECT_GT(again->version, first->version);
+  EXPECT_EQ(again->bounce_stop, first->bounce_stop);
+  EXPECT_EQ(again->bounce_log.size(), first->bounce_log.size());
+  EXPECT_EQ(again->lightmap_sh, first->lightmap_sh);
+  EXPECT_EQ(again->direct, first->direct);
+  EXPECT_EQ(again->grid_sh, first->grid_sh);
+  EXPECT_EQ(again->texel_valid, first->texel_valid);
+  // A different option is a change: computed again, and equal to a fresh relighter's result.
+  RelightOptions fewer = opt;
+  fewer.max_bounces = 1;
+  auto changed = r.relight(set, fewer);
+  ASSERT_TRUE(changed);
+  EXPECT_EQ(changed->passes.unchanged, 0);
+  Relighter fresh = rm.baked->relighter();
+  auto full = fresh.relight(set, fewer);
+  ASSERT_TRUE(full);
+  expectSame(*changed, *full, "after unchanged");
+}
+
 // ---- kernels, determinism --------------------------------------------------------------------
 
 TEST(RelightKernels, CapBandFactorsMatchProjectRuntimeLink) {
