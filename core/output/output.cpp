@@ -33,7 +33,11 @@ struct Planes {
   std::vector<std::vector<float>> f;
   WriteStats stats;
 
-  void add(const std::string& name, const std::vector<float>& values) {
+  // `signal`: the plane carries a texel's magnitude (L00, direct), so a non-zero value below
+  // the smallest normal half is a real loss of precision and is counted; higher SH
+  // coefficients are legitimately tiny next to their L00 and are not.
+  void add(const std::string& name, const std::vector<float>& values, bool signal = false) {
+    constexpr float kHalfMinNormal = 6.103515625e-05f;  // 2^-14
     names.push_back(name);
     if (half) {
       std::vector<half_bits> out(values.size());
@@ -41,6 +45,7 @@ struct Planes {
         bool clamped = false;
         out[i] = toHalfSaturating(values[i], clamped);
         stats.clamped += clamped;
+        stats.underflowed += signal && values[i] != 0.0f && std::abs(values[i]) < kHalfMinNormal;
       }
       h.push_back(std::move(out));
     } else {
@@ -91,7 +96,7 @@ void addShPlanes(Planes& planes, const std::vector<float>& sh, std::size_t eleme
     for (int ch = 0; ch < 3; ++ch) {
       std::fill(plane.begin(), plane.end(), 0.0f);
       for (std::size_t e = 0; e < elements; ++e) plane[pixel_of(e)] = sh[e * 3 * nc + ch * nc + i];
-      planes.add(shLayerName(i) + "." + kCh[ch], plane);
+      planes.add(shLayerName(i) + "." + kCh[ch], plane, /*signal=*/i == 0);
     }
 }
 
@@ -131,7 +136,7 @@ Expected<WriteStats> writeLightmapExr(const relight::RelightResult& result, cons
   static const char* kCh[3] = {"R", "G", "B"};
   for (int ch = 0; ch < 3; ++ch) {
     for (std::size_t t = 0; t < texels; ++t) plane[t] = result.direct[t][ch];
-    planes.add(std::string("direct.") + kCh[ch], plane);
+    planes.add(std::string("direct.") + kCh[ch], plane, /*signal=*/true);
   }
   for (std::size_t t = 0; t < texels; ++t) plane[t] = result.texel_valid[t] ? 1.0f : 0.0f;
   planes.add("valid.Y", plane);

@@ -38,6 +38,11 @@ struct ExrOptions {
 struct WriteStats {
   std::size_t values = 0;
   std::size_t clamped = 0;  // values beyond the half range, clamped
+  // Non-zero L00 / direct values below the smallest normal half (2^-14 ~ 6.1e-5): stored as
+  // subnormals (absolute error up to 2^-25, relative error > 0.05 % and growing) or flushed
+  // to 0. Counted so very dim lighting does not lose precision silently (DESIGN.md sec 6,
+  // tests/stability); write float files (ExrOptions::half = false) or raise the exposure.
+  std::size_t underflowed = 0;
 };
 
 // Channel name stem of SH coefficient i (docs/sh.md order): "L00", "L1m1", "L10", "L11", ...

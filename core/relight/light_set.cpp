@@ -404,14 +404,49 @@ Expected<LightSet> LightSet::fromJson(const json& j) {
 }
 
 namespace {
+// Parses a light-set file. JSON has no Inf, so a number such as 1e999 that overflows double is
+// a parse error (nlohmann: "number overflow"), raised before any schema check could name the
+// field; the callback tracks the path the parser has reached (object keys, array indices) so
+// that error names the field like every other light-set error does (DESIGN.md sec 6:
+// non-finite input is rejected naming the field; tests/stability).
 Expected<json> parseFile(const std::string& path) {
   std::ifstream in(path, std::ios::binary);
   if (!in) return notFound("{}: cannot open light set", path);
   std::stringstream ss;
   ss << in.rdbuf();
-  json j = json::parse(ss.str(), nullptr, /*allow_exceptions=*/false);
-  if (j.is_discarded()) return invalidInput("{}: not valid JSON", path);
-  return j;
+  struct Level {
+    bool array = false;
+    std::size_t count = 0;  // array: completed elements
+    std::string key;        // object: the last key read
+  };
+  std::vector<Level> levels;
+  auto track = [&levels](int /*depth*/, json::parse_event_t event, json& parsed) {
+    switch (event) {
+      case json::parse_event_t::object_start: levels.push_back({false, 0, {}}); break;
+      case json::parse_event_t::array_start: levels.push_back({true, 0, {}}); break;
+      case json::parse_event_t::key: levels.back().key = parsed.get<std::string>(); break;
+      case json::parse_event_t::object_end:
+      case json::parse_event_t::array_end:
+        levels.pop_back();
+        if (!levels.empty() && levels.back().array) ++levels.back().count;
+        break;
+      case json::parse_event_t::value:
+        if (!levels.empty() && levels.back().array) ++levels.back().count;
+        break;
+    }
+    return true;
+  };
+  try {
+    return json::parse(ss.str(), track);
+  } catch (const json::exception& e) {
+    std::string at;
+    for (const Level& l : levels) {
+      if (l.array) at += fmt::format("[{}]", l.count);
+      else if (!l.key.empty()) at += (at.empty() ? "" : ".") + l.key;
+    }
+    if (at.empty()) return invalidInput("{}: not valid JSON: {}", path, e.what());
+    return invalidInput("{}: not valid JSON at {}: {}", path, at, e.what());
+  }
 }
 }  // namespace
 

@@ -1,6 +1,7 @@
 #include "core/scene/gltf_lights.h"
 
 #include <cmath>
+#include <limits>
 
 namespace lightlink::scene::gltf {
 namespace {
@@ -9,6 +10,11 @@ constexpr double kHalfPi = 1.57079632679489661923;
 
 Status checkNonNegative(const Context& ctx, const std::string& object, const char* field, double v) {
   if (!std::isfinite(v)) return ctx.invalid(object, fmt::format("{} is not finite ({})", field, v));
+  // Finite in the file's double but +Inf in the float the Scene stores (e.g. 1e39): reject it
+  // here, naming the field, instead of letting an infinite light reach the bake
+  // (tests/stability, DESIGN.md sec 6).
+  if (std::abs(v) > double(std::numeric_limits<float>::max()))
+    return ctx.invalid(object, fmt::format("{} is not finite in single precision ({})", field, v));
   if (v < 0.0) return ctx.invalid(object, fmt::format("{} is negative ({})", field, v));
   return Status::ok();
 }

@@ -1,6 +1,7 @@
 #include "core/scene/gltf_materials.h"
 
 #include <cmath>
+#include <limits>
 
 namespace lightlink::scene::gltf {
 
@@ -44,8 +45,11 @@ Status checkFactors(const Context& ctx, const std::string& object, const char* f
     return ctx.invalid(object, fmt::format("{} has {} numbers, expected {}", field, values.size(),
                                            expected));
   }
+  // The upper limit: finite in the file's double but +Inf in the float the Scene stores
+  // (e.g. 1e39) is as unusable as Inf itself (tests/stability, DESIGN.md sec 6).
+  constexpr double kFloatMax = double(std::numeric_limits<float>::max());
   for (std::size_t i = 0; i < values.size(); ++i) {
-    if (!std::isfinite(values[i]) || values[i] < 0.0) {
+    if (!std::isfinite(values[i]) || values[i] < 0.0 || values[i] > kFloatMax) {
       return ctx.invalid(object, fmt::format("{}[{}] = {} is not a finite non-negative number",
                                              field, i, values[i]));
     }
@@ -54,7 +58,7 @@ Status checkFactors(const Context& ctx, const std::string& object, const char* f
 }
 
 Status checkScalar(const Context& ctx, const std::string& object, const char* field, double v) {
-  if (!std::isfinite(v) || v < 0.0) {
+  if (!std::isfinite(v) || v < 0.0 || v > double(std::numeric_limits<float>::max())) {
     return ctx.invalid(object, fmt::format("{} = {} is not a finite non-negative number", field, v));
   }
   return Status::ok();
