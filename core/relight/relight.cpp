@@ -398,9 +398,11 @@ EffectsPlan Relighter::Impl::makePlan(const LightSet& lights, const RelightOptio
   EffectsPlan plan;
   std::size_t emitting = 0;
   for (const auto& e : lights.lights()) emitting += lightEmits(e.light);
-  plan.punctual = emitting > 0;
-  plan.reasons.push_back(plan.punctual ? fmt::format("{} of {} lights emit", emitting, lights.lights().size())
-                                       : "no light with non-zero intensity: surfel direct lighting skipped");
+  plan.punctual = emitting > 0 || !o.surfel_irradiance.empty();
+  plan.reasons.push_back(!o.surfel_irradiance.empty()
+                             ? "surfel irradiance given by the caller: surfel direct lighting not evaluated"
+                         : plan.punctual ? fmt::format("{} of {} lights emit", emitting, lights.lights().size())
+                                         : "no light with non-zero intensity: surfel direct lighting skipped");
   // Emission after overrides: any surfel with non-zero emission?
   std::vector<int> mode(scene.materials.size() + 1, -1);
   std::vector<glm::vec3> value(scene.materials.size() + 1);
@@ -453,7 +455,12 @@ EffectsPlan Relighter::plan(const LightSet& lights, const RelightOptions& option
   return impl_->makePlan(lights, options);
 }
 
-void Relighter::Impl::computeEmission(const LightSet& lights) {
+namespace {
+// Emitted radiosity per surfel after the overrides (free, so Relighter::surfelEmission can
+// compute it without touching the relight state).
+void emissionInto(const scene::Scene& scene, const precompute::Precomputation& p,
+                  const std::vector<int>& surfel_material, const LightSet& lights,
+                  std::vector<glm::vec3>& emission_b) {
   const std::size_t ns = p.surfels.size();
   emission_b.resize(ns);
   std::vector<int> mode(scene.materials.size(), -1);
@@ -468,6 +475,21 @@ void Relighter::Impl::computeEmission(const LightSet& lights) {
     emission_b[s] = kPi * le;  // radiosity of a Lambertian emitter of radiance L: pi L
   }
 }
+}  // namespace
+
+void Relighter::Impl::computeEmission(const LightSet& lights) {
+  emissionInto(scene, p, surfel_material, lights, emission_b);
+}
+
+void Relighter::surfelEmission(const LightSet& lights, std::vector<glm::vec3>& out) const {
+  emissionInto(impl_->scene, impl_->p, impl_->surfel_material, lights, out);
+}
+
+Relighter::GatherTables Relighter::gatherTables() const {
+  const Impl& m = *impl_;
+  return {m.gather_begin, m.gather_cache, m.gather_weight, m.gather_from_grid, m.lm_has_value, m.grid_has_value,
+          m.surfels_without_gather};
+}
 
 namespace {
 
@@ -476,7 +498,8 @@ namespace {
 // that get no light; `subset` (optional) restricts the work to those indices.
 void shadowedLight(const rt::Accel& accel, const scene::Light& light, std::span<const glm::vec3> position,
                    std::span<const glm::vec3> normal, std::span<const std::uint8_t> valid,
-                   const std::vector<std::uint32_t>* subset, std::vector<glm::vec3>& out, std::size_t& rays) {
+                   const std::vector<std::uint32_t>* subset, std::vector<glm::vec3>& out, std::size_t& rays,
+                   rt::Coherence coherence) {
   const std::size_t n = subset ? subset->size() : position.size();
   out.resize(position.size());
   std::vector<std::size_t> chunk_rays((n + kChunk - 1) / kChunk, 0);
@@ -506,7 +529,7 @@ void shadowedLight(const rt::Accel& accel, const scene::Light& light, std::span<
       ray_buf[count] = ray;
       who[count++] = k;
     }
-    accel.occluded(std::span(ray_buf.data(), count), std::span(blocked.data(), count));
+    accel.occluded(std::span(ray_buf.data(), count), std::span(blocked.data(), count), coherence);
     for (std::size_t k = 0; k < count; ++k)
       if (blocked[k]) out[who[k]] = glm::vec3(0.0f);
     chunk_rays[chunk] = count;
@@ -518,12 +541,18 @@ void shadowedLight(const rt::Accel& accel, const scene::Light& light, std::span<
 
 void Relighter::Impl::lightSurfels(const scene::Light& light, std::vector<glm::vec3>& out,
                                    const std::vector<std::uint32_t>* subset, std::size_t& rays) const {
-  shadowedLight(accel, light, p.surfels.position, p.surfels.normal, {}, subset, out, rays);
+  // Surfels in tree order are spatial neighbours and every ray ends at the same light (or is
+  // parallel to its neighbours): 16-ray packets traverse nearly the same nodes, camera rays
+  // reversed. Measured on LightsPunctualLamp (5 point lights, 32k surfels, 2 cores): surfel
+  // direct 7.1-9.9 ms as a stream, 6.4-8.5 ms as packets. Lightmap caches jump between
+  // charts, so their rays stay on the stream path (packets were slower there).
+  shadowedLight(accel, light, p.surfels.position, p.surfels.normal, {}, subset, out, rays, rt::Coherence::kCoherent);
 }
 
 void Relighter::Impl::bakedDirect(const scene::Light& light, std::vector<glm::vec3>& out,
                                   const std::vector<std::uint32_t>* subset, std::size_t& rays) const {
-  shadowedLight(accel, light, p.lightmap.position, p.lightmap.normal, p.lightmap.valid, subset, out, rays);
+  shadowedLight(accel, light, p.lightmap.position, p.lightmap.normal, p.lightmap.valid, subset, out, rays,
+                rt::Coherence::kIncoherent);
 }
 
 void Relighter::Impl::emitterDirect(const LightSet& lights, int samples, RelightCounts& counts) {
@@ -589,7 +618,8 @@ void Relighter::Impl::pullAll() {
   }
 }
 
-void Relighter::Impl::buildSkyMatrix(const Sky& sky, int bands_out, int bands_links) {
+namespace {
+void skyMatrixInto(const Sky& sky, int bands_out, int bands_links, std::vector<float>* sky_matrix) {
   // Truncated SH product: the cache's sky radiance is Lsky(w) * V(w), with V / pi stored per
   // cache as SH (links.sky). M_kj = pi * integral Lsky(w) Y_k(w) Y_j(w) dw, so the sky SH of a
   // cache is M * sky_visibility. Lsky has 3 bands and Y_k Y_j at most 3 + 3, so the integrand
@@ -621,6 +651,15 @@ void Relighter::Impl::buildSkyMatrix(const Sky& sky, int bands_out, int bands_li
     }
   for (int ch = 0; ch < 3; ++ch)
     for (std::size_t i = 0; i < m[ch].size(); ++i) sky_matrix[ch][i] = float(m[ch][i]);
+}
+}  // namespace
+
+void Relighter::Impl::buildSkyMatrix(const Sky& sky, int bands_out, int bands_links) {
+  skyMatrixInto(sky, bands_out, bands_links, sky_matrix);
+}
+
+void Relighter::skyMatrix(const Sky& sky, int bands_out, std::vector<float> (&out)[3]) const {
+  skyMatrixInto(sky, bands_out, impl_->lm_links.bands, out);
 }
 
 void Relighter::Impl::lightCaches(const links::LinksView& view, std::vector<float>& out,
@@ -696,6 +735,9 @@ Status Relighter::relightInto(const LightSet& lights, const RelightOptions& o, R
     return invalidInput("relight: bounce_threshold {} must be finite and >= 0", o.bounce_threshold);
   if (o.emitter_samples < 1 || o.emitter_samples > 4096)
     return invalidInput("relight: emitter_samples {} not in 1..4096", o.emitter_samples);
+  if (!o.surfel_irradiance.empty() && o.surfel_irradiance.size() != m.p.surfels.size())
+    return invalidInput("relight: surfel_irradiance has {} entries for {} surfels", o.surfel_irradiance.size(),
+                        m.p.surfels.size());
   for (std::size_t i = 0; i < lights.emissive().size(); ++i)
     if (lights.emissive()[i].material >= int(m.scene.materials.size()))
       return invalidInput("emissive[{}].material: {} is not a material of the scene ({} materials)", i,
@@ -736,7 +778,7 @@ Status Relighter::relightInto(const LightSet& lights, const RelightOptions& o, R
   int changed = -1;         // index in the new list (added / modified), or in the old (removed)
   enum { kNone, kModified, kAdded, kRemoved } change = kNone;
   const int last_bands = m.last_options.bands ? m.last_options.bands : link_bands;
-  bool eligible = o.incremental && m.last_valid && !plan.bounces && !m.last_bounced &&
+  bool eligible = o.incremental && o.surfel_irradiance.empty() && m.last_valid && !plan.bounces && !m.last_bounced &&
                   o.link_form == m.last_options.link_form && bands == last_bands && o.kernel == m.last_options.kernel &&
                   lights.sky().radiance == m.last_sky.radiance && lights.sky().sh == m.last_sky.sh &&
                   sameEmissive(lights.emissive(), m.last_emissive) && lights.emissiveBaked() == m.last_emissive_baked &&
@@ -747,7 +789,7 @@ Status Relighter::relightInto(const LightSet& lights, const RelightOptions& o, R
   // Nothing changed (an editor re-sending the same state, a daemon update that set values
   // to what they were): the kept per-cache state *is* the answer, bounces included, so only
   // the texel pass below runs. Every option that changes the result must match.
-  bool unchanged = o.incremental && m.last_valid && o.link_form == m.last_options.link_form && bands == last_bands &&
+  bool unchanged = o.incremental && o.surfel_irradiance.empty() && m.last_valid && o.link_form == m.last_options.link_form && bands == last_bands &&
                    o.kernel == m.last_options.kernel && o.max_bounces == m.last_options.max_bounces &&
                    o.bounce_threshold == m.last_options.bounce_threshold &&
                    o.emitter_samples == m.last_options.emitter_samples && lights.sky().radiance == m.last_sky.radiance &&
@@ -900,6 +942,13 @@ Status Relighter::relightInto(const LightSet& lights, const RelightOptions& o, R
     m.direct_e.assign(ns, glm::vec3(0.0f));
     m.per_light_surfel.assign(L.size(), {});
     timed("surfel_direct", [&] {
+      if (!o.surfel_irradiance.empty()) {
+        // Given by the caller (parity runs): no light is evaluated at the surfels.
+        for (auto& pl : m.per_light_surfel) pl.assign(ns, glm::vec3(0.0f));
+        m.direct_e.assign(o.surfel_irradiance.begin(), o.surfel_irradiance.end());
+        res.counts.surfels_lit = ns;
+        return;
+      }
       for (std::size_t i = 0; i < L.size(); ++i) {
         if (!lightEmits(L[i].light)) {
           m.per_light_surfel[i].assign(ns, glm::vec3(0.0f));
@@ -1125,7 +1174,7 @@ Status Relighter::relightInto(const LightSet& lights, const RelightOptions& o, R
   m.last_sky = lights.sky();
   m.last_options = o;
   m.last_bounced = plan.bounces;
-  m.last_valid = true;
+  m.last_valid = o.surfel_irradiance.empty();  // a given irradiance is not a light state to build on
   if (m.surfels_without_gather > 0 && plan.bounces)
     res.warnings.push_back(fmt::format("{} surfels have no lightmap texel or grid cache to gather bounces from",
                                        m.surfels_without_gather));

@@ -31,6 +31,7 @@
 
 #include <cstdint>
 #include <memory>
+#include <span>
 #include <string>
 #include <vector>
 
@@ -62,6 +63,11 @@ struct RelightOptions {
   // Samples (one shadow ray each) per lightmap texel for the direct light of emissive
   // surfaces, 1..4096; the Monte Carlo noise of a texel's direct falls as 1/sqrt(samples).
   int emitter_samples = 32;
+  // When not empty (one entry per surfel, tree order): the surfels' direct irradiance (lux)
+  // used instead of evaluating the punctual lights' surfel lighting, so that two backends can
+  // be fed identical surfel light and compared from the pull on (tests/gpu). Such a relight
+  // counts as punctual lighting, is never incremental, and the next relight is a full one.
+  std::span<const glm::vec3> surfel_irradiance;
 };
 
 // DESIGN.md sec 5: which passes this relight runs, and why.
@@ -182,6 +188,23 @@ class Relighter {
   void invalidate();
   // True when this CPU runs the AVX2 + F16C kernels.
   static bool simdAvailable();
+
+  // The static tables a second backend (service/gpu) needs to reproduce this relight exactly.
+  // Bounce gather: surfel s reads caches cache[begin[s] .. begin[s + 1]) with weights, from
+  // the grid when from_grid[s], else from the lightmap caches; has_value: the caches that
+  // hold a value after the fill (valid, or filled from a valid neighbour).
+  struct GatherTables {
+    std::span<const std::uint32_t> begin, cache;
+    std::span<const float> weight;
+    std::span<const std::uint8_t> from_grid, lightmap_has_value, grid_has_value;
+    std::size_t surfels_without_gather = 0;
+  };
+  GatherTables gatherTables() const;
+  // Per channel, the nc_out x nc_links (row-major) matrix that turns a cache's sky
+  // visibility SH into sky radiance SH, as cache lighting applies it.
+  void skyMatrix(const Sky& sky, int bands_out, std::vector<float> (&out)[3]) const;
+  // Emitted radiosity pi * L_e per surfel (tree order) after the light set's overrides.
+  void surfelEmission(const LightSet& lights, std::vector<glm::vec3>& out) const;
 
  private:
   struct Impl;

@@ -25,7 +25,9 @@ Expected<std::unique_ptr<relight::RelightBackend>> makeBackend(BackendChoice cho
                                                                links::LinksView grid_links, std::string* note) {
   if (choice != BackendChoice::kCpu) {
     const GpuProbe& probe = probeGpu();
-    if (probe.available) {
+    if (probe.available && probe.software && choice == BackendChoice::kAuto) {
+      if (note) *note = fmt::format("cpu: fallback, the only GL context is a software renderer ({})", probe.renderer);
+    } else if (probe.available) {
 #ifdef LIGHTLINK_HAVE_GPU
       auto gpu = makeGpuBackend(scene, accel, p, lightmap_links, grid_links);
       if (gpu) {
