@@ -1,0 +1,59 @@
+// DaemonConfig: everything lightlinkd is told at start, from flags and an optional JSON
+// config file (`--config FILE`; flags given on the command line override the file).
+//
+// Security defaults are conservative: the daemon listens on loopback; a non-loopback
+// `--listen` without a bearer token (`--token` / `--token-file`) refuses to start, and
+// TLS is used when a certificate and key are given (both or neither). Limits bound what
+// one client can make the daemon hold (streams, scenes, message sizes). The JSON keys are
+// the flag names without the dashes, with '_' for '-' (docs/service.md lists them).
+#pragma once
+
+#include <cstddef>
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "core/common/status.h"
+
+namespace lightlink::service {
+
+enum class LogFormat { kText, kJson };
+
+struct DaemonConfig {
+  std::string listen = "127.0.0.1:50051";  // host:port; port 0 picks a free one
+  std::string port_file;                   // written (atomically) with the bound port
+  std::string cache_dir;                   // artifacts, inline scenes, sessions.json
+  std::string token;                       // daemon bearer token (from --token or --token-file)
+  std::string tls_cert, tls_key;           // PEM files: serve TLS when both are set
+  std::string backend = "auto";            // default relight backend: auto | cpu | gpu
+  LogFormat log_format = LogFormat::kText;
+  std::string log_level = "info";          // trace | debug | info | warn | error
+  std::string log_file;                    // empty: stderr
+  int max_streams_per_client = 32;         // concurrent server streams per gRPC peer
+  int max_scenes = 16;                     // resident scenes
+  std::size_t chunk_bytes = 1 << 20;       // data bytes per Chunk message (<= 1 MiB)
+  std::size_t max_receive_bytes = 64u << 20;  // largest request message
+  std::size_t max_send_bytes = 4u << 20;      // largest response message
+  double drain_seconds = 5.0;              // SIGTERM: how long open streams may take to finish
+  int relight_bounces = 8;                 // relight options of every scene
+  bool restore_sessions = true;            // re-open the scenes of sessions.json at start
+
+  // Host part of `listen` is a loopback address (127.0.0.0/8, ::1, localhost).
+  bool loopbackOnly() const;
+  // Cross-field checks (token when exposed, TLS pair, ranges).
+  Status validate() const;
+};
+
+// Outcome of parsing argv: run with `config`, or exit with `exit_code` after printing
+// `output` (help, version or an error message).
+struct ParsedArgs {
+  DaemonConfig config;
+  bool exit_now = false;
+  int exit_code = 0;
+  std::string output;
+};
+
+// Parses lightlinkd's flags (and the config file they name). `argv[0]` is the program name.
+ParsedArgs parseArgs(int argc, char** argv);
+
+}  // namespace lightlink::service

@@ -1,0 +1,155 @@
+#include "service/daemon.h"
+
+#include <pthread.h>
+#include <signal.h>
+
+#include <cerrno>
+#include <chrono>
+#include <cstdlib>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+#include <thread>
+
+#include <grpcpp/grpcpp.h>
+#include <grpcpp/health_check_service_interface.h>
+
+#include "service/config.h"
+#include "service/logging.h"
+#include "service/scene_registry.h"
+#include "service/service.h"
+#include "service/session_store.h"
+
+namespace lightlink::service {
+namespace {
+
+namespace fs = std::filesystem;
+
+Expected<std::string> readFile(const std::string& path, const char* flag) {
+  std::ifstream in(path, std::ios::binary);
+  if (!in) return notFound("{} {}: cannot read", flag, path);
+  std::ostringstream s;
+  s << in.rdbuf();
+  return s.str();
+}
+
+Expected<std::shared_ptr<grpc::ServerCredentials>> credentialsFor(const DaemonConfig& c) {
+  if (c.tls_cert.empty()) return grpc::InsecureServerCredentials();
+  auto cert = readFile(c.tls_cert, "--tls-cert");
+  if (!cert) return cert.status();
+  auto key = readFile(c.tls_key, "--tls-key");
+  if (!key) return key.status();
+  grpc::SslServerCredentialsOptions o;
+  o.pem_key_cert_pairs.push_back({*key, *cert});
+  return grpc::SslServerCredentials(o);
+}
+
+// A daemon (or a bake) killed while writing leaves ".<name>.tmp.<pid>.<n>" files behind
+// (artifact.cpp, session_store.cpp). Those of processes that no longer exist are garbage;
+// those of live processes (a bake sharing the cache) are left alone.
+void removeStaleTempFiles(const std::string& cache_dir) {
+  std::error_code ec;
+  for (const auto& e : fs::directory_iterator(cache_dir, ec)) {
+    const std::string name = e.path().filename().string();
+    const auto at = name.find(".tmp.");
+    if (name.empty() || name[0] != '.' || at == std::string::npos) continue;
+    const pid_t pid = static_cast<pid_t>(std::atol(name.c_str() + at + 5));
+    if (pid <= 0 || (::kill(pid, 0) != 0 && errno == ESRCH)) {
+      std::error_code rm;
+      if (fs::remove(e.path(), rm))
+        logEvent(LogLevel::kInfo, "stale_temp_removed", {{"path", e.path().string()}});
+    }
+  }
+}
+
+int fail(const std::string& event, const std::string& message) {
+  logEvent(LogLevel::kError, event, {{"error", message}});
+  flushLogs();
+  std::fprintf(stderr, "lightlinkd: %s\n", message.c_str());
+  return 1;
+}
+
+}  // namespace
+
+int runDaemon(int argc, char** argv) {
+  // Before any thread exists (gRPC, TBB, scene workers): every thread inherits the mask,
+  // so SIGTERM/SIGINT reach only the sigwait below. SIGPIPE is ignored: a client closing
+  // its socket must not kill the daemon.
+  sigset_t signals;
+  sigemptyset(&signals);
+  sigaddset(&signals, SIGTERM);
+  sigaddset(&signals, SIGINT);
+  pthread_sigmask(SIG_BLOCK, &signals, nullptr);
+  ::signal(SIGPIPE, SIG_IGN);
+
+  ParsedArgs args = parseArgs(argc, argv);
+  if (args.exit_now) {
+    std::fputs(args.output.c_str(), args.exit_code == 0 ? stdout : stderr);
+    return args.exit_code;
+  }
+  const DaemonConfig& config = args.config;
+  if (Status s = initLogging(config); !s) {
+    std::fprintf(stderr, "lightlinkd: %s\n", s.message().c_str());
+    return 2;
+  }
+  std::error_code ec;
+  fs::create_directories(config.cache_dir, ec);
+  if (ec) return fail("start_failed", "--cache-dir " + config.cache_dir + ": " + ec.message());
+  removeStaleTempFiles(config.cache_dir);
+  auto creds = credentialsFor(config);
+  if (!creds) return fail("start_failed", creds.status().message());
+
+  SceneRegistry registry(config);
+  if (config.restore_sessions) registry.restore();
+  LightlinkService service(config, registry);
+
+  grpc::EnableDefaultHealthCheckService(true);
+  grpc::ServerBuilder builder;
+  int port = 0;
+  builder.AddListeningPort(config.listen, *creds, &port);
+  builder.SetMaxReceiveMessageSize(static_cast<int>(config.max_receive_bytes));
+  builder.SetMaxSendMessageSize(static_cast<int>(config.max_send_bytes));
+  builder.RegisterService(&service);
+  std::unique_ptr<grpc::Server> server = builder.BuildAndStart();
+  if (!server || port == 0) return fail("start_failed", "--listen " + config.listen + ": cannot listen there");
+  if (!config.port_file.empty()) {
+    if (Status s = writeFileAtomic(config.port_file, std::to_string(port) + "\n"); !s) {
+      server->Shutdown();
+      return fail("start_failed", "--port-file: " + s.message());
+    }
+  }
+  logEvent(LogLevel::kInfo, "listening",
+           {{"listen", config.listen},
+            {"port", port},
+            {"tls", !config.tls_cert.empty()},
+            {"auth", config.token.empty() ? "none (loopback)" : "bearer"},
+            {"cache_dir", config.cache_dir},
+            {"scenes", registry.size()}});
+
+  int sig = 0;
+  while (sigwait(&signals, &sig) != 0) {
+  }
+  logEvent(LogLevel::kInfo, "draining", {{"signal", sig == SIGTERM ? "SIGTERM" : "SIGINT"},
+                                         {"streams", service.activeStreams()}});
+  service.beginDrain();
+  if (auto* health = server->GetHealthCheckService()) health->SetServingStatus(false);
+  // Open streams end at their next message boundary; give them the drain time, then stop
+  // the server (which cancels whatever is still running after a short grace).
+  const auto drain_until = std::chrono::steady_clock::now() +
+                           std::chrono::milliseconds(static_cast<long long>(config.drain_seconds * 1000.0));
+  while (service.activeStreams() > 0 && std::chrono::steady_clock::now() < drain_until)
+    std::this_thread::sleep_for(std::chrono::milliseconds(10));
+  const int left = service.activeStreams();
+  // Unary calls in flight get a short grace; gRPC's sync server otherwise waits out the
+  // whole deadline while idle client connections are open.
+  server->Shutdown(std::chrono::system_clock::now() + std::chrono::milliseconds(left > 0 ? 1000 : 200));
+  server->Wait();
+  logEvent(LogLevel::kDebug, "server_stopped", {});
+  Status persisted = registry.shutdown();
+  logEvent(LogLevel::kInfo, "stopped", {{"streams_cut", left}, {"sessions_saved", persisted.isOk()}});
+  flushLogs();
+  return 0;
+}
+
+}  // namespace lightlink::service

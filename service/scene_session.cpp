@@ -1,0 +1,247 @@
+#include "service/scene_session.h"
+
+#include <future>
+
+#include "service/gpu/backend_factory.h"
+#include "service/logging.h"
+#include "service/validation.h"
+
+namespace lightlink::service {
+namespace {
+
+constexpr auto kWaitSlice = std::chrono::milliseconds(50);
+
+}  // namespace
+
+SceneSession::SceneSession(SessionIdentity identity, precompute::ResidentScene resident, relight::LightSet lights,
+                           std::uint64_t version, const relight::RelightOptions& options)
+    : identity_(std::move(identity)),
+      resident_(std::move(resident)),
+      options_(options),
+      lights_(std::move(lights)),
+      version_(version),
+      relit_version_(version - 1) {}  // the initial version is the worker's first job
+
+Expected<std::shared_ptr<SceneSession>> SceneSession::start(SessionIdentity identity,
+                                                           precompute::ResidentScene resident,
+                                                           relight::LightSet lights, std::uint64_t initial_version,
+                                                           const std::string& backend_choice,
+                                                           const relight::RelightOptions& options) {
+  if (initial_version == 0) initial_version = 1;  // versions start at 1; 0 means "none" on the wire
+  auto choice = gpu::parseBackendChoice(backend_choice);
+  if (!choice) return choice.status();
+  std::shared_ptr<SceneSession> s(
+      new SceneSession(std::move(identity), std::move(resident), std::move(lights), initial_version, options));
+  const auto& p = s->resident_.precomputation();
+  s->grid_valid_ = std::make_shared<const std::vector<std::uint8_t>>(p.grid.valid);
+
+  // The backend is made on the worker thread, which is the only one that ever uses it (a
+  // GL context is current on the thread that created it).
+  std::promise<Status> made;
+  auto made_future = made.get_future();
+  SceneSession* self = s.get();
+  const gpu::BackendChoice c = *choice;
+  s->worker_ = std::thread([self, c, &made] {
+    const auto& r = self->resident_;
+    std::string note;
+    auto backend = gpu::makeBackend(c, r.scene(), r.accel(), r.precomputation(), r.lightmapLinks(), r.gridLinks(),
+                                    &note);
+    if (!backend) {
+      made.set_value(backend.status());
+      return;
+    }
+    self->backend_ = std::move(backend).value();
+    self->backend_name_ = std::string(self->backend_->name());
+    self->backend_note_ = note;
+    made.set_value(Status{});
+    self->workerLoop();
+  });
+  if (Status st = made_future.get(); !st) {
+    s->worker_.join();
+    return st;
+  }
+  return s;
+}
+
+SceneSession::~SceneSession() { close(); }
+
+void SceneSession::close() {
+  {
+    std::lock_guard lock(mutex_);
+    stop_ = true;
+  }
+  closed_ = true;
+  work_cv_.notify_all();
+  result_cv_.notify_all();
+  if (worker_.joinable() && worker_.get_id() != std::this_thread::get_id()) worker_.join();
+}
+
+int SceneSession::bands() const {
+  const auto& p = resident_.precomputation();
+  return options_.bands > 0 ? options_.bands : p.options.bands;
+}
+
+std::vector<std::string> SceneSession::lightIds() const {
+  std::lock_guard lock(mutex_);
+  std::vector<std::string> ids;
+  for (const auto& e : lights_.lights()) ids.push_back(e.id);
+  return ids;
+}
+
+Expected<std::uint64_t> SceneSession::update(const v1::UpdateLightsRequest& request) {
+  std::unique_lock lock(mutex_);
+  if (stop_) return notFound("scene_id: scene '{}' is closed", identity_.id);
+  // Apply to a copy and swap it in only when every change succeeded: all or nothing.
+  relight::LightSet next = lights_;
+  if (Status s = applyUpdate(request, resident_.scene().materials.size(), next); !s) return s;
+  lights_ = std::move(next);
+  const std::uint64_t v = ++version_;
+  ++updates_;
+  lock.unlock();
+  work_cv_.notify_one();
+  return v;
+}
+
+std::uint64_t SceneSession::version() const {
+  std::lock_guard lock(mutex_);
+  return version_;
+}
+
+std::shared_ptr<const Snapshot> SceneSession::latest() const {
+  std::lock_guard lock(mutex_);
+  return latest_;
+}
+
+std::shared_ptr<const Snapshot> SceneSession::waitForVersion(std::uint64_t min_version, Clock::time_point deadline,
+                                                             const std::function<bool()>& stop) const {
+  std::unique_lock lock(mutex_);
+  while (true) {
+    if (latest_ && latest_->version >= min_version) return latest_;
+    if (stop_ || (stop && stop()) || Clock::now() >= deadline) return nullptr;
+    result_cv_.wait_until(lock, std::min(deadline, Clock::now() + kWaitSlice));
+  }
+}
+
+std::shared_ptr<const Snapshot> SceneSession::waitForNewer(std::uint64_t after_sequence, Clock::time_point deadline,
+                                                           const std::function<bool()>& stop) const {
+  std::unique_lock lock(mutex_);
+  const std::uint64_t epoch = wake_epoch_.load();
+  while (true) {
+    if (latest_ && latest_->sequence > after_sequence) return latest_;
+    if (stop_ || (stop && stop()) || Clock::now() >= deadline || wake_epoch_.load() != epoch) return nullptr;
+    result_cv_.wait_until(lock, std::min(deadline, Clock::now() + kWaitSlice));
+  }
+}
+
+void SceneSession::wakeAll() const {
+  {
+    std::lock_guard lock(mutex_);
+    ++wake_epoch_;
+  }
+  result_cv_.notify_all();
+}
+
+void SceneSession::workerLoop() {
+  relight::RelightResult result;
+  std::uint64_t last_relit = 0;
+  while (true) {
+    relight::LightSet lights;
+    std::uint64_t v = 0;
+    {
+      std::unique_lock lock(mutex_);
+      work_cv_.wait(lock, [&] { return stop_ || version_ > relit_version_; });
+      if (stop_) return;
+      // The latest state: every update acknowledged so far is in it.
+      lights = lights_;
+      v = version_;
+      relit_version_ = v;
+    }
+    const std::uint64_t coalesced = last_relit == 0 || v <= last_relit ? 0 : v - last_relit - 1;
+    const auto t0 = Clock::now();
+    Status s = backend_->relightInto(lights, options_, result);
+    const double ms = std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
+    if (!s) {
+      std::lock_guard lock(mutex_);
+      ++relight_errors_;
+      logEvent(LogLevel::kError, "relight_failed",
+               {{"scene", identity_.id}, {"version", v}, {"error", s.message()}});
+      // Wait for the next update rather than retrying the same failing state in a loop;
+      // readers waiting for this version run into their deadline.
+      continue;
+    }
+    auto snap = buildSnapshot(result, v, coalesced, ms);
+    {
+      std::lock_guard lock(mutex_);
+      latest_ = std::move(snap);
+      ++relights_;
+      coalesced_ += coalesced;
+      last_ms_ = ms;
+      total_ms_ += ms;
+    }
+    last_relit = v;
+    result_cv_.notify_all();
+    logEvent(LogLevel::kDebug, "relight",
+             {{"scene", identity_.id}, {"version", v}, {"ms", ms}, {"coalesced", coalesced}, {"backend", backend_name_}});
+  }
+}
+
+std::shared_ptr<const Snapshot> SceneSession::buildSnapshot(const relight::RelightResult& r, std::uint64_t version,
+                                                            std::uint64_t coalesced, double ms) {
+  auto s = std::make_shared<Snapshot>();
+  s->version = version;
+  {
+    std::lock_guard lock(mutex_);
+    s->sequence = ++sequence_;
+  }
+  s->coalesced = coalesced;
+  s->relight_ms = ms;
+  s->backend = r.backend;
+  s->bands = r.bands;
+  s->width = r.width;
+  s->height = r.height;
+  s->lightmap_sh = r.lightmap_sh;
+  s->direct.resize(r.direct.size() * 3);
+  for (std::size_t i = 0; i < r.direct.size(); ++i) {
+    s->direct[3 * i + 0] = r.direct[i].x;
+    s->direct[3 * i + 1] = r.direct[i].y;
+    s->direct[3 * i + 2] = r.direct[i].z;
+  }
+  s->texel_valid = r.texel_valid;
+  const auto& p = resident_.precomputation();
+  if (p.has_grid) {
+    s->grid.present = true;
+    s->grid.origin = p.grid.origin;
+    s->grid.spacing_m = p.grid.spacing_m;
+    s->grid.dims = p.grid.dims;
+    s->grid_sh = r.grid_sh;
+    s->grid_valid = grid_valid_;
+  }
+  return s;
+}
+
+SessionStats SceneSession::stats() const {
+  std::lock_guard lock(mutex_);
+  SessionStats st;
+  st.version = version_;
+  st.result_version = latest_ ? latest_->version : 0;
+  st.updates = updates_;
+  st.relights = relights_;
+  st.coalesced = coalesced_;
+  st.relight_errors = relight_errors_;
+  st.last_relight_ms = last_ms_;
+  st.mean_relight_ms = relights_ ? total_ms_ / static_cast<double>(relights_) : 0.0;
+  st.artifact_bytes = resident_.artifactBytes();
+  // The mapping, the worker's result buffers (about one snapshot) and the newest snapshot.
+  const std::uint64_t snap = latest_ ? latest_->bytes() : 0;
+  st.resident_bytes = st.artifact_bytes + 2 * snap;
+  st.subscribers = static_cast<std::uint32_t>(subscribers_.load());
+  return st;
+}
+
+nlohmann::ordered_json SceneSession::persistentLights(std::uint64_t* version) const {
+  std::lock_guard lock(mutex_);
+  if (version) *version = version_;
+  return lights_.toJson();
+}
+
+}  // namespace lightlink::service

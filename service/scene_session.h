@@ -1,0 +1,133 @@
+// SceneSession: one resident scene in the daemon — its precomputation (ResidentScene), its
+// current LightSet and version, its relight backend, and the one worker thread that
+// relights it.
+//
+// Versions and coalescing (proto/lightlink.proto "Versions"). Every accepted update
+// replaces the light set atomically and takes the next version (monotonic, persisted, so
+// it keeps growing across daemon restarts). The worker always relights the *latest* light
+// set: updates that arrive while it runs are folded into the next relight, so a result
+// exists for the versions the worker computed, and the result for version v contains
+// every update acknowledged with a version <= v. Results are published as immutable
+// shared snapshots; waiting readers are woken on each publish.
+#pragma once
+
+#include <atomic>
+#include <chrono>
+#include <condition_variable>
+#include <cstdint>
+#include <functional>
+#include <memory>
+#include <mutex>
+#include <string>
+#include <thread>
+
+#include <nlohmann/json.hpp>
+
+#include "core/common/status.h"
+#include "core/precompute/resident.h"
+#include "core/relight/backend.h"
+#include "core/relight/light_set.h"
+#include "proto/lightlink.pb.h"
+#include "service/snapshot.h"
+
+namespace lightlink::service {
+
+// Who the session is and how it was opened: what sessions.json records.
+struct SessionIdentity {
+  std::string id;
+  std::string token;
+  std::string name;
+  std::string source_path;     // the file the scene was loaded from (inline bytes: a cache file)
+  std::string source_label;    // path, or "<inline N bytes>"
+  v1::OpenSceneRequest params; // precompute parameters and backend (no source, no lightset_json)
+};
+
+struct SessionStats {
+  std::uint64_t version = 0, result_version = 0;
+  std::uint64_t updates = 0, relights = 0, coalesced = 0, relight_errors = 0;
+  double last_relight_ms = 0.0, mean_relight_ms = 0.0;
+  std::uint64_t resident_bytes = 0, artifact_bytes = 0;
+  std::uint32_t subscribers = 0;
+};
+
+class SceneSession {
+ public:
+  using Clock = std::chrono::steady_clock;
+
+  // Takes the resident scene and the initial light set (version `initial_version`), makes
+  // the backend and starts the worker, which computes the initial result at once.
+  static Expected<std::shared_ptr<SceneSession>> start(SessionIdentity identity, precompute::ResidentScene resident,
+                                                      relight::LightSet lights, std::uint64_t initial_version,
+                                                      const std::string& backend_choice,
+                                                      const relight::RelightOptions& options);
+  ~SceneSession();
+  SceneSession(const SceneSession&) = delete;
+  SceneSession& operator=(const SceneSession&) = delete;
+
+  const SessionIdentity& identity() const { return identity_; }
+  const precompute::ResidentScene& resident() const { return resident_; }
+  const std::string& backendName() const { return backend_name_; }
+  const std::string& backendNote() const { return backend_note_; }
+  int bands() const;
+  std::vector<std::string> lightIds() const;
+
+  // Validates and applies an update (all or nothing); returns the version it created.
+  Expected<std::uint64_t> update(const v1::UpdateLightsRequest& request);
+
+  std::uint64_t version() const;
+  std::shared_ptr<const Snapshot> latest() const;
+
+  // Waits until a result with version >= `min_version` exists (the newest one is returned),
+  // until `deadline`, until the session closes or `stop()` turns true (polled every ~50 ms).
+  // Returns null when none arrived.
+  std::shared_ptr<const Snapshot> waitForVersion(std::uint64_t min_version, Clock::time_point deadline,
+                                                 const std::function<bool()>& stop) const;
+  // Waits for a result with sequence > `after_sequence` (Subscribe); same exits as above.
+  std::shared_ptr<const Snapshot> waitForNewer(std::uint64_t after_sequence, Clock::time_point deadline,
+                                               const std::function<bool()>& stop) const;
+
+  // Wakes every waiter (drain) so it re-checks its stop condition.
+  void wakeAll() const;
+  // Stops the worker; waiters return. Idempotent.
+  void close();
+  bool closed() const { return closed_.load(); }
+
+  SessionStats stats() const;
+  void addSubscriber(int delta) { subscribers_ += delta; }
+
+  // The light set and version, for sessions.json.
+  nlohmann::ordered_json persistentLights(std::uint64_t* version) const;
+
+ private:
+  SceneSession(SessionIdentity identity, precompute::ResidentScene resident, relight::LightSet lights,
+               std::uint64_t version, const relight::RelightOptions& options);
+  void workerLoop();
+  std::shared_ptr<const Snapshot> buildSnapshot(const relight::RelightResult& r, std::uint64_t version,
+                                                std::uint64_t coalesced, double ms);
+
+  SessionIdentity identity_;
+  precompute::ResidentScene resident_;
+  relight::RelightOptions options_;
+  std::unique_ptr<relight::RelightBackend> backend_;
+  std::string backend_name_, backend_note_;
+  std::shared_ptr<const std::vector<std::uint8_t>> grid_valid_;
+
+  mutable std::mutex mutex_;
+  mutable std::condition_variable work_cv_;    // worker: a new version or stop
+  mutable std::condition_variable result_cv_;  // readers: a new result, close or drain
+  relight::LightSet lights_;                   // guarded by mutex_
+  std::uint64_t version_ = 0;                  // guarded
+  std::uint64_t relit_version_ = 0;            // last version handed to the worker, guarded
+  std::shared_ptr<const Snapshot> latest_;     // guarded
+  std::uint64_t sequence_ = 0;                 // results published, guarded
+  bool stop_ = false;                          // guarded
+  std::atomic<bool> closed_{false};
+  // Stats (guarded by mutex_ except the atomics).
+  std::uint64_t updates_ = 0, relights_ = 0, coalesced_ = 0, relight_errors_ = 0;
+  double last_ms_ = 0.0, total_ms_ = 0.0;
+  std::atomic<int> subscribers_{0};
+  mutable std::atomic<std::uint64_t> wake_epoch_{0};
+  std::thread worker_;
+};
+
+}  // namespace lightlink::service

@@ -1,0 +1,405 @@
+#include "service/service.h"
+
+#include <unistd.h>
+
+#include <fstream>
+
+#include "service/auth.h"
+#include "service/gpu/backend_factory.h"
+#include "service/logging.h"
+#include "service/result_stream.h"
+#include "service/status_map.h"
+#include "service/validation.h"
+
+namespace lightlink::service {
+namespace {
+
+using Clock = std::chrono::steady_clock;
+constexpr auto kDefaultWait = std::chrono::seconds(60);  // a call without a deadline waits at most this
+
+// Streams precompute progress to the OpenScene caller: one message per stage start and
+// end, updates at most every 100 ms. Progress callbacks come from worker threads, and a
+// ServerWriter allows one writer at a time: every write holds the mutex.
+class StreamProgress final : public Progress {
+ public:
+  StreamProgress(grpc::ServerContext* ctx, grpc::ServerWriter<v1::OpenSceneProgress>* writer,
+                 const std::atomic<bool>& draining)
+      : ctx_(ctx), writer_(writer), draining_(draining) {}
+
+  void begin(std::string_view stage, std::size_t total) override {
+    std::lock_guard lock(mutex_);
+    stage_ = std::string(stage);
+    total_ = total;
+    last_ = Clock::now();
+    send(0.0f, "");
+  }
+  void update(std::size_t done) override {
+    std::lock_guard lock(mutex_);
+    const auto now = Clock::now();
+    if (now - last_ < std::chrono::milliseconds(100)) return;
+    last_ = now;
+    send(total_ > 0 ? std::min(1.0f, static_cast<float>(done) / static_cast<float>(total_)) : 0.0f, "");
+  }
+  void end() override {
+    std::lock_guard lock(mutex_);
+    send(1.0f, "done");
+  }
+  bool cancelled() const override { return ctx_->IsCancelled() || draining_.load(); }
+  void finish(const v1::OpenSceneProgress& last) {
+    std::lock_guard lock(mutex_);
+    writer_->Write(last);
+  }
+
+ private:
+  void send(float fraction, const char* message) {
+    v1::OpenSceneProgress p;
+    p.set_stage(stage_);
+    p.set_fraction(fraction);
+    p.set_message(message);
+    writer_->Write(p);
+  }
+
+  grpc::ServerContext* ctx_;
+  grpc::ServerWriter<v1::OpenSceneProgress>* writer_;
+  const std::atomic<bool>& draining_;
+  std::mutex mutex_;
+  std::string stage_;
+  std::size_t total_ = 0;
+  Clock::time_point last_;
+};
+
+void fillOpened(const SceneSession& s, v1::SceneOpened* o) {
+  const auto& id = s.identity();
+  const auto& r = s.resident();
+  const auto& p = r.precomputation();
+  o->set_scene_id(id.id);
+  o->set_scene_token(id.token);
+  o->set_version(s.version());
+  o->set_artifact_reused(r.reused());
+  o->set_cache_key(r.cacheKeyHex());
+  o->set_backend(s.backendName());
+  o->mutable_lightmap()->set_width(p.lightmap.width);
+  o->mutable_lightmap()->set_height(p.lightmap.height);
+  o->mutable_lightmap()->set_tile_size(32);
+  if (p.has_grid) {
+    auto* g = o->mutable_grid();
+    g->set_present(true);
+    g->mutable_origin()->set_x(p.grid.origin.x);
+    g->mutable_origin()->set_y(p.grid.origin.y);
+    g->mutable_origin()->set_z(p.grid.origin.z);
+    g->mutable_spacing()->set_x(p.grid.spacing_m);
+    g->mutable_spacing()->set_y(p.grid.spacing_m);
+    g->mutable_spacing()->set_z(p.grid.spacing_m);
+    g->set_nx(p.grid.dims.x);
+    g->set_ny(p.grid.dims.y);
+    g->set_nz(p.grid.dims.z);
+  }
+  o->set_bands(s.bands());
+  for (const auto& l : s.lightIds()) o->add_light_ids(l);
+  o->set_open_seconds(r.openSeconds());
+}
+
+MessageWriter writerFor(grpc::ServerWriter<v1::ResultMessage>* writer) {
+  return [writer](const v1::ResultMessage& m) { return writer->Write(m); };
+}
+
+// Header of a GetTextures answer when nothing changed.
+void sendNotModified(const SceneSession& s, const Snapshot& snap, grpc::ServerWriter<v1::ResultMessage>* writer) {
+  v1::ResultMessage m;
+  auto* h = m.mutable_header();
+  h->mutable_scene()->set_scene_id(s.identity().id);
+  h->set_version(snap.version);
+  h->set_not_modified(true);
+  h->set_backend(snap.backend);
+  writer->Write(m);
+}
+
+}  // namespace
+
+std::uint64_t residentSetBytes() {
+  std::ifstream statm("/proc/self/statm");
+  std::uint64_t size = 0, resident = 0;
+  if (!(statm >> size >> resident)) return 0;
+  return resident * static_cast<std::uint64_t>(::sysconf(_SC_PAGESIZE));
+}
+
+LightlinkService::LightlinkService(const DaemonConfig& config, SceneRegistry& registry)
+    : config_(config), registry_(registry) {}
+
+LightlinkService::StreamSlot::StreamSlot(LightlinkService& service, std::string client)
+    : service_(service), client_(std::move(client)) {
+  std::lock_guard lock(service_.streams_mutex_);
+  int& n = service_.streams_per_client_[client_];
+  if (n >= service_.config_.max_streams_per_client) {
+    if (n == 0) service_.streams_per_client_.erase(client_);
+    return;
+  }
+  ++n;
+  ++service_.active_streams_;
+  acquired_ = true;
+}
+
+LightlinkService::StreamSlot::~StreamSlot() {
+  if (!acquired_) return;
+  std::lock_guard lock(service_.streams_mutex_);
+  if (--service_.streams_per_client_[client_] == 0) service_.streams_per_client_.erase(client_);
+  --service_.active_streams_;
+}
+
+grpc::Status LightlinkService::admit(grpc::ServerContext* ctx, bool new_work) const {
+  const auto& md = ctx->client_metadata();
+  const auto it = md.find("authorization");
+  const bool present = it != md.end();
+  const std::string_view value = present ? std::string_view(it->second.data(), it->second.size()) : std::string_view{};
+  if (std::string why = checkBearer(value, present, config_.token); !why.empty()) {
+    logEvent(LogLevel::kWarn, "unauthenticated", {{"peer", ctx->peer()}, {"reason", why}});
+    return grpcError(grpc::StatusCode::UNAUTHENTICATED, why);
+  }
+  if (new_work && draining_.load())
+    return grpcError(grpc::StatusCode::UNAVAILABLE, "daemon: draining (shutting down), no new work accepted");
+  return grpc::Status::OK;
+}
+
+grpc::Status LightlinkService::lookup(const v1::SceneRef& ref, std::shared_ptr<SceneSession>* out) const {
+  if (ref.scene_id().empty()) return grpcError(grpc::StatusCode::INVALID_ARGUMENT, "scene.scene_id: required");
+  auto s = registry_.find(ref.scene_id());
+  const std::string shown = ref.scene_id().substr(0, 64);
+  if (!s) return grpcError(grpc::StatusCode::NOT_FOUND, "scene_id: no scene '" + shown + "'");
+  if (!constantTimeEqual(ref.token(), s->identity().token))
+    return grpcError(grpc::StatusCode::PERMISSION_DENIED, "token: does not match scene '" + shown + "'");
+  *out = std::move(s);
+  return grpc::Status::OK;
+}
+
+Clock::time_point LightlinkService::waitDeadline(grpc::ServerContext* ctx) const {
+  // The call's own deadline, mapped onto the steady clock; none: kDefaultWait.
+  const auto now_sys = std::chrono::system_clock::now();
+  const auto d = ctx->deadline();
+  const auto cap = Clock::now() + kDefaultWait;
+  if (d >= now_sys + kDefaultWait) return cap;
+  return Clock::now() + (d - now_sys);
+}
+
+grpc::Status LightlinkService::OpenScene(grpc::ServerContext* ctx, const v1::OpenSceneRequest* request,
+                                         grpc::ServerWriter<v1::OpenSceneProgress>* writer) {
+  if (auto st = admit(ctx, true); !st.ok()) return st;
+  StreamSlot slot(*this, clientKey(ctx->peer()));
+  if (!slot.acquired())
+    return grpcError(grpc::StatusCode::RESOURCE_EXHAUSTED, "streams: too many concurrent streams for this client");
+  // Cheap checks first, so a bad request never waits behind a precompute.
+  if (auto o = precomputeOptionsFrom(*request); !o) return toGrpc(o.status());
+  const int opening = ++opening_;
+  struct Release {
+    std::atomic<int>& n;
+    ~Release() { --n; }
+  } release{opening_};
+  if (registry_.size() + static_cast<std::size_t>(opening) > static_cast<std::size_t>(config_.max_scenes))
+    return grpcError(grpc::StatusCode::RESOURCE_EXHAUSTED,
+                     fmt::format("scenes: the daemon holds its limit of {} scenes (--max-scenes)", config_.max_scenes));
+
+  StreamProgress progress(ctx, writer, draining_);
+  auto session = registry_.open(*request, &progress);
+  if (!session) {
+    if (ctx->IsCancelled()) return grpcError(grpc::StatusCode::CANCELLED, "OpenScene cancelled by the client");
+    if (draining_) return grpcError(grpc::StatusCode::UNAVAILABLE, "daemon: draining, open abandoned");
+    logEvent(LogLevel::kWarn, "open_failed", {{"peer", ctx->peer()}, {"error", session.status().message()}});
+    return toGrpc(session.status());
+  }
+  v1::OpenSceneProgress last;
+  last.set_stage("ready");
+  last.set_fraction(1.0f);
+  last.set_message((*session)->resident().note());
+  fillOpened(**session, last.mutable_opened());
+  progress.finish(last);
+  return grpc::Status::OK;
+}
+
+grpc::Status LightlinkService::UpdateLights(grpc::ServerContext* ctx, const v1::UpdateLightsRequest* request,
+                                            v1::UpdateLightsResponse* response) {
+  if (auto st = admit(ctx, true); !st.ok()) return st;
+  std::shared_ptr<SceneSession> s;
+  if (auto st = lookup(request->scene(), &s); !st.ok()) return st;
+  auto v = s->update(*request);
+  if (!v) {
+    logEvent(LogLevel::kDebug, "update_rejected", {{"scene", s->identity().id}, {"error", v.status().message()}});
+    return toGrpc(v.status());
+  }
+  registry_.markDirty();
+  response->set_version(*v);
+  if (request->wait_ms() > 0) {
+    const auto deadline = std::min(waitDeadline(ctx), Clock::now() + std::chrono::milliseconds(request->wait_ms()));
+    auto snap = s->waitForVersion(*v, deadline, [&] { return ctx->IsCancelled(); });
+    response->set_relit(snap != nullptr);
+  } else {
+    auto snap = s->latest();
+    response->set_relit(snap && snap->version >= *v);
+  }
+  return grpc::Status::OK;
+}
+
+grpc::Status LightlinkService::Relight(grpc::ServerContext* ctx, const v1::RelightRequest* request,
+                                       grpc::ServerWriter<v1::ResultMessage>* writer) {
+  if (auto st = admit(ctx, true); !st.ok()) return st;
+  std::shared_ptr<SceneSession> s;
+  if (auto st = lookup(request->scene(), &s); !st.ok()) return st;
+  if (Status v = validateSpec(request->spec(), s->bands()); !v) return toGrpc(v);
+  const std::uint64_t newest = s->version();
+  if (request->version() > newest)
+    return grpcError(grpc::StatusCode::OUT_OF_RANGE, fmt::format("version: {} is newer than the scene's newest version {}",
+                                                                 request->version(), newest));
+  StreamSlot slot(*this, clientKey(ctx->peer()));
+  if (!slot.acquired())
+    return grpcError(grpc::StatusCode::RESOURCE_EXHAUSTED, "streams: too many concurrent streams for this client");
+  auto snap = s->waitForVersion(request->version(), waitDeadline(ctx), [&] { return ctx->IsCancelled() || draining_; });
+  if (!snap) {
+    if (ctx->IsCancelled()) return grpcError(grpc::StatusCode::CANCELLED, "cancelled");
+    if (s->closed()) return grpcError(grpc::StatusCode::NOT_FOUND, "scene_id: the scene was closed");
+    if (draining_) return grpcError(grpc::StatusCode::UNAVAILABLE, "daemon: draining");
+    return grpcError(grpc::StatusCode::DEADLINE_EXCEEDED,
+                     fmt::format("version: no result >= {} within the deadline", request->version()));
+  }
+  const auto e = snap->encoded(SpecKey::from(request->spec(), snap->bands));
+  sendFull(*snap, *e, {s->identity().id, 0}, config_.chunk_bytes, writerFor(writer));
+  return grpc::Status::OK;
+}
+
+grpc::Status LightlinkService::GetTextures(grpc::ServerContext* ctx, const v1::GetTexturesRequest* request,
+                                           grpc::ServerWriter<v1::ResultMessage>* writer) {
+  if (auto st = admit(ctx, true); !st.ok()) return st;
+  std::shared_ptr<SceneSession> s;
+  if (auto st = lookup(request->scene(), &s); !st.ok()) return st;
+  if (Status v = validateSpec(request->spec(), s->bands()); !v) return toGrpc(v);
+  StreamSlot slot(*this, clientKey(ctx->peer()));
+  if (!slot.acquired())
+    return grpcError(grpc::StatusCode::RESOURCE_EXHAUSTED, "streams: too many concurrent streams for this client");
+  auto snap = s->latest();
+  // Right after OpenScene the first result may still be computing: wait for it.
+  if (!snap) snap = s->waitForVersion(0, waitDeadline(ctx), [&] { return ctx->IsCancelled() || draining_; });
+  if (!snap) return grpcError(grpc::StatusCode::UNAVAILABLE, "scene: no result computed yet");
+  if (snap->version == request->last_seen_version()) {
+    sendNotModified(*s, *snap, writer);
+    return grpc::Status::OK;
+  }
+  const auto e = snap->encoded(SpecKey::from(request->spec(), snap->bands));
+  sendFull(*snap, *e, {s->identity().id, 0}, config_.chunk_bytes, writerFor(writer));
+  return grpc::Status::OK;
+}
+
+grpc::Status LightlinkService::Subscribe(grpc::ServerContext* ctx, const v1::SubscribeRequest* request,
+                                         grpc::ServerWriter<v1::ResultMessage>* writer) {
+  if (auto st = admit(ctx, true); !st.ok()) return st;
+  std::shared_ptr<SceneSession> s;
+  if (auto st = lookup(request->scene(), &s); !st.ok()) return st;
+  if (Status v = validateSpec(request->spec(), s->bands()); !v) return toGrpc(v);
+  StreamSlot slot(*this, clientKey(ctx->peer()));
+  if (!slot.acquired())
+    return grpcError(grpc::StatusCode::RESOURCE_EXHAUSTED, "streams: too many concurrent streams for this client");
+  s->addSubscriber(1);
+  struct Unsubscribe {
+    SceneSession& s;
+    ~Unsubscribe() { s.addSubscriber(-1); }
+  } unsubscribe{*s};
+
+  const std::string& id = s->identity().id;
+  const MessageWriter write = writerFor(writer);
+  std::uint64_t last_sequence = 0;
+  std::shared_ptr<const EncodedResult> previous;
+  const auto stop = [&] { return ctx->IsCancelled() || draining_.load(); };
+  while (true) {
+    auto snap = s->waitForNewer(last_sequence, Clock::now() + std::chrono::seconds(1), stop);
+    if (!snap) {
+      if (ctx->IsCancelled()) return grpcError(grpc::StatusCode::CANCELLED, "cancelled");
+      // Drain or close: the stream ends cleanly, the client sees OK after the last full result.
+      if (draining_ || s->closed()) return grpc::Status::OK;
+      continue;
+    }
+    if (snap->version <= request->after_version()) {
+      last_sequence = snap->sequence;
+      continue;
+    }
+    const std::uint64_t skipped = last_sequence == 0 || previous == nullptr ? 0 : snap->sequence - last_sequence - 1;
+    auto e = snap->encoded(SpecKey::from(request->spec(), snap->bands));
+    const HeaderExtras extras{id, skipped};
+    const bool ok = request->deltas() && previous ? sendDelta(*snap, *e, *previous, extras, config_.chunk_bytes, write)
+                                                  : sendFull(*snap, *e, extras, config_.chunk_bytes, write);
+    if (!ok) return grpc::Status::OK;  // the client went away
+    last_sequence = snap->sequence;
+    previous = std::move(e);
+  }
+}
+
+grpc::Status LightlinkService::ListScenes(grpc::ServerContext* ctx, const v1::ListScenesRequest*,
+                                          v1::ListScenesResponse* response) {
+  if (auto st = admit(ctx, false); !st.ok()) return st;
+  for (const auto& s : registry_.list()) {
+    auto* out = response->add_scenes();
+    const auto st = s->stats();
+    out->set_scene_id(s->identity().id);
+    out->set_name(s->identity().name);
+    out->set_source(s->identity().source_label);
+    out->set_version(st.version);
+    out->set_result_version(st.result_version);
+    out->set_backend(s->backendName());
+  }
+  return grpc::Status::OK;
+}
+
+grpc::Status LightlinkService::CloseScene(grpc::ServerContext* ctx, const v1::CloseSceneRequest* request,
+                                          v1::CloseSceneResponse*) {
+  if (auto st = admit(ctx, false); !st.ok()) return st;
+  std::shared_ptr<SceneSession> s;
+  if (auto st = lookup(request->scene(), &s); !st.ok()) return st;
+  if (!registry_.close(s->identity().id))
+    return grpcError(grpc::StatusCode::NOT_FOUND, "scene_id: the scene was already closed");
+  return grpc::Status::OK;
+}
+
+grpc::Status LightlinkService::Health(grpc::ServerContext* ctx, const v1::HealthRequest*,
+                                      v1::HealthResponse* response) {
+  if (auto st = admit(ctx, false); !st.ok()) return st;
+  response->set_status(draining_ ? v1::HealthResponse::STATUS_DRAINING : v1::HealthResponse::STATUS_SERVING);
+  response->set_protocol_version(1);
+  response->set_daemon_version("0.1.0");
+  // Probing creates a GL context once per process; only when the daemon may use the GPU.
+  if (config_.backend != "cpu") {
+    const auto& probe = gpu::probeGpu();
+    response->set_gpu_available(probe.available);
+    response->set_gpu_renderer(probe.available ? probe.renderer : probe.error);
+  }
+  return grpc::Status::OK;
+}
+
+grpc::Status LightlinkService::Stats(grpc::ServerContext* ctx, const v1::StatsRequest* request,
+                                     v1::StatsResponse* response) {
+  if (auto st = admit(ctx, false); !st.ok()) return st;
+  response->set_uptime_ms(static_cast<std::uint64_t>(
+      std::chrono::duration_cast<std::chrono::milliseconds>(Clock::now() - started_).count()));
+  response->set_scenes(static_cast<std::uint32_t>(registry_.size()));
+  response->set_active_streams(static_cast<std::uint32_t>(active_streams_.load()));
+  response->set_rss_bytes(residentSetBytes());
+  if (!request->scene().scene_id().empty()) {
+    std::shared_ptr<SceneSession> s;
+    if (auto st = lookup(request->scene(), &s); !st.ok()) return st;
+    const auto st = s->stats();
+    auto* out = response->add_scene();
+    out->set_scene_id(s->identity().id);
+    out->set_version(st.version);
+    out->set_result_version(st.result_version);
+    out->set_updates(st.updates);
+    out->set_relights(st.relights);
+    out->set_coalesced(st.coalesced);
+    out->set_last_relight_ms(st.last_relight_ms);
+    out->set_mean_relight_ms(st.mean_relight_ms);
+    out->set_resident_bytes(st.resident_bytes);
+    out->set_artifact_bytes(st.artifact_bytes);
+    out->set_subscribers(st.subscribers);
+  }
+  return grpc::Status::OK;
+}
+
+void LightlinkService::beginDrain() {
+  draining_ = true;
+  for (const auto& s : registry_.list()) s->wakeAll();
+}
+
+}  // namespace lightlink::service

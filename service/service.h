@@ -1,0 +1,85 @@
+// LightlinkService: the gRPC handlers of lightlink.v1 (proto/lightlink.proto).
+//
+// Handlers are thin: admit the call (bearer token, draining, per-client stream limit),
+// look up the scene and check its token, translate the request, call the registry or the
+// scene session, translate the answer. All calls share `admit` and `lookup` instead of
+// repeating the checks. Blocking waits (a result for a version, the next result of a
+// subscription) poll the call's cancellation and the drain flag every ~50 ms, so no call
+// outlives a cancelled client or a shutdown.
+#pragma once
+
+#include <atomic>
+#include <chrono>
+#include <map>
+#include <memory>
+#include <mutex>
+#include <string>
+
+#include <grpcpp/grpcpp.h>
+
+#include "proto/lightlink.grpc.pb.h"
+#include "service/config.h"
+#include "service/scene_registry.h"
+
+namespace lightlink::service {
+
+class LightlinkService final : public v1::Lightlink::Service {
+ public:
+  LightlinkService(const DaemonConfig& config, SceneRegistry& registry);
+
+  grpc::Status OpenScene(grpc::ServerContext* ctx, const v1::OpenSceneRequest* request,
+                         grpc::ServerWriter<v1::OpenSceneProgress>* writer) override;
+  grpc::Status UpdateLights(grpc::ServerContext* ctx, const v1::UpdateLightsRequest* request,
+                            v1::UpdateLightsResponse* response) override;
+  grpc::Status Relight(grpc::ServerContext* ctx, const v1::RelightRequest* request,
+                       grpc::ServerWriter<v1::ResultMessage>* writer) override;
+  grpc::Status Subscribe(grpc::ServerContext* ctx, const v1::SubscribeRequest* request,
+                         grpc::ServerWriter<v1::ResultMessage>* writer) override;
+  grpc::Status GetTextures(grpc::ServerContext* ctx, const v1::GetTexturesRequest* request,
+                           grpc::ServerWriter<v1::ResultMessage>* writer) override;
+  grpc::Status ListScenes(grpc::ServerContext* ctx, const v1::ListScenesRequest* request,
+                          v1::ListScenesResponse* response) override;
+  grpc::Status CloseScene(grpc::ServerContext* ctx, const v1::CloseSceneRequest* request,
+                          v1::CloseSceneResponse* response) override;
+  grpc::Status Health(grpc::ServerContext* ctx, const v1::HealthRequest* request,
+                      v1::HealthResponse* response) override;
+  grpc::Status Stats(grpc::ServerContext* ctx, const v1::StatsRequest* request, v1::StatsResponse* response) override;
+
+  // SIGTERM: Health says DRAINING, new work is refused, open streams end at their next
+  // message boundary.
+  void beginDrain();
+  bool draining() const { return draining_.load(); }
+  int activeStreams() const { return active_streams_.load(); }
+
+ private:
+  // Per-client stream accounting (RAII: released when the handler returns).
+  class StreamSlot {
+   public:
+    StreamSlot(LightlinkService& service, std::string client);
+    ~StreamSlot();
+    bool acquired() const { return acquired_; }
+
+   private:
+    LightlinkService& service_;
+    std::string client_;
+    bool acquired_ = false;
+  };
+
+  grpc::Status admit(grpc::ServerContext* ctx, bool new_work) const;
+  grpc::Status lookup(const v1::SceneRef& ref, std::shared_ptr<SceneSession>* out) const;
+  std::chrono::steady_clock::time_point waitDeadline(grpc::ServerContext* ctx) const;
+
+  DaemonConfig config_;
+  SceneRegistry& registry_;
+  std::atomic<bool> draining_{false};
+  std::atomic<int> active_streams_{0};
+  std::atomic<int> opening_{0};
+  std::mutex streams_mutex_;
+  std::map<std::string, int> streams_per_client_;
+  const std::chrono::steady_clock::time_point started_ = std::chrono::steady_clock::now();
+};
+
+// Resident set size of this process in bytes (/proc/self/statm), 0 when unavailable.
+std::uint64_t residentSetBytes();
+
+}  // namespace lightlink::service

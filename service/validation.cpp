@@ -1,0 +1,224 @@
+#include "service/validation.h"
+
+#include <cmath>
+
+#include <fmt/format.h>
+
+namespace lightlink::service {
+namespace {
+
+glm::vec3 toVec(const v1::Vec3& v) { return {v.x(), v.y(), v.z()}; }
+
+Status checkFiniteVec(const v1::Vec3& v, const std::string& path) {
+  const float c[3] = {v.x(), v.y(), v.z()};
+  for (int i = 0; i < 3; ++i)
+    if (!std::isfinite(c[i])) return invalidInput("{}.{}: {} is not a finite number", path, "xyz"[i], c[i]);
+  return {};
+}
+
+Expected<scene::Light::Kind> kindFrom(v1::LightType type, const std::string& path) {
+  switch (type) {
+    case v1::LIGHT_TYPE_POINT: return scene::Light::Kind::kPoint;
+    case v1::LIGHT_TYPE_SPOT: return scene::Light::Kind::kSpot;
+    case v1::LIGHT_TYPE_DIRECTIONAL: return scene::Light::Kind::kDirectional;
+    default: return invalidInput("{}.type: must be LIGHT_TYPE_POINT, _SPOT or _DIRECTIONAL", path);
+  }
+}
+
+// Writes the fields present in `l` over `entry` (add/set: over defaults; modify: over the
+// existing light), then validates the whole light.
+Status mergeLight(const v1::Light& l, const std::string& path, relight::LightEntry& entry) {
+  if (l.type() != v1::LIGHT_TYPE_UNSPECIFIED) {
+    auto kind = kindFrom(l.type(), path);
+    if (!kind) return kind.status();
+    entry.light.kind = *kind;
+  }
+  if (l.has_color()) {
+    if (Status s = checkFiniteVec(l.color(), path + ".color"); !s) return s;
+    entry.light.color = toVec(l.color());
+  }
+  if (l.has_intensity()) entry.light.intensity = l.intensity();
+  if (l.has_range()) entry.light.range = l.range();
+  if (l.has_position()) {
+    if (Status s = checkFiniteVec(l.position(), path + ".position"); !s) return s;
+    entry.light.position = toVec(l.position());
+  }
+  if (l.has_direction()) {
+    if (Status s = checkFiniteVec(l.direction(), path + ".direction"); !s) return s;
+    const glm::vec3 d = toVec(l.direction());
+    if (!(glm::length(d) > 1e-6f)) return invalidInput("{}.direction: must be a non-zero vector", path);
+    entry.light.direction = glm::normalize(d);
+  }
+  if (l.has_inner_cone_angle()) entry.light.inner_cone_angle = l.inner_cone_angle();
+  if (l.has_outer_cone_angle()) entry.light.outer_cone_angle = l.outer_cone_angle();
+  if (l.has_baked()) entry.baked = l.baked();
+  if (l.has_name()) {
+    if (l.name().size() > kMaxNameBytes) return invalidInput("{}.name: longer than {} bytes", path, kMaxNameBytes);
+    entry.light.name = l.name();
+  }
+  // Explicit checks for values LightSet::validate accepts as "unset" but the wire forbids.
+  if (!std::isfinite(entry.light.intensity))
+    return invalidInput("{}.intensity: {} is not a finite number", path, entry.light.intensity);
+  if (entry.light.intensity < 0.0f) return invalidInput("{}.intensity: {} is negative", path, entry.light.intensity);
+  return relight::LightSet::validate(entry, path);
+}
+
+Status checkId(const std::string& id, const std::string& path) {
+  if (id.empty()) return invalidInput("{}.id: must not be empty", path);
+  if (id.size() > 256) return invalidInput("{}.id: longer than 256 characters", path);
+  return {};
+}
+
+}  // namespace
+
+Expected<precompute::PrecomputeOptions> precomputeOptionsFrom(const v1::OpenSceneRequest& r) {
+  const std::string preset_name = r.preset().empty() ? "medium" : r.preset();
+  if (preset_name != "draft" && preset_name != "medium" && preset_name != "high")
+    return invalidInput("preset: '{}' must be draft, medium or high", r.preset().substr(0, 64));
+  auto o = precompute::preset(preset_name);
+  if (!o) return o.status();
+  if (r.surfels() != 0) {
+    if (r.surfels() < 64 || r.surfels() > 4000000)
+      return invalidInput("surfels: {} is out of range (64..4000000)", r.surfels());
+    o->surfels = r.surfels();
+  }
+  if (r.links() != 0) {
+    if (r.links() < 1 || r.links() > 4096) return invalidInput("links: {} is out of range (1..4096)", r.links());
+    o->links = r.links();
+  }
+  if (r.bands() != 0) {
+    if (r.bands() < 1 || r.bands() > 4) return invalidInput("bands: {} is out of range (1..4)", r.bands());
+    o->bands = r.bands();
+  }
+  if (r.rays() != 0) {
+    if (r.rays() < 16 || r.rays() > 65536) return invalidInput("rays: {} is out of range (16..65536)", r.rays());
+    o->rays = r.rays();
+  }
+  if (r.grid_spacing() != 0.0f) {
+    if (!std::isfinite(r.grid_spacing()) || r.grid_spacing() <= 0.0f)
+      return invalidInput("grid_spacing: {} must be a finite number > 0 (metres)", r.grid_spacing());
+    // Asking for a spacing is asking for a grid, even in a scene without dynamic meshes.
+    o->grid_spacing_m = r.grid_spacing();
+    o->grid = precompute::GridMode::kOn;
+  }
+  if (r.texel_size() != 0.0f) {
+    if (!std::isfinite(r.texel_size()) || r.texel_size() <= 0.0f)
+      return invalidInput("texel_size: {} must be a finite number > 0 (metres)", r.texel_size());
+    o->texel_size_m = r.texel_size();
+  }
+  if (!r.hierarchy().empty()) {
+    if (r.hierarchy() == "fast") o->builder = hierarchy::Builder::kKdMedian;
+    else if (r.hierarchy() == "hac") o->builder = hierarchy::Builder::kAgglomerative;
+    else return invalidInput("hierarchy: '{}' must be \"fast\" or \"hac\"", r.hierarchy().substr(0, 64));
+  }
+  if (r.name().size() > kMaxNameBytes) return invalidInput("name: longer than {} bytes", kMaxNameBytes);
+  if (r.path().size() > kMaxPathBytes) return invalidInput("path: longer than {} bytes", kMaxPathBytes);
+  if (Status s = o->validate(); !s) return s;
+  return o;
+}
+
+Status applyUpdate(const v1::UpdateLightsRequest& r, std::size_t material_count, relight::LightSet& lights) {
+  if (static_cast<std::size_t>(r.add_size()) > kMaxChangesPerRequest ||
+      static_cast<std::size_t>(r.modify_size()) > kMaxChangesPerRequest ||
+      static_cast<std::size_t>(r.remove_size()) > kMaxChangesPerRequest ||
+      static_cast<std::size_t>(r.emissive_size()) > kMaxChangesPerRequest)
+    return invalidInput("add/modify/remove/emissive: more than {} entries in one request", kMaxChangesPerRequest);
+  if (r.wait_ms() > kMaxWaitMs) return invalidInput("wait_ms: {} is above the limit of {}", r.wait_ms(), kMaxWaitMs);
+
+  if (r.replace_lights()) {
+    std::vector<std::string> ids;
+    for (const auto& e : lights.lights()) ids.push_back(e.id);
+    for (const auto& id : ids)
+      if (Status s = lights.remove(id); !s) return s;
+  }
+  for (int i = 0; i < r.remove_size(); ++i) {
+    const std::string path = fmt::format("remove[{}]", i);
+    if (lights.find(r.remove(i)) == nullptr)
+      return notFound("{}: no light '{}' in the scene", path, r.remove(i).substr(0, 256));
+    if (Status s = lights.remove(r.remove(i)); !s) return s;
+  }
+  for (int i = 0; i < r.modify_size(); ++i) {
+    const std::string path = fmt::format("modify[{}]", i);
+    const v1::Light& l = r.modify(i);
+    if (Status s = checkId(l.id(), path); !s) return s;
+    const relight::LightEntry* existing = lights.find(l.id());
+    if (existing == nullptr) return notFound("{}.id: no light '{}' in the scene", path, l.id());
+    relight::LightEntry entry = *existing;
+    if (Status s = mergeLight(l, path, entry); !s) return s;
+    if (Status s = lights.modify(entry); !s) return s;
+  }
+  for (int i = 0; i < r.add_size(); ++i) {
+    const std::string path = fmt::format("add[{}]", i);
+    const v1::Light& l = r.add(i);
+    if (Status s = checkId(l.id(), path); !s) return s;
+    if (l.type() == v1::LIGHT_TYPE_UNSPECIFIED) return invalidInput("{}.type: required for a new light", path);
+    if (lights.find(l.id()) != nullptr) return invalidInput("{}.id: a light '{}' already exists", path, l.id());
+    if (lights.lights().size() >= kMaxLightsPerScene)
+      return invalidInput("{}: the scene already has {} lights (the limit)", path, kMaxLightsPerScene);
+    relight::LightEntry entry;
+    entry.id = l.id();
+    if (Status s = mergeLight(l, path, entry); !s) return s;
+    if (Status s = lights.add(std::move(entry)); !s) return s;
+  }
+  for (int i = 0; i < r.emissive_size(); ++i) {
+    const std::string path = fmt::format("emissive[{}]", i);
+    const v1::EmissiveOverride& e = r.emissive(i);
+    if (e.material() < 0 || static_cast<std::size_t>(e.material()) >= material_count)
+      return invalidInput("{}.material: {} is not a material of the scene (0..{})", path, e.material(),
+                          static_cast<long long>(material_count) - 1);
+    if (e.clear()) {
+      if (Status s = lights.clearEmissive(e.material()); !s) return s;
+      continue;
+    }
+    relight::EmissiveOverride o;
+    o.material = e.material();
+    if (e.has_scale()) {
+      if (Status s = checkFiniteVec(e.scale(), path + ".scale"); !s) return s;
+      o.mode = relight::EmissiveOverride::Mode::kScale;
+      o.value = toVec(e.scale());
+    } else if (e.has_radiance()) {
+      if (Status s = checkFiniteVec(e.radiance(), path + ".radiance"); !s) return s;
+      o.mode = relight::EmissiveOverride::Mode::kRadiance;
+      o.value = toVec(e.radiance());
+    } else {
+      return invalidInput("{}: set scale or radiance, or clear", path);
+    }
+    if (Status s = relight::LightSet::validate(o, path); !s) return s;
+    if (Status s = lights.setEmissive(o); !s) return s;
+  }
+  if (r.has_sky()) {
+    relight::Sky sky;
+    if (r.sky().has_radiance()) {
+      if (Status s = checkFiniteVec(r.sky().radiance(), "sky.radiance"); !s) return s;
+      sky.radiance = toVec(r.sky().radiance());
+    }
+    if (r.sky().sh_size() != 0) {
+      if (r.sky().sh_size() != 9)
+        return invalidInput("sky.sh: {} coefficients given, expected 0 or 9", r.sky().sh_size());
+      std::array<glm::vec3, 9> sh{};
+      for (int i = 0; i < 9; ++i) {
+        if (Status s = checkFiniteVec(r.sky().sh(i), fmt::format("sky.sh[{}]", i)); !s) return s;
+        sh[i] = toVec(r.sky().sh(i));
+      }
+      sky.sh = sh;
+    }
+    if (Status s = relight::LightSet::validate(sky, "sky"); !s) return s;
+    if (Status s = lights.setSky(sky); !s) return s;
+  }
+  if (r.has_emissive_baked()) {
+    if (Status s = lights.setEmissiveBaked(r.emissive_baked()); !s) return s;
+  }
+  return {};
+}
+
+Status validateSpec(const v1::ResultSpec& spec, int result_bands, std::string_view field) {
+  if (spec.bands() < 0 || spec.bands() > result_bands)
+    return invalidInput("{}.bands: {} is out of range (0 = all, 1..{})", field, spec.bands(), result_bands);
+  if (!v1::Component_IsValid(spec.component()))
+    return invalidInput("{}.component: {} is not a Component", field, static_cast<int>(spec.component()));
+  if (!v1::Precision_IsValid(spec.precision()))
+    return invalidInput("{}.precision: {} is not a Precision", field, static_cast<int>(spec.precision()));
+  return {};
+}
+
+}  // namespace lightlink::service

@@ -1,0 +1,279 @@
+#include "tests/service/daemon_harness.h"
+
+#include <fcntl.h>
+#include <signal.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <cstring>
+#include <fstream>
+#include <random>
+#include <sstream>
+#include <thread>
+
+#include "core/common/half.h"
+#include "tests/common/testing.h"
+
+namespace lightlink::testing {
+namespace {
+
+namespace fs = std::filesystem;
+using Clock = std::chrono::steady_clock;
+
+std::string slurp(const fs::path& p) {
+  std::ifstream in(p, std::ios::binary);
+  std::ostringstream s;
+  s << in.rdbuf();
+  return s.str();
+}
+
+pid_t spawn(const std::vector<std::string>& args, const fs::path& out) {
+  std::vector<std::string> storage = args;
+  std::vector<char*> argv;
+  for (auto& a : storage) argv.push_back(a.data());
+  argv.push_back(nullptr);
+  const pid_t pid = ::fork();
+  if (pid == 0) {
+    const int fd = ::open(out.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
+    if (fd >= 0) {
+      ::dup2(fd, 1);
+      ::dup2(fd, 2);
+    }
+    ::execv(argv[0], argv.data());
+    ::_exit(127);
+  }
+  return pid;
+}
+
+int waitExit(pid_t pid, std::chrono::milliseconds limit) {
+  const auto until = Clock::now() + limit;
+  while (Clock::now() < until) {
+    int status = 0;
+    const pid_t r = ::waitpid(pid, &status, WNOHANG);
+    if (r == pid) return WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status);
+    if (r < 0) return -1;
+    std::this_thread::sleep_for(std::chrono::milliseconds(5));
+  }
+  return -1;
+}
+
+fs::path freshDir() {
+  std::random_device rd;
+  fs::path d = fs::temp_directory_path() / ("lightlinkd-test-" + std::to_string(::getpid()) + "-" + std::to_string(rd()));
+  fs::create_directories(d);
+  return d;
+}
+
+}  // namespace
+
+DaemonProcess::DaemonProcess(const fs::path& cache_dir, std::vector<std::string> extra) {
+  dir_ = freshDir();
+  std::vector<std::string> args = {LIGHTLINKD_PATH, "--listen", "127.0.0.1:0", "--port-file",
+                                   (dir_ / "port").string(), "--cache-dir", cache_dir.string()};
+  args.insert(args.end(), extra.begin(), extra.end());
+  pid_ = spawn(args, dir_ / "log");
+  const auto until = Clock::now() + std::chrono::seconds(30);
+  while (Clock::now() < until) {
+    int status = 0;
+    if (::waitpid(pid_, &status, WNOHANG) == pid_) {
+      pid_ = -1;
+      error_ = "lightlinkd exited before listening: " + log();
+      return;
+    }
+    std::ifstream in(dir_ / "port");
+    int port = 0;
+    if (in >> port && port > 0) {
+      port_ = port;
+      return;
+    }
+    std::this_thread::sleep_for(std::chrono::milliseconds(10));
+  }
+  error_ = "lightlinkd wrote no port file within 30 s: " + log();
+}
+
+DaemonProcess::~DaemonProcess() {
+  if (pid_ > 0) {
+    ::kill(pid_, SIGKILL);
+    waitExit(pid_, std::chrono::milliseconds(5000));
+  }
+  std::error_code ec;
+  fs::remove_all(dir_, ec);
+}
+
+std::string DaemonProcess::log() const { return slurp(dir_ / "log"); }
+
+int DaemonProcess::signalAndWait(int sig, std::chrono::milliseconds limit) {
+  if (pid_ <= 0) return -1;
+  ::kill(pid_, sig);
+  const int code = waitExit(pid_, limit);
+  if (code != -1) pid_ = -1;
+  return code;
+}
+
+std::shared_ptr<grpc::Channel> DaemonProcess::channel() const {
+  grpc::ChannelArguments args;
+  args.SetMaxReceiveMessageSize(8 << 20);
+  args.SetMaxSendMessageSize(128 << 20);
+  // A distinct channel per call site: separate connections, i.e. separate gRPC peers.
+  args.SetInt("lightlink.test.unique", static_cast<int>(std::random_device{}()));
+  return grpc::CreateCustomChannel(target(), grpc::InsecureChannelCredentials(), args);
+}
+
+std::unique_ptr<v1::Lightlink::Stub> DaemonProcess::stub() const { return v1::Lightlink::NewStub(channel()); }
+
+int runDaemonToExit(const std::vector<std::string>& args, std::string* output, std::chrono::milliseconds limit) {
+  const fs::path dir = freshDir();
+  std::vector<std::string> full = {LIGHTLINKD_PATH};
+  full.insert(full.end(), args.begin(), args.end());
+  const pid_t pid = spawn(full, dir / "log");
+  int code = waitExit(pid, limit);
+  if (code == -1) {
+    ::kill(pid, SIGKILL);
+    waitExit(pid, std::chrono::milliseconds(5000));
+  }
+  if (output) *output = slurp(dir / "log");
+  std::error_code ec;
+  fs::remove_all(dir, ec);
+  return code;
+}
+
+std::unique_ptr<grpc::ClientContext> context(int ms, const std::string& bearer) {
+  auto c = std::make_unique<grpc::ClientContext>();
+  c->set_deadline(std::chrono::system_clock::now() + std::chrono::milliseconds(ms));
+  if (!bearer.empty()) c->AddMetadata("authorization", "Bearer " + bearer);
+  return c;
+}
+
+grpc::Status openScene(v1::Lightlink::Stub& stub, const v1::OpenSceneRequest& request, v1::SceneOpened* opened,
+                       std::vector<std::string>* stages, const std::string& bearer, int deadline_ms) {
+  auto ctx = context(deadline_ms, bearer);
+  auto reader = stub.OpenScene(ctx.get(), request);
+  v1::OpenSceneProgress p;
+  bool got = false;
+  while (reader->Read(&p)) {
+    if (stages && (stages->empty() || stages->back() != p.stage())) stages->push_back(p.stage());
+    if (p.has_opened()) {
+      if (opened) *opened = p.opened();
+      got = true;
+    }
+  }
+  grpc::Status st = reader->Finish();
+  if (st.ok() && !got) return {grpc::StatusCode::INTERNAL, "OpenScene ended without `opened`"};
+  return st;
+}
+
+v1::OpenSceneRequest cornellRequest() {
+  v1::OpenSceneRequest r;
+  r.set_path((sourceDir() / "clients/demo/cornell_box.gltf").string());
+  r.set_preset("draft");
+  r.set_surfels(2048);
+  r.set_links(32);
+  r.set_rays(128);
+  r.set_grid_spacing(0.1f);
+  r.set_backend(v1::BACKEND_CPU);
+  return r;
+}
+
+bool ResultReader::next(Result& out) {
+  v1::ResultMessage m;
+  if (!reader_->Read(&m)) return false;
+  if (!m.has_header()) {
+    error_ = "a result started with a chunk, not a header";
+    return false;
+  }
+  Result r;
+  r.header = m.header();
+  const bool delta = r.header.delta();
+  if (delta) {
+    if (!previous_) {
+      error_ = "the first result of a stream is a delta";
+      return false;
+    }
+    r.payloads = previous_->payloads;
+  }
+  std::uint64_t received = 0;
+  std::map<int, std::uint64_t> next_offset;
+  const int tile_size = r.header.lightmap().tile_size();
+  const int width = r.header.lightmap().width(), height = r.header.lightmap().height();
+  const int tiles_x = tile_size > 0 ? (width + tile_size - 1) / tile_size : 0;
+  while (received < r.header.payload_bytes()) {
+    if (!reader_->Read(&m)) {
+      error_ = "stream ended inside a result";
+      return false;
+    }
+    if (m.has_header()) {
+      error_ = "a header arrived before the previous result's chunks were complete (torn result)";
+      return false;
+    }
+    const v1::Chunk& c = m.chunk();
+    received += c.data().size();
+    ++r.chunks;
+    const bool lightmap = c.payload() == v1::PAYLOAD_LIGHTMAP_SH || c.payload() == v1::PAYLOAD_LIGHTMAP_DIRECT ||
+                          c.payload() == v1::PAYLOAD_LIGHTMAP_VALID;
+    if (delta && lightmap) {
+      std::string& full = r.payloads[c.payload()];
+      const std::size_t texel_bytes = full.size() / (static_cast<std::size_t>(width) * height);
+      const int tx = static_cast<int>(c.tile()) % tiles_x, ty = static_cast<int>(c.tile()) / tiles_x;
+      const int x0 = tx * tile_size, y0 = ty * tile_size;
+      const int w = std::min(tile_size, width - x0);
+      const std::size_t row_bytes = w * texel_bytes;
+      for (std::size_t i = 0; i < c.data().size(); ++i) {
+        const std::size_t at = c.offset() + i;
+        const std::size_t y = at / row_bytes, xb = at % row_bytes;
+        full[((y0 + y) * width + x0) * texel_bytes + xb] = c.data()[i];
+      }
+      continue;
+    }
+    std::string& p = r.payloads[c.payload()];
+    if (delta) {
+      // A whole grid payload replaces the previous one.
+      if (c.offset() == 0) p.clear();
+    }
+    if (c.offset() != p.size()) {
+      error_ = "chunk offset " + std::to_string(c.offset()) + " does not continue payload " +
+               std::to_string(c.payload()) + " at " + std::to_string(p.size());
+      return false;
+    }
+    p += c.data();
+  }
+  if (received != r.header.payload_bytes()) {
+    error_ = "chunks carried " + std::to_string(received) + " bytes, header said " +
+             std::to_string(r.header.payload_bytes());
+    return false;
+  }
+  previous_ = r;
+  out = std::move(r);
+  return true;
+}
+
+grpc::Status readOne(grpc::ClientReader<v1::ResultMessage>* reader, Result& out, std::string* error) {
+  ResultReader rr(reader);
+  const bool got = rr.next(out);
+  v1::ResultMessage extra;
+  const bool more = got && reader->Read(&extra);
+  grpc::Status st = reader->Finish();
+  if (error) {
+    *error = rr.error();
+    if (more) *error = "more messages after the single result";
+    if (st.ok() && !got && error->empty()) *error = "no result";
+  }
+  return st;
+}
+
+std::vector<float> decodeValues(const std::string& bytes, v1::Precision precision) {
+  std::vector<float> out;
+  if (precision == v1::PRECISION_HALF) {
+    out.resize(bytes.size() / 2);
+    for (std::size_t i = 0; i < out.size(); ++i) {
+      half_bits h;
+      std::memcpy(&h, bytes.data() + 2 * i, 2);
+      out[i] = fromHalf(h);
+    }
+  } else {
+    out.resize(bytes.size() / 4);
+    std::memcpy(out.data(), bytes.data(), out.size() * 4);
+  }
+  return out;
+}
+
+}  // namespace lightlink::testing

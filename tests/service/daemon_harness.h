@@ -1,0 +1,98 @@
+// Test harness for the daemon: real lightlinkd processes on loopback (port 0 + port file,
+// a private cache dir), gRPC stubs with deadlines, and a reader that reassembles results
+// (header + chunks, full or delta) while checking that none is torn.
+#pragma once
+
+#include <sys/types.h>
+
+#include <chrono>
+#include <cstdint>
+#include <filesystem>
+#include <map>
+#include <memory>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include <grpcpp/grpcpp.h>
+
+#include "proto/lightlink.grpc.pb.h"
+
+namespace lightlink::testing {
+
+namespace v1 = lightlink::v1;
+
+class DaemonProcess {
+ public:
+  // Starts lightlinkd with `--listen 127.0.0.1:0 --port-file ... --cache-dir cache_dir` and
+  // `extra` flags; waits (bounded) for the port. Check ok() / error().
+  DaemonProcess(const std::filesystem::path& cache_dir, std::vector<std::string> extra = {});
+  ~DaemonProcess();  // SIGKILL if still running
+
+  bool ok() const { return port_ > 0; }
+  const std::string& error() const { return error_; }
+  int port() const { return port_; }
+  pid_t pid() const { return pid_; }
+  std::string target() const { return "127.0.0.1:" + std::to_string(port_); }
+  std::string log() const;
+
+  // Sends `sig` and waits up to `limit` for the exit; returns the exit code, 128 + signal
+  // when killed by one, -1 on timeout.
+  int signalAndWait(int sig, std::chrono::milliseconds limit = std::chrono::milliseconds(10000));
+
+  std::unique_ptr<v1::Lightlink::Stub> stub() const;
+  std::shared_ptr<grpc::Channel> channel() const;
+
+ private:
+  std::filesystem::path dir_;
+  pid_t pid_ = -1;
+  int port_ = 0;
+  std::string error_;
+};
+
+// Runs a lightlinkd to completion with `args` (no port wait); returns the exit code.
+int runDaemonToExit(const std::vector<std::string>& args, std::string* output,
+                    std::chrono::milliseconds limit = std::chrono::milliseconds(10000));
+
+// A context with a deadline `ms` from now (and a bearer token when given).
+std::unique_ptr<grpc::ClientContext> context(int ms = 20000, const std::string& bearer = "");
+
+// OpenScene to completion. Fills `opened` and the progress stages seen.
+grpc::Status openScene(v1::Lightlink::Stub& stub, const v1::OpenSceneRequest& request, v1::SceneOpened* opened,
+                       std::vector<std::string>* stages = nullptr, const std::string& bearer = "",
+                       int deadline_ms = 60000);
+
+// The small Cornell box request every service test uses (draft preset, a tiny grid).
+v1::OpenSceneRequest cornellRequest();
+
+// One result, reassembled.
+struct Result {
+  v1::ResultHeader header;
+  std::map<int, std::string> payloads;  // by v1::Payload
+  std::size_t chunks = 0;
+};
+
+// Reads results from a stream. Full results are reassembled; delta results are applied to
+// the previous one (the returned Result holds the updated full payloads). Any torn result
+// (chunks beyond the header's payload_bytes, offsets out of order, a header mid-result)
+// is reported through `error`.
+class ResultReader {
+ public:
+  explicit ResultReader(grpc::ClientReader<v1::ResultMessage>* reader) : reader_(reader) {}
+  // False at the end of the stream or on a protocol error (then error() is set).
+  bool next(Result& out);
+  const std::string& error() const { return error_; }
+
+ private:
+  grpc::ClientReader<v1::ResultMessage>* reader_;
+  std::optional<Result> previous_;
+  std::string error_;
+};
+
+// Reads exactly one result from a unary-like stream (Relight, GetTextures) and its status.
+grpc::Status readOne(grpc::ClientReader<v1::ResultMessage>* reader, Result& out, std::string* error);
+
+// Decodes a half/float payload into floats.
+std::vector<float> decodeValues(const std::string& bytes, v1::Precision precision);
+
+}  // namespace lightlink::testing
