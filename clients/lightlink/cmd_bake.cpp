@@ -3,7 +3,6 @@
 // grid, PNG preview, the glTF with TEXCOORD_1, and one JSON report.
 #include <cstdio>
 #include <filesystem>
-#include <optional>
 
 #include <fmt/format.h>
 
@@ -12,10 +11,9 @@
 #include "clients/lightlink/progress_bar.h"
 #include "core/charts/gltf_writer.h"
 #include "core/output/output.h"
-#include "core/precompute/precompute.h"
+#include "core/precompute/resident.h"
 #include "core/relight/relight.h"
-#include "core/rt/accel.h"
-#include "core/scene/load.h"
+#include "service/gpu/backend_factory.h"
 
 namespace lightlink::cli {
 namespace {
@@ -42,83 +40,63 @@ int runBake(const BakeArgs& args) {
   if (args.max_bounces < 0 || args.max_bounces > 64)
     return reportError(kCmd, invalidInput("--bounces {} is out of range (0..64)", args.max_bounces));
   relight_options.max_bounces = args.max_bounces;
+  auto backend_choice = gpu::parseBackendChoice(args.backend, "--backend");
+  if (!backend_choice) return reportError(kCmd, backend_choice.status());
 
-  auto scene = scene::loadGltf(args.scene_path);
-  if (!scene) return reportError(kCmd, scene.status());
-  auto lights = relight::LightSet::fromScene(*scene);
-  if (!args.lights_path.empty()) {
-    if (Status s = lights.applyFile(args.lights_path); !s) return reportError(kCmd, s);
-  }
   const fs::path out(args.output_dir);
   const fs::path cache_dir = args.cache_dir.empty() ? out / "cache" : fs::path(args.cache_dir);
   if (Status s = makeDirectory(out); !s) return reportError(kCmd, s);
-  if (Status s = makeDirectory(cache_dir); !s) return reportError(kCmd, s);
-
-  auto key = precompute::cacheKeyFor(args.scene_path, *options);
-  if (!key) return reportError(kCmd, key.status());
-  const fs::path artifact_path = cache_dir / (artifact::cacheKeyHex(*key) + ".llk");
   ProgressBar bar(!args.quiet);
 
-  // Reuse a matching artifact when one opens cleanly; a damaged one is recomputed (and
-  // replaced atomically), never used.
-  std::optional<precompute::LoadedPrecomputation> loaded;
-  std::string artifact_note;
-  if (!args.no_cache && fs::exists(artifact_path)) {
-    auto opened = precompute::open(artifact_path.string());
-    if (opened && opened->file.cacheKey() == *key) {
-      loaded.emplace(std::move(opened).value());
-      artifact_note = "reused " + artifact_path.string();
-    } else {
-      artifact_note = fmt::format("recomputed: cached artifact unusable ({})",
-                                  opened ? "key mismatch" : opened.status().message());
-    }
-  }
-  std::optional<precompute::Precomputation> computed;
-  charts::LightmapAtlas atlas;
-  if (loaded) {
-    auto unwrapped = precompute::unwrapFor(*scene, *options);
-    if (!unwrapped) return reportError(kCmd, unwrapped.status());
-    atlas = unwrapped->atlas;
-  } else {
-    auto p = precompute::run(*scene, *options, &bar);
-    if (!p) return reportError(kCmd, p.status());
-    computed.emplace(std::move(p).value());
-    atlas = computed->atlas;
-    if (Status s = precompute::save(*computed, artifact_path.string(), *key); !s) return reportError(kCmd, s);
-    if (artifact_note.empty()) artifact_note = "computed " + artifact_path.string();
-  }
-  const precompute::Precomputation& p = loaded ? loaded->p : *computed;
-  const links::LinksView lm_links = loaded ? loaded->lightmap_links : computed->lightmap_links.view();
-  const links::LinksView grid_links = loaded ? loaded->grid_links : computed->grid_links.view();
+  // Load the scene, then reuse a matching artifact or precompute and save one.
+  precompute::ResidentRequest request;
+  request.scene_path = args.scene_path;
+  request.options = *options;
+  request.cache_dir = cache_dir.string();
+  request.use_cache = !args.no_cache;
+  auto resident = precompute::ResidentScene::open(request, &bar);
+  if (!resident) return reportError(kCmd, resident.status());
+  const scene::Scene& scene = resident->scene();
+  const precompute::Precomputation& p = resident->precomputation();
+  const charts::LightmapAtlas& atlas = resident->atlas();
+  const std::string key_hex = resident->cacheKeyHex();
+  const std::string& artifact_note = resident->note();
 
-  auto accel = rt::Accel::build(*scene);
-  if (!accel) return reportError(kCmd, accel.status());
-  auto relighter = relight::Relighter::create(*scene, *accel, p, lm_links, grid_links);
-  if (!relighter) return reportError(kCmd, relighter.status());
+  auto lights = relight::LightSet::fromScene(scene);
+  if (!args.lights_path.empty()) {
+    if (Status s = lights.applyFile(args.lights_path); !s) return reportError(kCmd, s);
+  }
+  // cpu, gpu or auto: the note says which ran and, for a fallback, why.
+  std::string backend_note;
+  auto backend = gpu::makeBackend(*backend_choice, scene, resident->accel(), p, resident->lightmapLinks(),
+                                  resident->gridLinks(), &backend_note);
+  if (!backend) return reportError(kCmd, backend.status());
   bar.begin("relight", 0);
-  auto result = relighter->relight(lights, relight_options);
+  Expected<relight::RelightResult> result = relight::RelightResult{};
+  const Status relit = (*backend)->relightInto(lights, relight_options, *result);
   bar.end();
-  if (!result) return reportError(kCmd, result.status());
+  if (!relit) return reportError(kCmd, relit);
 
   output::ExrOptions exr;
   exr.half = !args.float_exr;
-  exr.scene_hash = artifact::cacheKeyHex(*key);
+  exr.scene_hash = key_hex;
   auto lm_stats = output::writeLightmapExr(*result, (out / "lightmap.exr").string(), exr);
   if (!lm_stats) return reportError(kCmd, lm_stats.status());
   if (Status s = output::writeIrradiancePng(*result, p.lightmap, (out / "lightmap.png").string()); !s)
     return reportError(kCmd, s);
-  std::size_t grid_clamped = 0;
+  std::size_t grid_clamped = 0, grid_underflowed = 0;
   if (p.has_grid) {
     auto g = output::writeGridExr(*result, p.grid, (out / "grid.exr").string(), exr);
     if (!g) return reportError(kCmd, g.status());
     grid_clamped = g->clamped;
+    grid_underflowed = g->underflowed;
     if (Status s = output::writeGridJson(*result, p.grid, (out / "grid.json").string()); !s) return reportError(kCmd, s);
     if (Status s = output::writeGridRaw(*result, p.grid, (out / "grid.raw").string()); !s) return reportError(kCmd, s);
   }
   const std::string gltf_name = fs::path(args.scene_path).stem().string() + "_lm" +
                                 (fs::path(args.scene_path).extension() == ".glb" ? ".glb" : ".gltf");
   if (atlas.generated) {
-    if (Status s = charts::writeGltfWithLightmapUv(args.scene_path, *scene, atlas, (out / gltf_name).string()); !s)
+    if (Status s = charts::writeGltfWithLightmapUv(args.scene_path, scene, atlas, (out / gltf_name).string()); !s)
       return reportError(kCmd, s);
   }
 
@@ -126,11 +104,13 @@ int runBake(const BakeArgs& args) {
   report["scene"] = args.scene_path;
   report["preset"] = args.preset;
   report["artifact"] = artifact_note;
-  report["cache_key"] = artifact::cacheKeyHex(*key);
-  report["precompute"] = computed ? computed->report() : nlohmann::ordered_json(loaded->meta);
+  report["cache_key"] = key_hex;
+  report["backend"] = {{"requested", args.backend}, {"used", result->backend}, {"note", backend_note}};
+  report["precompute"] = resident->precomputeReport();
   report["relight"] = result->report();
   report["effects_plan"] = result->plan.toJson();
   report["half_clamped_values"] = {{"lightmap", lm_stats->clamped}, {"grid", grid_clamped}};
+  report["half_underflowed_values"] = {{"lightmap", lm_stats->underflowed}, {"grid", grid_underflowed}};
   std::vector<std::string> outputs = {"lightmap.exr", "lightmap.png", "report.json"};
   if (p.has_grid) outputs.insert(outputs.end(), {"grid.exr", "grid.json", "grid.raw"});
   if (atlas.generated) outputs.push_back(gltf_name);
@@ -140,12 +120,16 @@ int runBake(const BakeArgs& args) {
   if (!args.quiet) {
     std::string text = result->plan.toText();
     text += fmt::format("artifact     {}\n", artifact_note);
+    text += fmt::format("backend      {}\n", backend_note);
     text += fmt::format("relight      {:.2f} ms ({} backend, {} kernel), bounces {} ({})\n",
                         result->totalSeconds() * 1e3, result->backend, result->kernel, result->bounce_log.size(),
                         result->bounce_stop);
     if (lm_stats->clamped + grid_clamped > 0)
       text += fmt::format("warning      {} values beyond the half range were clamped (use --float)\n",
                           lm_stats->clamped + grid_clamped);
+    if (lm_stats->underflowed + grid_underflowed > 0)
+      text += fmt::format("warning      {} non-zero values below the smallest normal half lost precision (use --float)\n",
+                          lm_stats->underflowed + grid_underflowed);
     text += fmt::format("wrote        {}: ", out.string());
     for (std::size_t i = 0; i < outputs.size(); ++i) text += (i ? ", " : "") + outputs[i];
     text += "\n";

@@ -54,6 +54,7 @@ struct BakeArgs {
   std::string cache_dir;           // artifacts by cache key; empty = <output_dir>/cache
   std::string link_form = "projected";  // projected | runtime
   int max_bounces = 8;
+  std::string backend = "cpu";     // cpu | gpu | auto (service/gpu/backend_factory.h)
   bool float_exr = false;
   bool no_cache = false;           // recompute even when a matching artifact exists
   bool quiet = false;
@@ -86,5 +87,66 @@ struct CompareArgs {
   bool quiet = false;
 };
 int runCompare(const CompareArgs& args);
+
+// ---- Daemon commands (built with LIGHTLINK_BUILD_SERVICE; cmd_serve.cpp, cmd_remote.cpp).
+
+// `serve`: the daemon in-process; `args` are lightlinkd's flags, passed through unchanged.
+int runServe(const std::vector<std::string>& args);
+
+// How a command reaches a daemon and names a scene: a session file (`open --session`), or
+// --target with --scene/--scene-token.
+struct RemoteArgs {
+  std::string target;        // host:port; default: the session's, else 127.0.0.1:50051
+  std::string token;         // daemon bearer token; default: $LIGHTLINK_TOKEN
+  std::string tls_ca;        // PEM root certificate: TLS instead of plaintext
+  std::string session;       // session file
+  std::string scene_id, scene_token;
+  int timeout_ms = 30000;    // per call
+};
+
+struct OpenArgs {
+  RemoteArgs remote;         // remote.session: where to write the session file
+  std::string scene_path;
+  bool upload = false;       // send the file's bytes instead of its path
+  std::string preset;        // draft | medium | high (daemon default: medium)
+  std::string lights_path;   // light-set JSON applied over the scene's lights
+  std::string name;
+  std::string backend = "auto";  // auto | cpu | gpu
+};
+int runOpen(const OpenArgs& args);
+
+struct SetLightArgs {
+  RemoteArgs remote;
+  std::string light_id;
+  std::string json_path;     // a light-set file instead of the per-field flags
+  std::string type;          // point | spot | directional
+  std::vector<float> position, direction, color;  // 3 values each when given
+  std::optional<float> intensity, range, inner_cone_angle, outer_cone_angle;
+  std::string baked;         // "", "true" or "false"
+  bool add = false;          // a new light (type required)
+  bool remove = false;
+  bool wait = false;         // wait for the relit lightmap and report the latency
+  int wait_ms = 10000;
+  bool json = false;
+};
+int runSetLight(const SetLightArgs& args);
+
+struct WatchArgs {
+  RemoteArgs remote;
+  int count = 0;             // stop after this many results (0 = until the stream ends)
+  bool full = false;         // full results instead of tile deltas
+  bool json = false;         // one JSON object per line
+};
+int runWatch(const WatchArgs& args);
+
+struct PullArgs {
+  RemoteArgs remote;
+  std::string output_dir;
+  std::uint64_t version = 0;  // 0 = newest
+  bool float_exr = false;     // float32 payloads and EXR
+  int bands = 0;
+  bool quiet = false;
+};
+int runPull(const PullArgs& args);
 
 }  // namespace lightlink::cli

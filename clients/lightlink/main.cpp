@@ -5,6 +5,23 @@
 #include "clients/lightlink/commands.h"
 #include "clients/lightlink/exit_codes.h"
 
+namespace {
+
+#ifdef LIGHTLINK_WITH_SERVICE
+// Options every daemon command shares (docs/cli.md "Daemon commands").
+void addRemoteOptions(CLI::App* cmd, lightlink::cli::RemoteArgs& r) {
+  cmd->add_option("--session", r.session, "Session file written by `lightlink open --session`");
+  cmd->add_option("--target", r.target, "Daemon address host:port (default: the session's, else 127.0.0.1:50051)");
+  cmd->add_option("--token", r.token, "Daemon bearer token (default: $LIGHTLINK_TOKEN)");
+  cmd->add_option("--tls-ca", r.tls_ca, "PEM root certificate: connect with TLS");
+  cmd->add_option("--scene", r.scene_id, "Scene id (instead of --session)");
+  cmd->add_option("--scene-token", r.scene_token, "Scene token (with --scene)");
+  cmd->add_option("--timeout", r.timeout_ms, "Per-call deadline in ms (0 = none)")->capture_default_str();
+}
+#endif
+
+}  // namespace
+
 int main(int argc, char** argv) {
   using namespace lightlink::cli;
   CLI::App app{"lightlink: lightmap and irradiance-volume baking (precomputed illuminance composition)"};
@@ -54,6 +71,8 @@ int main(int argc, char** argv) {
   bake_cmd->add_option("--cache-dir", bake.cache_dir, "Artifact cache directory (default OUTPUT/cache)");
   bake_cmd->add_option("--link-form", bake.link_form, "projected or runtime")->capture_default_str();
   bake_cmd->add_option("--bounces", bake.max_bounces, "Most indirect bounces")->capture_default_str();
+  bake_cmd->add_option("--backend", bake.backend, "Relight backend: cpu, gpu, or auto (GPU when a headless EGL context works)")
+      ->capture_default_str();
   bake_cmd->add_flag("--float", bake.float_exr, "32-bit float EXR instead of half");
   bake_cmd->add_flag("--no-cache", bake.no_cache, "Recompute even when a matching artifact exists");
   bake_cmd->add_flag("-q,--quiet", bake.quiet, "No progress bar, no summary");
@@ -86,6 +105,58 @@ int main(int argc, char** argv) {
   cmp_cmd->add_option("--bounces", cmp.max_bounces, "Baker's bounce cap")->capture_default_str();
   cmp_cmd->add_flag("-q,--quiet", cmp.quiet, "No progress bar, no summary");
 
+#ifdef LIGHTLINK_WITH_SERVICE
+  auto* serve_cmd = app.add_subcommand("serve", "Run the lightlink daemon in this process (same flags as lightlinkd)");
+  serve_cmd->prefix_command();  // every argument after `serve` is lightlinkd's
+  serve_cmd->set_help_flag();   // so that `serve --help` prints the daemon's help
+
+  OpenArgs open;
+  auto* open_cmd = app.add_subcommand("open", "Open a scene on a daemon and print its id, token and info as JSON");
+  open_cmd->add_option("scene", open.scene_path, "glTF scene (.gltf or .glb)")->required();
+  addRemoteOptions(open_cmd, open.remote);
+  open_cmd->add_flag("--upload", open.upload, "Send the file's bytes instead of its path");
+  open_cmd->add_option("--preset", open.preset, "Quality: draft, medium or high (daemon default medium)");
+  open_cmd->add_option("--lights", open.lights_path, "Light-set JSON applied over the scene's lights");
+  open_cmd->add_option("--name", open.name, "Name shown by ListScenes (default: the file's stem)");
+  open_cmd->add_option("--backend", open.backend, "Relight backend: auto, cpu or gpu")->capture_default_str();
+
+  SetLightArgs setl;
+  auto* setl_cmd = app.add_subcommand("set-light", "Change, add or remove a light of an open scene");
+  setl_cmd->add_option("light", setl.light_id, "Light id");
+  addRemoteOptions(setl_cmd, setl.remote);
+  setl_cmd->add_option("--json", setl.json_path, "Apply a light-set file (docs/lightset.md) instead");
+  setl_cmd->add_option("--type", setl.type, "point, spot or directional");
+  setl_cmd->add_option("--position", setl.position, "x,y,z (m)")->expected(3)->delimiter(',');
+  setl_cmd->add_option("--direction", setl.direction, "x,y,z (non-zero)")->expected(3)->delimiter(',');
+  setl_cmd->add_option("--color", setl.color, "r,g,b linear")->expected(3)->delimiter(',');
+  setl_cmd->add_option("--intensity", setl.intensity, "cd (point, spot) or lux (directional)");
+  setl_cmd->add_option("--range", setl.range, "m (0 = infinite)");
+  setl_cmd->add_option("--inner-cone", setl.inner_cone_angle, "Spot inner cone angle, radians");
+  setl_cmd->add_option("--outer-cone", setl.outer_cone_angle, "Spot outer cone angle, radians");
+  setl_cmd->add_option("--baked", setl.baked, "true or false: direct light written into the lightmap");
+  setl_cmd->add_flag("--add", setl.add, "Add a new light (--type required)");
+  setl_cmd->add_flag("--remove", setl.remove, "Remove the light");
+  setl_cmd->add_flag("--wait", setl.wait, "Wait for the relit lightmap and print the light-change-to-texture latency");
+  setl_cmd->add_option("--wait-ms", setl.wait_ms, "Longest wait for the relight")->capture_default_str();
+  setl_cmd->add_flag("--json-output", setl.json, "Print the result as JSON");
+
+  WatchArgs watch;
+  auto* watch_cmd = app.add_subcommand("watch", "Subscribe to a scene and print one line per new version");
+  addRemoteOptions(watch_cmd, watch.remote);
+  watch_cmd->add_option("--count", watch.count, "Stop after N results (0 = until the stream ends)");
+  watch_cmd->add_flag("--full", watch.full, "Full results instead of tile deltas");
+  watch_cmd->add_flag("--json", watch.json, "One JSON object per line");
+
+  PullArgs pull;
+  auto* pull_cmd = app.add_subcommand("pull", "Fetch a result once and write lightmap EXR + PNG preview + grid");
+  addRemoteOptions(pull_cmd, pull.remote);
+  pull_cmd->add_option("-o,--output", pull.output_dir, "Output directory")->required();
+  pull_cmd->add_option("--version", pull.version, "Light-set version (0 = newest)");
+  pull_cmd->add_option("--bands", pull.bands, "SH bands to fetch (0 = all)");
+  pull_cmd->add_flag("--float", pull.float_exr, "32-bit float instead of half");
+  pull_cmd->add_flag("-q,--quiet", pull.quiet, "No summary");
+#endif
+
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
@@ -98,5 +169,12 @@ int main(int argc, char** argv) {
   if (*bake_cmd) return runBake(bake);
   if (*render_cmd) return runRender(render);
   if (*cmp_cmd) return runCompare(cmp);
+#ifdef LIGHTLINK_WITH_SERVICE
+  if (*serve_cmd) return runServe(serve_cmd->remaining());
+  if (*open_cmd) return runOpen(open);
+  if (*setl_cmd) return runSetLight(setl);
+  if (*watch_cmd) return runWatch(watch);
+  if (*pull_cmd) return runPull(pull);
+#endif
   return kExitUsage;
 }

@@ -1,0 +1,398 @@
+// service_bench: what a level designer and a room of game clients feel (DESIGN.md sec 11,
+// issue 7 "Figures").
+//
+//   latency     time from sending UpdateLights to the moment a polling client holds the full
+//               lightmap of a version that contains the update, measured at every client for
+//               every update, with 1 and with 50 clients; also minus the daemon's relight time
+//               of the version received (what queueing, encoding, the wire and polling add). Each client is a thread with its own
+//               channel and TCP connection polling GetTextures (lightmap only, half) every
+//               --poll-ms; updates are spaced so each one is measured alone (the driver waits
+//               until every client has it, then pauses --gap-ms).
+//   throughput  updates sent back to back for --burst-s seconds by one client: updates/s
+//               acknowledged, and relights/s the daemon computed meanwhile (Stats), the rest
+//               coalesced.
+//   memory      daemon RSS before and after the scene is resident, and the scene's
+//               resident_bytes / artifact_bytes (Stats).
+//
+// Fixed scene (the bundled Cornell box, preset medium), fixed light path (a circle below the
+// ceiling). JSON to --json; a summary to stdout.
+#include <algorithm>
+#include <atomic>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <map>
+#include <mutex>
+#include <numbers>
+#include <thread>
+
+#include <fmt/format.h>
+#include <nlohmann/json.hpp>
+
+#include "clients/client/client.h"
+#include "clients/client/local_daemon.h"
+
+namespace {
+
+using namespace lightlink;
+using namespace lightlink::client;
+using Clock = std::chrono::steady_clock;
+
+struct Args {
+  std::string target;  // empty: start a daemon
+  std::string daemon = LIGHTLINK_DAEMON_PATH;
+  std::string cache_dir;
+  int bounces = -1;  // >= 0: the started daemon's --bounces (its default is 8)
+  std::string scene = std::string(LIGHTLINK_SOURCE_DIR) + "/clients/demo/cornell_box.gltf";
+  std::string preset = "medium";
+  std::vector<int> clients = {1, 50};
+  int updates = 100;
+  double poll_ms = 5.0;  // 200 Hz: a game polling every frame, a little faster than 60 Hz
+  double gap_ms = 10.0;
+  double burst_s = 3.0;
+  float cx = 0.278f, cy = 0.45f, cz = 0.28f, radius = 0.15f;  // light circle (Cornell box, metres)
+  std::string json;
+};
+
+double ms(Clock::duration d) { return std::chrono::duration<double, std::milli>(d).count(); }
+
+double percentile(std::vector<double> v, double p) {
+  if (v.empty()) return 0.0;
+  std::sort(v.begin(), v.end());
+  const double pos = p * double(v.size() - 1);
+  const std::size_t i = std::size_t(pos);
+  const double f = pos - double(i);
+  return i + 1 < v.size() ? v[i] * (1.0 - f) + v[i + 1] * f : v[i];
+}
+
+nlohmann::ordered_json summary(const std::vector<double>& v) {
+  double sum = 0.0;
+  for (double x : v) sum += x;
+  return {{"count", v.size()},
+          {"mean", v.empty() ? 0.0 : sum / double(v.size())},
+          {"p50", percentile(v, 0.50)},
+          {"p90", percentile(v, 0.90)},
+          {"p99", percentile(v, 0.99)},
+          {"max", v.empty() ? 0.0 : *std::max_element(v.begin(), v.end())}};
+}
+
+[[noreturn]] void die(const Status& s) {
+  std::fprintf(stderr, "service_bench: %s\n", s.toString().c_str());
+  std::exit(s.code() == Code::kIoError ? 3 : 2);
+}
+
+template <typename T>
+T must(Expected<T> e) {
+  if (!e) die(e.status());
+  return std::move(e).value();
+}
+
+LightUpdate moveLight(const Args& a, const std::string& id, int step) {
+  const float t = 2.0f * std::numbers::pi_v<float> * float(step % 64) / 64.0f;
+  LightFields f;
+  f.id = id;
+  f.position = Vec3{a.cx + a.radius * std::cos(t), a.cy, a.cz + a.radius * std::sin(t)};
+  LightUpdate u;
+  if (Status s = u.modify(f); !s) die(s);
+  return u;
+}
+
+// One simulated game client: its own connection, polling GetTextures for the lightmap.
+struct Poller {
+  std::unique_ptr<Client> client;
+  std::atomic<std::uint64_t> latest{0};
+  struct Arrival {
+    std::uint64_t version;
+    Clock::time_point whole;  // when the client held the whole lightmap
+    double relight_ms;        // the daemon's relight time of that version
+  };
+  std::vector<Arrival> arrivals;
+  std::vector<double> not_modified_ms, fetch_ms;
+  std::size_t errors = 0;
+  std::string first_error;
+};
+
+nlohmann::ordered_json latencyScenario(const Args& a, const ConnectOptions& co, Client& driver, SceneHandle& scene,
+                                       const std::string& light, int n_clients, int& step) {
+  std::vector<std::unique_ptr<Poller>> pollers;
+  for (int i = 0; i < n_clients; ++i) {
+    auto p = std::make_unique<Poller>();
+    p->client = std::make_unique<Client>(must(Client::connect(co)));
+    pollers.push_back(std::move(p));
+  }
+  ResultSpec spec;
+  spec.grid = false;  // the lightmap: what the latency target is about
+  std::atomic<bool> stop{false};
+  const auto poll_period = std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double, std::milli>(a.poll_ms));
+  std::vector<std::thread> threads;
+  for (auto& pp : pollers) {
+    threads.emplace_back([&, p = pp.get()] {
+      std::uint64_t last = 0;
+      auto next = Clock::now();
+      while (!stop.load(std::memory_order_relaxed)) {
+        const auto t0 = Clock::now();
+        auto r = p->client->getTextures(scene, last, spec);
+        const auto t1 = Clock::now();
+        if (!r) {
+          if (p->errors++ == 0) p->first_error = r.status().toString();
+        } else if (r->has_value()) {
+          last = (*r)->info.version;
+          p->arrivals.push_back({last, t1, (*r)->info.relight_ms});
+          p->fetch_ms.push_back(ms(t1 - t0));
+          p->latest.store(last, std::memory_order_release);
+        } else {
+          p->not_modified_ms.push_back(ms(t1 - t0));
+        }
+        next += poll_period;
+        if (next > t1) std::this_thread::sleep_until(next);
+        else next = t1;
+      }
+    });
+  }
+  // Let every client see the current version first.
+  auto allAt = [&](std::uint64_t v, Clock::duration limit) {
+    const auto deadline = Clock::now() + limit;
+    for (;;) {
+      bool all = true;
+      for (auto& p : pollers) all &= p->latest.load(std::memory_order_acquire) >= v;
+      if (all) return true;
+      if (Clock::now() > deadline) return false;
+      std::this_thread::sleep_for(std::chrono::microseconds(200));
+    }
+  };
+  auto current = must(driver.getTextures(scene, 0, spec));
+  if (!allAt(current ? current->info.version : 0, std::chrono::seconds(10))) die(ioError("clients never caught up"));
+
+  std::vector<std::pair<std::uint64_t, Clock::time_point>> sent;  // version, send time
+  std::size_t late = 0;
+  for (int k = 0; k < a.updates; ++k) {
+    const LightUpdate u = moveLight(a, light, step++);
+    const auto t0 = Clock::now();
+    auto r = must(driver.updateLights(scene, u));
+    sent.emplace_back(r.version, t0);
+    if (!allAt(r.version, std::chrono::seconds(5))) ++late;
+    std::this_thread::sleep_for(std::chrono::duration<double, std::milli>(a.gap_ms));
+  }
+  stop = true;
+  for (auto& t : threads) t.join();
+
+  std::vector<double> latency, overhead, not_modified, fetch;
+  std::size_t missing = 0, errors = 0;
+  std::string first_error;
+  for (auto& p : pollers) {
+    for (const auto& [v, t_send] : sent) {
+      auto it = std::find_if(p->arrivals.begin(), p->arrivals.end(), [&](const auto& x) { return x.version >= v; });
+      if (it == p->arrivals.end()) {
+        ++missing;
+        continue;
+      }
+      latency.push_back(ms(it->whole - t_send));
+      // What the service and the wire add to the relight itself (queueing, encoding,
+      // transfer, the poll interval).
+      overhead.push_back(ms(it->whole - t_send) - it->relight_ms);
+    }
+    not_modified.insert(not_modified.end(), p->not_modified_ms.begin(), p->not_modified_ms.end());
+    fetch.insert(fetch.end(), p->fetch_ms.begin(), p->fetch_ms.end());
+    errors += p->errors;
+    if (first_error.empty()) first_error = p->first_error;
+  }
+  nlohmann::ordered_json j;
+  j["clients"] = n_clients;
+  j["updates"] = a.updates;
+  j["latency_ms"] = summary(latency);
+  j["latency_minus_relight_ms"] = summary(overhead);
+  j["missing"] = missing;
+  j["late_updates"] = late;
+  j["poll_not_modified_ms"] = summary(not_modified);
+  j["poll_new_version_ms"] = summary(fetch);
+  j["errors"] = errors;
+  if (!first_error.empty()) j["first_error"] = first_error;
+  return j;
+}
+
+nlohmann::ordered_json throughputScenario(const Args& a, Client& driver, SceneHandle& scene, const std::string& light,
+                                          int& step) {
+  auto before = must(driver.stats(&scene));
+  const auto t0 = Clock::now();
+  std::size_t n = 0;
+  std::uint64_t last_version = 0;
+  while (ms(Clock::now() - t0) < a.burst_s * 1e3) {
+    auto r = must(driver.updateLights(scene, moveLight(a, light, step++)));
+    last_version = r.version;
+    ++n;
+  }
+  const double send_s = ms(Clock::now() - t0) / 1e3;
+  // The relights the burst caused, up to the one that contains the last update.
+  ResultSpec nothing;
+  nothing.lightmap = nothing.grid = false;
+  (void)must(driver.relight(scene, last_version, nothing));
+  const double total_s = ms(Clock::now() - t0) / 1e3;
+  auto after = must(driver.stats(&scene));
+  const auto& b = before.scene(0);
+  const auto& e = after.scene(0);
+  nlohmann::ordered_json j;
+  j["seconds"] = send_s;
+  j["updates_acknowledged"] = n;
+  j["updates_per_s"] = double(n) / send_s;
+  j["relights"] = e.relights() - b.relights();
+  j["relights_per_s"] = double(e.relights() - b.relights()) / total_s;
+  j["coalesced"] = e.coalesced() - b.coalesced();
+  j["mean_relight_ms"] = e.mean_relight_ms();
+  j["last_version"] = last_version;
+  return j;
+}
+
+std::vector<int> parseList(const std::string& s) {
+  std::vector<int> v;
+  std::size_t pos = 0;
+  while (pos <= s.size()) {
+    const std::size_t comma = s.find(',', pos);
+    v.push_back(std::stoi(s.substr(pos, comma == std::string::npos ? std::string::npos : comma - pos)));
+    if (comma == std::string::npos) break;
+    pos = comma + 1;
+  }
+  return v;
+}
+
+Args parseArgs(int argc, char** argv) {
+  Args a;
+  for (int i = 1; i < argc; ++i) {
+    const std::string k = argv[i];
+    auto val = [&]() -> std::string {
+      if (i + 1 >= argc) die(invalidInput("{}: missing value", k));
+      return argv[++i];
+    };
+    try {
+      if (k == "--target") a.target = val();
+      else if (k == "--daemon") a.daemon = val();
+      else if (k == "--cache-dir") a.cache_dir = val();
+      else if (k == "--bounces") a.bounces = std::stoi(val());
+      else if (k == "--scene") a.scene = val();
+      else if (k == "--preset") a.preset = val();
+      else if (k == "--clients") a.clients = parseList(val());
+      else if (k == "--updates") a.updates = std::stoi(val());
+      else if (k == "--poll-ms") a.poll_ms = std::stod(val());
+      else if (k == "--gap-ms") a.gap_ms = std::stod(val());
+      else if (k == "--burst-s") a.burst_s = std::stod(val());
+      else if (k == "--json") a.json = val();
+      else if (k == "--help" || k == "-h") {
+        std::printf(
+            "service_bench [--target host:port | --daemon PATH --cache-dir DIR --bounces N] [--scene F] [--preset P]\n"
+            "              [--clients 1,50] [--updates N] [--poll-ms MS] [--gap-ms MS] [--burst-s S] [--json F]\n");
+        std::exit(0);
+      } else die(invalidInput("unknown argument {}", k));
+    } catch (const std::exception&) {
+      die(invalidInput("{}: not a number", k));
+    }
+  }
+  if (a.updates < 1 || a.poll_ms <= 0.0 || a.gap_ms < 0.0 || a.burst_s <= 0.0)
+    die(invalidInput("--updates >= 1, --poll-ms > 0, --gap-ms >= 0, --burst-s > 0"));
+  for (int c : a.clients)
+    if (c < 1 || c > 1000) die(invalidInput("--clients: {} is out of range (1..1000)", c));
+  return a;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  const Args a = parseArgs(argc, argv);
+  std::unique_ptr<LocalDaemon> daemon;
+  std::string target = a.target;
+  if (target.empty()) {
+    LocalDaemon::Options d;
+    d.binary = a.daemon;
+    d.cache_dir = a.cache_dir;
+    d.extra = {"--no-restore"};
+    if (a.bounces >= 0) d.extra.insert(d.extra.end(), {"--bounces", std::to_string(a.bounces)});
+    daemon = must(LocalDaemon::start(d));
+    target = daemon->target();
+  }
+  ConnectOptions co;
+  co.target = target;
+  co.own_connection = true;
+  co.call_timeout = std::chrono::seconds(60);
+  Client driver = must(Client::connect(co));
+  auto stats0 = must(driver.stats());
+
+  OpenOptions oo;
+  oo.path = std::filesystem::absolute(a.scene).string();  // the daemon may run in another directory
+  oo.preset = a.preset;
+  oo.name = "service_bench";
+  const auto t_open = Clock::now();
+  SceneHandle scene = must(driver.openScene(oo));
+  const double open_s = ms(Clock::now() - t_open) / 1e3;
+  if (scene.info.light_ids_size() == 0) die(invalidInput("{}: the scene has no light to move", a.scene));
+  const std::string light = scene.info.light_ids(0);
+  // Wait for the initial result so the memory figures include it.
+  (void)must(driver.relight(scene, scene.info.version()));
+  auto stats1 = must(driver.stats(&scene));
+  auto health = must(driver.health());
+
+  nlohmann::ordered_json out;
+  out["benchmark"] = "service";
+  out["target"] = a.target.empty() ? "local lightlinkd (started by the benchmark)" : a.target;
+  out["machine_threads"] = std::thread::hardware_concurrency();
+  out["daemon_version"] = health.daemon_version();
+  out["scene"] = a.scene;
+  out["preset"] = a.preset;
+  out["open_seconds"] = open_s;
+  out["artifact_reused"] = scene.info.artifact_reused();
+  out["backend"] = scene.info.backend();
+  out["lightmap"] = {{"width", scene.info.lightmap().width()}, {"height", scene.info.lightmap().height()},
+                     {"bands", scene.info.bands()}};
+  out["daemon_bounces"] = a.bounces >= 0 ? std::to_string(a.bounces) : std::string("daemon default");
+  out["poll_ms"] = a.poll_ms;
+  out["gap_ms"] = a.gap_ms;
+  int step = 0;
+  nlohmann::ordered_json scenarios = nlohmann::ordered_json::array();
+  for (int c : a.clients) {
+    std::fprintf(stderr, "service_bench: %d polling client(s), %d updates\n", c, a.updates);
+    scenarios.push_back(latencyScenario(a, co, driver, scene, light, c, step));
+  }
+  out["latency"] = scenarios;
+  std::fprintf(stderr, "service_bench: update burst for %.1f s\n", a.burst_s);
+  out["throughput"] = throughputScenario(a, driver, scene, light, step);
+  auto stats2 = must(driver.stats(&scene));
+  const auto& sc = stats2.scene(0);
+  out["memory"] = {{"rss_before_open_bytes", stats0.rss_bytes()},
+                   {"rss_after_open_bytes", stats1.rss_bytes()},
+                   {"rss_per_scene_bytes", std::int64_t(stats1.rss_bytes()) - std::int64_t(stats0.rss_bytes())},
+                   {"rss_end_bytes", stats2.rss_bytes()},
+                   {"resident_bytes", sc.resident_bytes()},
+                   {"artifact_bytes", sc.artifact_bytes()}};
+  out["relight"] = {{"relights", sc.relights()}, {"coalesced", sc.coalesced()}, {"mean_relight_ms", sc.mean_relight_ms()},
+                    {"last_relight_ms", sc.last_relight_ms()}};
+  (void)driver.closeScene(scene);
+
+  std::string text = fmt::format("scene        {} ({}x{} texels, {} bands, {} backend, open {:.1f} s{})\n", a.scene,
+                                 scene.info.lightmap().width(), scene.info.lightmap().height(), scene.info.bands(),
+                                 scene.info.backend(), open_s, scene.info.artifact_reused() ? ", artifact reused" : "");
+  for (const auto& s : out["latency"])
+    text += fmt::format("latency      {:>3} client(s): p50 {:6.2f} ms  p99 {:6.2f} ms  max {:6.2f} ms  (minus relight: p50 "
+                        "{:.2f} ms, p99 {:.2f} ms; {} samples, {} missing); not-modified poll p50 {:.3f} ms\n",
+                        s["clients"].get<int>(), s["latency_ms"]["p50"].get<double>(),
+                        s["latency_ms"]["p99"].get<double>(), s["latency_ms"]["max"].get<double>(),
+                        s["latency_minus_relight_ms"]["p50"].get<double>(),
+                        s["latency_minus_relight_ms"]["p99"].get<double>(),
+                        s["latency_ms"]["count"].get<std::size_t>(), s["missing"].get<std::size_t>(),
+                        s["poll_not_modified_ms"]["p50"].get<double>());
+  const auto& tp = out["throughput"];
+  text += fmt::format("throughput   {:.0f} updates/s acknowledged, {:.1f} relights/s ({} coalesced), mean relight {:.2f} ms\n",
+                      tp["updates_per_s"].get<double>(), tp["relights_per_s"].get<double>(),
+                      tp["coalesced"].get<std::uint64_t>(), tp["mean_relight_ms"].get<double>());
+  const auto& m = out["memory"];
+  text += fmt::format("memory       resident {:.1f} MiB (artifact {:.1f} MiB), daemon RSS +{:.1f} MiB for the scene\n",
+                      double(m["resident_bytes"].get<std::uint64_t>()) / 1048576.0,
+                      double(m["artifact_bytes"].get<std::uint64_t>()) / 1048576.0,
+                      double(m["rss_per_scene_bytes"].get<std::int64_t>()) / 1048576.0);
+  std::fwrite(text.data(), 1, text.size(), stdout);
+  if (!a.json.empty()) {
+    std::ofstream f(a.json);
+    f << out.dump(2) << "\n";
+    if (!f) die(ioError("{}: cannot write", a.json));
+  }
+  if (daemon) daemon->stop();
+  return 0;
+}

@@ -1,0 +1,358 @@
+// Client: one gRPC channel, thin wrappers that translate requests in and statuses out.
+#include "clients/client/client.h"
+
+#include <fstream>
+#include <sstream>
+
+#include <grpcpp/grpcpp.h>
+
+#include "proto/lightlink.grpc.pb.h"
+
+namespace lightlink::client {
+namespace {
+
+// The daemon sends messages of at most 4 MiB; leave headroom so a daemon configured with a
+// slightly larger chunk does not break clients. Requests carry at most a 64 MiB glTF.
+constexpr int kMaxReceiveBytes = 8 << 20;
+constexpr int kMaxSendBytes = (64 << 20) + (1 << 20);
+
+Status fromGrpc(const char* rpc, const grpc::Status& s) {
+  if (s.ok()) return {};
+  return Status(codeForGrpc(s.error_code()),
+                fmt::format("{}: {}: {}", rpc, grpcCodeName(s.error_code()), s.error_message()));
+}
+
+v1::ResultSpec toProto(const ResultSpec& spec) {
+  v1::ResultSpec p;
+  p.set_skip_lightmap(!spec.lightmap);
+  p.set_skip_grid(!spec.grid);
+  p.set_bands(spec.bands);
+  p.set_component(spec.component == Component::kIndirect ? v1::COMPONENT_INDIRECT
+                  : spec.component == Component::kDirect ? v1::COMPONENT_DIRECT
+                                                         : v1::COMPONENT_BOTH);
+  p.set_precision(spec.precision == Precision::kFloat ? v1::PRECISION_FLOAT : v1::PRECISION_HALF);
+  return p;
+}
+
+void setRef(v1::SceneRef* ref, const SceneHandle& scene) {
+  ref->set_scene_id(scene.id);
+  ref->set_token(scene.token);
+}
+
+Expected<std::string> readFile(const std::string& path, const char* what) {
+  std::ifstream in(path, std::ios::binary);
+  if (!in) return notFound("{}: cannot open {}", path, what);
+  std::ostringstream ss;
+  ss << in.rdbuf();
+  return ss.str();
+}
+
+// Reads one result (header + chunks) from a stream that carries exactly one.
+template <typename Reader>
+Expected<Textures> readOneResult(const char* rpc, Reader& reader) {
+  ResultAssembler assembler;
+  v1::ResultMessage msg;
+  while (reader->Read(&msg)) {
+    if (Status s = assembler.add(msg); !s) return Status(s.code(), fmt::format("{}: {}", rpc, s.message()));
+  }
+  if (Status s = fromGrpc(rpc, reader->Finish()); !s) return s;
+  auto t = assembler.take();
+  if (!t) return Status(t.status().code(), fmt::format("{}: {}", rpc, t.status().message()));
+  return t;
+}
+
+}  // namespace
+
+const char* grpcCodeName(int code) {
+  static const char* const kNames[] = {"OK",
+                                       "CANCELLED",
+                                       "UNKNOWN",
+                                       "INVALID_ARGUMENT",
+                                       "DEADLINE_EXCEEDED",
+                                       "NOT_FOUND",
+                                       "ALREADY_EXISTS",
+                                       "PERMISSION_DENIED",
+                                       "RESOURCE_EXHAUSTED",
+                                       "FAILED_PRECONDITION",
+                                       "ABORTED",
+                                       "OUT_OF_RANGE",
+                                       "UNIMPLEMENTED",
+                                       "INTERNAL",
+                                       "UNAVAILABLE",
+                                       "DATA_LOSS",
+                                       "UNAUTHENTICATED"};
+  return code >= 0 && code < int(std::size(kNames)) ? kNames[code] : "UNKNOWN";
+}
+
+Code codeForGrpc(int code) {
+  switch (grpc::StatusCode(code)) {
+    case grpc::OK: return Code::kOk;
+    case grpc::INVALID_ARGUMENT:
+    case grpc::OUT_OF_RANGE:
+    case grpc::FAILED_PRECONDITION:
+    case grpc::ALREADY_EXISTS:
+    case grpc::PERMISSION_DENIED:
+    case grpc::UNAUTHENTICATED:
+    case grpc::RESOURCE_EXHAUSTED: return Code::kInvalidInput;
+    case grpc::NOT_FOUND: return Code::kNotFound;
+    case grpc::UNIMPLEMENTED: return Code::kUnsupported;
+    case grpc::UNAVAILABLE:
+    case grpc::DEADLINE_EXCEEDED:
+    case grpc::CANCELLED: return Code::kIoError;
+    default: return Code::kInternal;
+  }
+}
+
+SceneHandle SceneHandle::fromIdToken(std::string id, std::string token) {
+  SceneHandle h;
+  h.id = std::move(id);
+  h.token = std::move(token);
+  h.info.set_scene_id(h.id);
+  return h;
+}
+
+struct Client::Impl {
+  std::shared_ptr<grpc::Channel> channel;
+  std::unique_ptr<v1::Lightlink::Stub> stub;
+  std::string authorization;  // "Bearer <token>" or empty
+  std::chrono::milliseconds call_timeout{0};
+
+  // Every call's context is set up here: the bearer token and, unless `no_deadline`, the
+  // call deadline. One place, so no RPC forgets either.
+  void prepare(grpc::ClientContext& ctx, std::chrono::milliseconds deadline) const {
+    if (!authorization.empty()) ctx.AddMetadata("authorization", authorization);
+    if (deadline.count() > 0) ctx.set_deadline(std::chrono::system_clock::now() + deadline);
+  }
+  void prepare(grpc::ClientContext& ctx) const { prepare(ctx, call_timeout); }
+};
+
+Client::Client(ConnectOptions options, std::unique_ptr<Impl> impl)
+    : options_(std::move(options)), impl_(std::move(impl)) {}
+Client::Client(Client&&) noexcept = default;
+Client& Client::operator=(Client&&) noexcept = default;
+Client::~Client() = default;
+
+Expected<Client> Client::connect(const ConnectOptions& options) {
+  if (options.target.empty()) return invalidInput("target: empty (expected host:port)");
+  std::shared_ptr<grpc::ChannelCredentials> creds;
+  grpc::ChannelArguments args;
+  args.SetMaxReceiveMessageSize(kMaxReceiveBytes);
+  args.SetMaxSendMessageSize(kMaxSendBytes);
+  if (options.own_connection) args.SetInt(GRPC_ARG_USE_LOCAL_SUBCHANNEL_POOL, 1);
+  if (!options.tls_root_cert.empty()) {
+    auto pem = readFile(options.tls_root_cert, "TLS root certificate");
+    if (!pem) return pem.status();
+    grpc::SslCredentialsOptions ssl;
+    ssl.pem_root_certs = *pem;
+    creds = grpc::SslCredentials(ssl);
+    if (!options.tls_server_name.empty()) args.SetSslTargetNameOverride(options.tls_server_name);
+  } else {
+    creds = grpc::InsecureChannelCredentials();
+  }
+  auto impl = std::make_unique<Impl>();
+  impl->channel = grpc::CreateCustomChannel(options.target, creds, args);
+  if (!impl->channel) return invalidInput("target: cannot create a channel to '{}'", options.target);
+  impl->stub = v1::Lightlink::NewStub(impl->channel);
+  if (!options.bearer_token.empty()) impl->authorization = "Bearer " + options.bearer_token;
+  impl->call_timeout = options.call_timeout;
+  if (options.connect_timeout.count() > 0 &&
+      !impl->channel->WaitForConnected(std::chrono::system_clock::now() + options.connect_timeout))
+    return ioError("target: no lightlink daemon answered at '{}' within {} ms", options.target,
+                   options.connect_timeout.count());
+  return Client(options, std::move(impl));
+}
+
+Expected<SceneHandle> Client::openScene(const OpenOptions& o, const ProgressCallback& progress) {
+  if (o.path.empty() == o.gltf_bytes.empty()) return invalidInput("open: give exactly one of path and gltf_bytes");
+  v1::OpenSceneRequest req;
+  if (!o.path.empty()) req.set_path(o.path);
+  else req.set_gltf_bytes(o.gltf_bytes);
+  req.set_preset(o.preset);
+  req.set_surfels(o.surfels);
+  req.set_links(o.links);
+  req.set_bands(o.bands);
+  req.set_rays(o.rays);
+  req.set_grid_spacing(o.grid_spacing_m);
+  req.set_texel_size(o.texel_size_m);
+  req.set_hierarchy(o.hierarchy);
+  req.set_backend(o.backend);
+  req.set_lightset_json(o.lightset_json);
+  req.set_name(o.name);
+  grpc::ClientContext ctx;
+  impl_->prepare(ctx, o.timeout);
+  auto reader = impl_->stub->OpenScene(&ctx, req);
+  v1::OpenSceneProgress msg;
+  std::optional<v1::SceneOpened> opened;
+  while (reader->Read(&msg)) {
+    if (progress) progress(msg);
+    if (msg.has_opened()) opened = msg.opened();
+  }
+  if (Status s = fromGrpc("OpenScene", reader->Finish()); !s) return s;
+  if (!opened) return internalError("OpenScene: the stream ended without an `opened` message");
+  SceneHandle h;
+  h.id = opened->scene_id();
+  h.token = opened->scene_token();
+  h.light_ids.insert(opened->light_ids().begin(), opened->light_ids().end());
+  h.ids_known = true;
+  h.info = std::move(*opened);
+  return h;
+}
+
+Expected<UpdateResult> Client::updateLights(SceneHandle& scene, const LightUpdate& update, std::uint32_t wait_ms) {
+  v1::UpdateLightsRequest req = update.proto();
+  setRef(req.mutable_scene(), scene);
+  req.set_wait_ms(wait_ms);
+  grpc::ClientContext ctx;
+  // A waiting call must outlive its wait.
+  impl_->prepare(ctx, impl_->call_timeout.count() > 0 ? impl_->call_timeout + std::chrono::milliseconds(wait_ms)
+                                                      : impl_->call_timeout);
+  v1::UpdateLightsResponse resp;
+  if (Status s = fromGrpc("UpdateLights", impl_->stub->UpdateLights(&ctx, req, &resp)); !s) return s;
+  if (scene.ids_known) update.applyToIds(scene.light_ids);
+  return UpdateResult{resp.version(), resp.relit()};
+}
+
+Expected<UpdateResult> Client::updateLightsFromJson(SceneHandle& scene, const std::string& json_text,
+                                                    std::uint32_t wait_ms) {
+  auto update = LightUpdate::fromLightSetText(json_text, scene.ids_known ? &scene.light_ids : nullptr);
+  if (!update) return update.status();
+  return updateLights(scene, *update, wait_ms);
+}
+
+Expected<Textures> Client::relight(const SceneHandle& scene, std::uint64_t version, const ResultSpec& spec) {
+  v1::RelightRequest req;
+  setRef(req.mutable_scene(), scene);
+  req.set_version(version);
+  *req.mutable_spec() = toProto(spec);
+  grpc::ClientContext ctx;
+  impl_->prepare(ctx);
+  auto reader = impl_->stub->Relight(&ctx, req);
+  return readOneResult("Relight", reader);
+}
+
+Expected<std::optional<Textures>> Client::getTextures(const SceneHandle& scene, std::uint64_t last_seen_version,
+                                                      const ResultSpec& spec) {
+  v1::GetTexturesRequest req;
+  setRef(req.mutable_scene(), scene);
+  req.set_last_seen_version(last_seen_version);
+  *req.mutable_spec() = toProto(spec);
+  grpc::ClientContext ctx;
+  impl_->prepare(ctx);
+  auto reader = impl_->stub->GetTextures(&ctx, req);
+  auto t = readOneResult("GetTextures", reader);
+  if (!t) return t.status();
+  if (t->info.not_modified) return std::optional<Textures>{};
+  return std::optional<Textures>(std::move(t).value());
+}
+
+struct Subscription::Stream {
+  grpc::ClientContext ctx;
+  std::unique_ptr<grpc::ClientReader<v1::ResultMessage>> reader;
+  ResultAssembler assembler;
+  std::atomic<bool> cancelled{false};
+};
+
+Subscription::~Subscription() {
+  if (stream_ && !done_) {
+    // Finish() on a live stream would block until the daemon ends it: cancel first.
+    stream_->ctx.TryCancel();
+    v1::ResultMessage msg;
+    while (stream_->reader->Read(&msg)) {
+    }
+    (void)stream_->reader->Finish();
+  }
+}
+
+void Subscription::cancel() {
+  if (!stream_) return;
+  stream_->cancelled = true;
+  stream_->ctx.TryCancel();
+}
+
+Expected<const Textures*> Subscription::next() {
+  if (done_) return static_cast<const Textures*>(nullptr);
+  v1::ResultMessage msg;
+  Stream& s = *stream_;
+  while (s.reader->Read(&msg)) {
+    if (Status st = s.assembler.add(msg); !st) return Status(st.code(), "Subscribe: " + st.message());
+    if (!s.assembler.complete()) continue;
+    auto t = s.assembler.take(have_current_ ? &current_ : nullptr);
+    if (!t) return Status(t.status().code(), "Subscribe: " + t.status().message());
+    current_ = std::move(t).value();
+    have_current_ = true;
+    return static_cast<const Textures*>(&current_);
+  }
+  done_ = true;
+  const grpc::Status fin = s.reader->Finish();
+  if (s.cancelled && fin.error_code() == grpc::CANCELLED) return static_cast<const Textures*>(nullptr);
+  if (Status st = fromGrpc("Subscribe", fin); !st) return st;
+  if (s.assembler.started() && !s.assembler.complete())
+    return invalidInput("Subscribe: the stream ended inside the result of version {}", s.assembler.info().version);
+  return static_cast<const Textures*>(nullptr);
+}
+
+Expected<std::unique_ptr<Subscription>> Client::subscribe(const SceneHandle& scene, const ResultSpec& spec,
+                                                          bool deltas, std::uint64_t after_version) {
+  v1::SubscribeRequest req;
+  setRef(req.mutable_scene(), scene);
+  *req.mutable_spec() = toProto(spec);
+  req.set_deltas(deltas);
+  req.set_after_version(after_version);
+  std::unique_ptr<Subscription> sub(new Subscription());
+  sub->stream_ = std::make_unique<Subscription::Stream>();
+  impl_->prepare(sub->stream_->ctx, std::chrono::milliseconds(0));
+  sub->stream_->reader = impl_->stub->Subscribe(&sub->stream_->ctx, req);
+  return sub;
+}
+
+Status Client::subscribe(const SceneHandle& scene, const TexturesCallback& callback, const ResultSpec& spec,
+                         bool deltas, std::uint64_t after_version) {
+  auto sub = subscribe(scene, spec, deltas, after_version);
+  if (!sub) return sub.status();
+  for (;;) {
+    auto t = (*sub)->next();
+    if (!t) return t.status();
+    if (*t == nullptr) return {};
+    if (!callback(**t)) {
+      (*sub)->cancel();
+      return {};
+    }
+  }
+}
+
+Expected<std::vector<v1::SceneSummary>> Client::listScenes() {
+  grpc::ClientContext ctx;
+  impl_->prepare(ctx);
+  v1::ListScenesResponse resp;
+  if (Status s = fromGrpc("ListScenes", impl_->stub->ListScenes(&ctx, v1::ListScenesRequest{}, &resp)); !s) return s;
+  return std::vector<v1::SceneSummary>(resp.scenes().begin(), resp.scenes().end());
+}
+
+Status Client::closeScene(const SceneHandle& scene) {
+  v1::CloseSceneRequest req;
+  setRef(req.mutable_scene(), scene);
+  grpc::ClientContext ctx;
+  impl_->prepare(ctx);
+  v1::CloseSceneResponse resp;
+  return fromGrpc("CloseScene", impl_->stub->CloseScene(&ctx, req, &resp));
+}
+
+Expected<v1::HealthResponse> Client::health() {
+  grpc::ClientContext ctx;
+  impl_->prepare(ctx);
+  v1::HealthResponse resp;
+  if (Status s = fromGrpc("Health", impl_->stub->Health(&ctx, v1::HealthRequest{}, &resp)); !s) return s;
+  return resp;
+}
+
+Expected<v1::StatsResponse> Client::stats(const SceneHandle* scene) {
+  v1::StatsRequest req;
+  if (scene) setRef(req.mutable_scene(), *scene);
+  grpc::ClientContext ctx;
+  impl_->prepare(ctx);
+  v1::StatsResponse resp;
+  if (Status s = fromGrpc("Stats", impl_->stub->Stats(&ctx, req, &resp)); !s) return s;
+  return resp;
+}
+
+}  // namespace lightlink::client
