@@ -1,9 +1,11 @@
 #include "core/scene/load.h"
 
 #include <algorithm>
+#include <cstdint>
 #include <cctype>
 #include <filesystem>
 #include <fstream>
+#include <iterator>
 #include <limits>
 #include <map>
 #include <optional>
@@ -49,6 +51,55 @@ Expected<bool> isBinaryGltf(const std::string& path) {
   }
   return unsupported("{}: is not a glTF file (expected .gltf JSON or .glb binary; convert "
                      "other formats to glTF 2.0 first)", path);
+}
+
+// tinygltf converts extras and extensions recursively, and so does the failure diagnosis:
+// JSON nested tens of thousands deep (a few hundred KB of '[') overflows the stack before
+// either can report anything (found by tests/fuzz; regression deep_extras.gltf). No glTF
+// needs more than a few dozen levels, so deeper nesting is refused before parsing.
+constexpr int kMaxJsonDepth = 256;
+
+// The JSON text of the file: all of a .gltf, the first (JSON) chunk of a .glb as far as the
+// file holds it. Empty when there is nothing to scan; tinygltf then names the problem.
+std::string jsonText(const std::string& path, bool binary) {
+  std::ifstream in(path, std::ios::binary);
+  if (!binary) return {std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
+  // GLB: magic, version, length (12 bytes), then chunk 0: length, type "JSON", data.
+  unsigned char head[20] = {};
+  if (!in.read(reinterpret_cast<char*>(head), sizeof(head))) return {};
+  const std::uint32_t json_bytes = std::uint32_t(head[12]) | std::uint32_t(head[13]) << 8 |
+                                   std::uint32_t(head[14]) << 16 | std::uint32_t(head[15]) << 24;
+  std::error_code ec;
+  const std::uintmax_t size = std::filesystem::file_size(path, ec);
+  if (ec || size < sizeof(head)) return {};
+  std::string text(static_cast<std::size_t>(std::min<std::uintmax_t>(json_bytes, size - sizeof(head))), '\0');
+  in.read(text.data(), static_cast<std::streamsize>(text.size()));
+  text.resize(static_cast<std::size_t>(in.gcount()));
+  return text;
+}
+
+Status checkJsonNesting(const std::string& path, bool binary) {
+  const std::string text = jsonText(path, binary);
+  int depth = 0;
+  bool in_string = false, escaped = false;
+  for (std::size_t i = 0; i < text.size(); ++i) {
+    const char c = text[i];
+    if (in_string) {
+      if (escaped) escaped = false;
+      else if (c == '\\') escaped = true;
+      else if (c == '"') in_string = false;
+    } else if (c == '"') {
+      in_string = true;
+    } else if (c == '[' || c == '{') {
+      if (++depth > kMaxJsonDepth) {
+        return invalidInput("{}: JSON nested deeper than {} levels (at byte {}); glTF never needs that "
+                            "much, and parsing it would exhaust the stack", path, kMaxJsonDepth, i);
+      }
+    } else if (c == ']' || c == '}') {
+      depth = std::max(0, depth - 1);
+    }
+  }
+  return Status::ok();
 }
 
 void addTinygltfWarnings(const std::string& path, const std::string& warn, Scene& scene) {
@@ -148,6 +199,8 @@ Expected<Scene> loadGltf(const std::string& path, const LoadOptions& options) {
   }
   Expected<bool> binary = isBinaryGltf(path);
   if (!binary) return binary.status();
+
+  if (Status s = checkJsonNesting(path, *binary); !s) return s;
 
   Scene scene;
   scene.source_path = path;
