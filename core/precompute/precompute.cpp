@@ -1,8 +1,14 @@
 #include "core/precompute/precompute.h"
 
+#include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <cctype>
+#include <cstdint>
+#include <cstring>
+#include <filesystem>
 #include <fstream>
+#include <limits>
 #include <sstream>
 
 #include <fmt/format.h>
@@ -116,11 +122,14 @@ Status PrecomputeOptions::validate() const {
 }
 
 Expected<PrecomputeOptions> preset(std::string_view name) {
+  // Derived from the accuracy study's Pareto front (docs/quality.md has the rule and the
+  // measured error and cost of each). Fewer surfels with more links beat the reverse at equal
+  // relight time; 4 bands add nothing to irradiance (the clamped cosine's band-3 factor is 0).
   PrecomputeOptions o;
   if (name == "draft") {
-    o.surfels = 8192;
+    o.surfels = 4096;
     o.links = 64;
-    o.rays = 256;
+    o.rays = 512;
     o.target_resolution = 64;
   } else if (name == "medium") {
     o.surfels = 32768;
@@ -128,11 +137,11 @@ Expected<PrecomputeOptions> preset(std::string_view name) {
     o.rays = 1024;
     o.target_resolution = 128;
   } else if (name == "high") {
-    o.surfels = 131072;
-    o.links = 254;
-    o.bands = 4;
-    o.rays = 4096;
-    o.target_resolution = 256;
+    o.surfels = 16384;
+    o.links = 256;
+    o.bands = 3;
+    o.rays = 2048;
+    o.target_resolution = 128;
   } else {
     return invalidInput("--preset '{}' must be draft, medium or high", name);
   }
@@ -344,6 +353,310 @@ Status save(const Precomputation& p, const std::string& path, std::uint64_t cach
   return w.write(path);
 }
 
+namespace {
+
+// The metadata section, read without exceptions: every field is checked for presence, type
+// and range before use, so a damaged 'meta' is a Status naming the field, never an uncaught
+// nlohmann::json::type_error or an out-of-range float-to-int conversion.
+class MetaReader {
+ public:
+  MetaReader(const nlohmann::json& meta, const std::string& path) : meta_(meta), path_(path) {}
+
+  int integer(const char* group, const char* key, int index, long long lo, long long hi) {
+    const nlohmann::json* v = field(group, key, index);
+    if (v != nullptr && v->is_number_integer()) {
+      // is_number_integer covers signed and unsigned storage; compare without converting
+      // a huge unsigned value to a negative one.
+      const bool fits = v->is_number_unsigned() ? v->get<std::uint64_t>() <= static_cast<std::uint64_t>(hi)
+                                                : v->get<long long>() >= lo && v->get<long long>() <= hi;
+      if (fits && v->get<long long>() >= lo) return static_cast<int>(v->get<long long>());
+    }
+    fail(group, key, index, v, fmt::format("an integer in [{}, {}]", lo, hi));
+    return static_cast<int>(lo);
+  }
+  float number(const char* group, const char* key, int index) {
+    const nlohmann::json* v = field(group, key, index);
+    if (v != nullptr && v->is_number()) {
+      const double d = v->get<double>();
+      if (std::isfinite(d) && std::abs(d) <= double(std::numeric_limits<float>::max())) return static_cast<float>(d);
+    }
+    fail(group, key, index, v, "a finite number");
+    return 0.0f;
+  }
+  bool boolean(const char* group, const char* key) {
+    const nlohmann::json* v = field(group, key, -1);
+    if (v != nullptr && v->is_boolean()) return v->get<bool>();
+    fail(group, key, -1, v, "true or false");
+    return false;
+  }
+  const Status& status() const { return status_; }
+
+ private:
+  const nlohmann::json* field(const char* group, const char* key, int index) const {
+    const nlohmann::json* j = &meta_;
+    if (group != nullptr) {
+      const auto g = j->find(group);  // end() for a non-object
+      if (g == j->end()) return nullptr;
+      j = &*g;
+    }
+    const auto k = j->find(key);
+    if (k == j->end()) return nullptr;
+    j = &*k;
+    if (index >= 0) {
+      if (!j->is_array() || static_cast<std::size_t>(index) >= j->size()) return nullptr;
+      j = &(*j)[static_cast<std::size_t>(index)];
+    }
+    return j;
+  }
+  void fail(const char* group, const char* key, int index, const nlohmann::json* v, std::string_view expected) {
+    if (!status_) return;  // keep the first problem
+    std::string name = group ? fmt::format("{}.{}", group, key) : std::string(key);
+    if (index >= 0) name += fmt::format("[{}]", index);
+    std::string got = v ? v->dump() : std::string("missing");
+    if (got.size() > 40) got = got.substr(0, 37) + "...";
+    status_ = invalidInput("artifact {}: meta field '{}' must be {} (is {})", path_, name, expected, got);
+  }
+
+  const nlohmann::json& meta_;
+  const std::string& path_;
+  Status status_;
+};
+
+// Largest |coordinate| in texels or grid cells accepted from an artifact (2^24, far below
+// the 2^31 where a float-to-int conversion overflows).
+constexpr double kMaxCellCoordinate = 16777216.0;
+
+bool finite(float v) { return std::isfinite(v); }
+bool finite(glm::vec2 v) { return std::isfinite(v.x) && std::isfinite(v.y); }
+bool finite(glm::vec3 v) { return std::isfinite(v.x) && std::isfinite(v.y) && std::isfinite(v.z); }
+bool finiteHalf(half_bits h) { return (h & 0x7c00u) != 0x7c00u; }  // exponent all ones: Inf or NaN
+
+// Checks of an opened artifact, each naming the section and the element at fault. The relight
+// (and the GPU backend) index arrays with stored indices in hot loops without checks, so every
+// stored index is checked here once against the size of what it indexes, every array's size
+// against the counts it must agree with, and every float for NaN/Inf. A corrupt artifact whose
+// checksums were recomputed (or a buggy writer) is then rejected at open instead of read out of
+// bounds later. Scene-dependent indices (surfel -> mesh) are checked by Relighter::create.
+class StructureCheck {
+ public:
+  explicit StructureCheck(const std::string& path) : path_(path) {}
+  const Status& status() const { return status_; }
+  bool ok() const { return status_.isOk(); }
+
+  template <typename... Args>
+  void fail(fmt::format_string<Args...> f, Args&&... args) {
+    if (status_) status_ = invalidInput("artifact {}: {}", path_, fmt::format(f, std::forward<Args>(args)...));
+  }
+  void size(std::string_view name, std::size_t actual, std::size_t expected) {
+    if (ok() && actual != expected) fail("section '{}' has {} elements, expected {}", name, actual, expected);
+  }
+  template <typename T>
+  void below(std::string_view name, std::span<const T> v, std::size_t bound) {
+    for (std::size_t i = 0; ok() && i < v.size(); ++i)
+      if (static_cast<std::size_t>(v[i]) >= bound) fail("section '{}' element {} = {} is not below {}", name, i, v[i], bound);
+  }
+  template <typename T>
+  void allFinite(std::string_view name, std::span<const T> v) {
+    for (std::size_t i = 0; ok() && i < v.size(); ++i)
+      if (!finite(v[i])) fail("section '{}' element {} is not finite", name, i);
+  }
+  void allFiniteHalf(std::string_view name, std::span<const half_bits> v) {
+    for (std::size_t i = 0; ok() && i < v.size(); ++i)
+      if (!finiteHalf(v[i])) fail("section '{}' element {} is not a finite half float (bits {:#06x})", name, i, v[i]);
+  }
+  // CSR offsets: count + 1 entries from 0, non-decreasing, ending at `total`.
+  void offsets(std::string_view name, std::span<const std::uint32_t> v, std::size_t count, std::size_t total) {
+    size(name, v.size(), count + 1);
+    if (!ok()) return;
+    if (v.front() != 0) return fail("section '{}' starts at {}, expected 0", name, v.front());
+    for (std::size_t i = 0; ok() && i + 1 < v.size(); ++i)
+      if (v[i + 1] < v[i]) fail("section '{}' decreases at element {} ({} after {})", name, i + 1, v[i + 1], v[i]);
+    if (ok() && v.back() != total) fail("section '{}' ends at {}, expected {}", name, v.back(), total);
+  }
+  // A fill plan over `n` caches (or texels): targets and sources below n, CSR offsets.
+  void fillPlan(const char* prefix, const caches::FillPlan& plan, std::size_t n) {
+    if (plan.source_begin.empty() && plan.target.empty() && plan.source.empty()) return;  // no plan
+    below<std::uint32_t>(fmt::format("{}.target", prefix), plan.target, n);
+    offsets(fmt::format("{}.begin", prefix), plan.source_begin, plan.target.size(), plan.source.size());
+    below<std::uint32_t>(fmt::format("{}.source", prefix), plan.source, n);
+  }
+  void links(const char* prefix, const links::LinksView& l, std::size_t caches, std::size_t nodes) {
+    const std::size_t nc = static_cast<std::size_t>(l.bands) * static_cast<std::size_t>(l.bands);
+    if (caches == 0 && l.offsets.empty()) {  // no caches of this kind: no links either
+      for (std::size_t n : {l.node.size(), l.coeffs.size(), l.direction.size(), l.solid_angle.size(), l.sky.size()})
+        if (ok() && n != 0) fail("'{}.*' sections hold links for caches the artifact does not have", prefix);
+      return;
+    }
+    const std::size_t count = l.node.size();
+    offsets(fmt::format("{}.offsets", prefix), l.offsets, caches, count);
+    below<std::uint32_t>(fmt::format("{}.node", prefix), l.node, nodes);
+    size(fmt::format("{}.coeffs", prefix), l.coeffs.size(), count * nc);
+    size(fmt::format("{}.direction", prefix), l.direction.size(), count);
+    size(fmt::format("{}.solid_angle", prefix), l.solid_angle.size(), count);
+    size(fmt::format("{}.sky", prefix), l.sky.size(), caches * nc);
+    allFiniteHalf(fmt::format("{}.coeffs", prefix), l.coeffs);
+    allFiniteHalf(fmt::format("{}.solid_angle", prefix), l.solid_angle);
+    allFinite<float>(fmt::format("{}.sky", prefix), l.sky);
+  }
+
+ private:
+  const std::string& path_;
+  Status status_;
+};
+
+Status checkSurfelsAndTree(const Precomputation& p, StructureCheck& c) {
+  const surfels::Surfels& s = p.surfels;
+  const std::size_t ns = s.size();
+  if (ns == 0) c.fail("has no surfels");
+  c.size("surfel.normal", s.normal.size(), ns);
+  c.size("surfel.area", s.area.size(), ns);
+  c.size("surfel.albedo", s.albedo.size(), ns);
+  c.size("surfel.emission", s.emission.size(), ns);
+  c.size("surfel.lightmap_uv", s.lightmap_uv.size(), ns);
+  c.size("surfel.mesh", s.mesh.size(), ns);
+  c.size("surfel.triangle", s.triangle.size(), ns);
+  c.size("surfel.barycentric", s.barycentric.size(), ns);
+  c.allFinite<glm::vec3>("surfel.position", s.position);
+  c.allFinite<glm::vec3>("surfel.normal", s.normal);
+  c.allFinite<float>("surfel.area", s.area);
+  c.allFinite<glm::vec3>("surfel.albedo", s.albedo);
+  c.allFinite<glm::vec3>("surfel.emission", s.emission);
+  c.allFinite<glm::vec2>("surfel.lightmap_uv", s.lightmap_uv);
+  c.allFinite<glm::vec2>("surfel.barycentric", s.barycentric);
+  if (!c.ok()) return c.status();
+
+  const hierarchy::Tree& t = p.tree;
+  const std::size_t nodes = 2 * ns - 1;
+  c.size("tree.left", t.left.size(), nodes);
+  c.size("tree.right", t.right.size(), nodes);
+  c.size("tree.parent", t.parent.size(), nodes);
+  c.size("tree.begin", t.begin.size(), nodes);
+  c.size("tree.end", t.end.size(), nodes);
+  c.size("tree.depth", t.depth.size(), nodes);
+  c.size("tree.area", t.area.size(), nodes);
+  c.size("tree.bounds_min", t.bounds_min.size(), nodes);
+  c.size("tree.bounds_max", t.bounds_max.size(), nodes);
+  c.size("tree.centroid", t.centroid.size(), nodes);
+  c.size("tree.mean_normal", t.mean_normal.size(), nodes);
+  c.size("tree.leaf_of_surfel", t.leaf_of_surfel.size(), ns);
+  c.size("tree.original_index", t.original_index.size(), ns);
+  c.allFinite<float>("tree.area", t.area);
+  c.allFinite<glm::vec3>("tree.bounds_min", t.bounds_min);
+  c.allFinite<glm::vec3>("tree.bounds_max", t.bounds_max);
+  c.allFinite<glm::vec3>("tree.centroid", t.centroid);
+  c.allFinite<glm::vec3>("tree.mean_normal", t.mean_normal);
+  c.below<std::uint32_t>("tree.original_index", t.original_index, ns);
+  if (!c.ok()) return c.status();
+  if (t.level_begin.size() < 2) {
+    c.fail("section 'tree.level_begin' has {} elements, needs at least 2", t.level_begin.size());
+    return c.status();
+  }
+
+  // A binary tree in breadth-first order: children after their parent and pointing back to
+  // it, each node covering the contiguous surfel range of its children, leaves one surfel.
+  // With 2n - 1 nodes and n leaves this makes every non-root node the child of exactly one
+  // node, so bottom-up loops (reverse node order) and top-down ones visit each once.
+  if (t.parent[0] != -1) c.fail("section 'tree.parent' gives the root parent {}, expected -1", t.parent[0]);
+  if (t.depth[0] != 0) c.fail("section 'tree.depth' gives the root depth {}, expected 0", t.depth[0]);
+  std::size_t leaves = 0;
+  for (std::size_t n = 0; c.ok() && n < nodes; ++n) {
+    const std::int64_t l = t.left[n], r = t.right[n];
+    if (n > 0 && !(t.parent[n] >= 0 && static_cast<std::size_t>(t.parent[n]) < n))
+      c.fail("section 'tree.parent' element {} = {} is not an earlier node", n, t.parent[n]);
+    else if (t.begin[n] > t.end[n] || t.end[n] > ns)
+      c.fail("tree node {} covers surfels [{}, {}) of {}", n, t.begin[n], t.end[n], ns);
+    else if (t.depth[n] + std::size_t(1) >= t.level_begin.size() || n < t.level_begin[t.depth[n]] ||
+             n >= t.level_begin[t.depth[n] + 1])
+      c.fail("tree node {} (depth {}) lies outside its level in 'tree.level_begin'", n, t.depth[n]);
+    else if (l < 0 || r < 0) {
+      if (l != -1 || r != -1) c.fail("tree node {} has children {} and {}: both or neither must be -1", n, l, r);
+      else if (t.end[n] != t.begin[n] + 1) c.fail("tree leaf {} covers {} surfels, expected 1", n, t.end[n] - t.begin[n]);
+      ++leaves;
+    } else if (l <= std::int64_t(n) || r <= std::int64_t(n) || l == r || std::size_t(l) >= nodes ||
+               std::size_t(r) >= nodes) {
+      c.fail("tree node {} has children {} and {} (must be distinct later nodes below {})", n, l, r, nodes);
+    } else if (t.parent[l] != std::int64_t(n) || t.parent[r] != std::int64_t(n) ||
+               t.depth[l] != t.depth[n] + 1 || t.depth[r] != t.depth[n] + 1) {
+      c.fail("tree node {}: its children {} and {} do not name it as parent one level down", n, l, r);
+    } else if (t.begin[l] != t.begin[n] || t.end[l] != t.begin[r] || t.end[r] != t.end[n]) {
+      c.fail("tree node {}: its children's surfel ranges do not split its own", n);
+    }
+  }
+  if (!c.ok()) return c.status();
+  if (leaves != ns) c.fail("the tree has {} leaves for {} surfels", leaves, ns);
+  const auto& lb = t.level_begin;
+  if (lb.front() != 0 || lb.back() != nodes || !std::is_sorted(lb.begin(), lb.end()))
+    c.fail("section 'tree.level_begin' does not split [0, {}) into levels", nodes);
+  for (std::size_t s = 0; c.ok() && s < ns; ++s) {
+    const std::uint32_t leaf = t.leaf_of_surfel[s];
+    if (leaf >= nodes || t.left[leaf] >= 0 || t.begin[leaf] != s)
+      c.fail("section 'tree.leaf_of_surfel' element {} = {} is not the leaf of surfel {}", s, leaf, s);
+  }
+  return c.status();
+}
+
+Status checkCachesAndLinks(const LoadedPrecomputation& l, StructureCheck& c) {
+  const Precomputation& p = l.p;
+  const caches::LightmapCaches& lm = p.lightmap;
+  const std::size_t texels = static_cast<std::size_t>(lm.width) * static_cast<std::size_t>(lm.height);
+  const std::size_t nc = lm.size();
+  c.size("lm.cache_of_texel", lm.cache_of_texel.size(), texels);
+  c.size("lm.normal", lm.normal.size(), nc);
+  c.size("lm.texel", lm.texel.size(), nc);
+  c.size("lm.mesh", lm.mesh.size(), nc);
+  c.size("lm.triangle", lm.triangle.size(), nc);
+  c.size("lm.valid", lm.valid.size(), nc);
+  c.size("lm.pushed", lm.pushed.size(), nc);
+  c.allFinite<glm::vec3>("lm.position", lm.position);
+  c.allFinite<glm::vec3>("lm.normal", lm.normal);
+  c.below<std::uint32_t>("lm.texel", lm.texel, texels);
+  for (std::size_t t = 0; c.ok() && t < texels; ++t) {
+    const std::int32_t cache = lm.cache_of_texel[t];
+    if (cache < -1 || (cache >= 0 && static_cast<std::size_t>(cache) >= nc))
+      c.fail("section 'lm.cache_of_texel' element {} = {} is not -1 or a cache below {}", t, cache, nc);
+  }
+  for (std::size_t i = 0; c.ok() && i < nc; ++i)
+    if (lm.cache_of_texel[lm.texel[i]] != std::int32_t(i))
+      c.fail("sections 'lm.texel' and 'lm.cache_of_texel' disagree about cache {}", i);
+
+  const caches::GridCaches& g = p.grid;
+  const std::size_t ng = g.size();
+  c.size("grid.valid", g.valid.size(), ng);
+  c.allFinite<glm::vec3>("grid.position", g.position);
+  if (c.ok() && !p.has_grid && ng != 0) c.fail("has {} grid caches but its metadata says it has no grid", ng);
+  if (c.ok() && static_cast<std::size_t>(g.dims.x) * std::size_t(g.dims.y) * std::size_t(g.dims.z) != ng)
+    c.fail("grid dims {}x{}x{} do not match its {} grid caches", g.dims.x, g.dims.y, g.dims.z, ng);
+
+  if (c.ok() && p.has_grid && !(g.spacing_m > 0.0f))
+    c.fail("grid spacing {} m is not positive", g.spacing_m);
+
+  // The relight turns surfel coordinates into integer texel and grid-cell indices (bilinear
+  // lightmap gather, trilinear grid gather). No real surfel lies millions of texels or cells
+  // away from the atlas or the grid; one that does would overflow the int conversion.
+  const double res = std::max(lm.width, lm.height);
+  for (std::size_t i = 0; c.ok() && i < p.surfels.size(); ++i) {
+    const glm::vec2 uv = p.surfels.lightmap_uv[i];
+    if (std::abs(uv.x) * res > kMaxCellCoordinate || std::abs(uv.y) * res > kMaxCellCoordinate)
+      c.fail("section 'surfel.lightmap_uv' element {} = ({}, {}) lies millions of texels outside the atlas", i,
+             uv.x, uv.y);
+    if (p.has_grid) {
+      const glm::dvec3 cell = (glm::dvec3(p.surfels.position[i]) - glm::dvec3(g.origin)) / double(g.spacing_m);
+      if (glm::any(glm::greaterThan(glm::abs(cell), glm::dvec3(kMaxCellCoordinate))))
+        c.fail("section 'surfel.position' element {} lies millions of grid cells outside the grid", i);
+    }
+  }
+
+  c.fillPlan("lmfill", p.lightmap_fill, nc);
+  c.fillPlan("gridfill", p.grid_fill, ng);
+  c.fillPlan("dilate", p.dilation, texels);
+  const std::size_t nodes = p.tree.nodeCount();
+  c.links("lmlink", l.lightmap_links, nc, nodes);
+  c.links("gridlink", l.grid_links, ng, nodes);
+  return c.status();
+}
+
+}  // namespace
+
 Expected<LoadedPrecomputation> open(const std::string& path) {
   auto file = artifact::Artifact::open(path);
   if (!file) return file.status();
@@ -351,8 +664,8 @@ Expected<LoadedPrecomputation> open(const std::string& path) {
   auto meta_text = out.file.string("meta");
   if (!meta_text) return meta_text.status();
   out.meta = nlohmann::json::parse(*meta_text, nullptr, /*allow_exceptions=*/false);
-  if (out.meta.is_discarded() || !out.meta.contains("bands") || !out.meta.contains("lightmap"))
-    return invalidInput("artifact {}: the 'meta' section is not valid lightlink metadata", path);
+  if (out.meta.is_discarded() || !out.meta.is_object())
+    return invalidInput("artifact {}: the 'meta' section is not valid lightlink metadata (not a JSON object)", path);
   Status status;
   auto copy = [&](const std::string& name, auto& vec) {
     using T = typename std::decay_t<decltype(vec)>::value_type;
@@ -366,8 +679,26 @@ Expected<LoadedPrecomputation> open(const std::string& path) {
   };
   visitSmallArrays(out.p, copy);
   if (!status) return status;
+
+  MetaReader meta(out.meta, path);
+  const int bands = meta.integer(nullptr, "bands", -1, 1, 4);
+  out.p.has_grid = meta.boolean(nullptr, "has_grid");
+  out.p.lightmap.width = meta.integer("lightmap", "width", -1, 1, charts::kMaxAtlasResolution);
+  out.p.lightmap.height = meta.integer("lightmap", "height", -1, 1, charts::kMaxAtlasResolution);
+  out.p.atlas.resolution = out.p.lightmap.width;
+  out.p.atlas.texel_size_m = meta.number("lightmap", "texel_size_m", -1);
+  out.p.atlas.gutter_texels = meta.integer("lightmap", "gutter_texels", -1, 0, charts::kMaxAtlasResolution);
+  out.p.atlas.generated = meta.boolean("lightmap", "generated_uv");
+  out.p.options.bands = bands;
+  for (int i = 0; i < 3; ++i) {
+    out.p.grid.origin[i] = meta.number("grid", "origin", i);
+    out.p.grid.dims[i] = meta.integer("grid", "dims", i, 0, 1 << 16);
+  }
+  out.p.grid.spacing_m = meta.number("grid", "spacing_m", -1);
+  if (!meta.status()) return meta.status();
+
   auto view = [&](const char* prefix, links::LinksView& spans) {
-    spans.bands = out.meta["bands"].get<int>();
+    spans.bands = bands;
     auto bind = [&](const std::string& name, auto& span) {
       using T = typename std::decay_t<decltype(span)>::element_type;
       if (!status) return;
@@ -380,35 +711,81 @@ Expected<LoadedPrecomputation> open(const std::string& path) {
   view("lmlink", out.lightmap_links);
   view("gridlink", out.grid_links);
   if (!status) return status;
-  const auto& lm = out.meta["lightmap"];
-  out.p.lightmap.width = lm["width"].get<int>();
-  out.p.lightmap.height = lm["height"].get<int>();
-  out.p.atlas.resolution = out.p.lightmap.width;
-  out.p.atlas.texel_size_m = lm["texel_size_m"].get<float>();
-  out.p.atlas.gutter_texels = lm["gutter_texels"].get<int>();
-  out.p.atlas.generated = lm["generated_uv"].get<bool>();
-  out.p.options.bands = out.meta["bands"].get<int>();
-  out.p.has_grid = out.meta["has_grid"].get<bool>();
-  const auto& g = out.meta["grid"];
-  out.p.grid.origin = {g["origin"][0].get<float>(), g["origin"][1].get<float>(), g["origin"][2].get<float>()};
-  out.p.grid.spacing_m = g["spacing_m"].get<float>();
-  out.p.grid.dims = {g["dims"][0].get<int>(), g["dims"][1].get<int>(), g["dims"][2].get<int>()};
-  // Cross-checks that catch an artifact whose sections do not belong together.
-  const std::size_t nc = static_cast<std::size_t>(out.lightmap_links.bands) * out.lightmap_links.bands;
-  if (out.lightmap_links.offsets.size() != out.p.lightmap.size() + 1 ||
-      out.lightmap_links.coeffs.size() != out.lightmap_links.node.size() * nc ||
-      out.p.tree.nodeCount() != (out.p.surfels.size() ? 2 * out.p.surfels.size() - 1 : 0))
-    return invalidInput("artifact {}: sections are inconsistent with each other", path);
+
+  StructureCheck check(path);
+  if (Status s = checkSurfelsAndTree(out.p, check); !s) return s;
+  if (Status s = checkCachesAndLinks(out, check); !s) return s;
   return out;
 }
 
-Expected<std::uint64_t> cacheKeyFor(const std::string& scene_path, const PrecomputeOptions& options) {
-  std::ifstream in(scene_path, std::ios::binary);
-  if (!in) return notFound("cannot read scene {}", scene_path);
+namespace {
+
+Expected<std::string> readBytes(const std::filesystem::path& path, std::string_view what) {
+  std::ifstream in(path, std::ios::binary);
+  if (!in) return notFound("cannot read {} {}", what, path.string());
   std::ostringstream bytes;
   bytes << in.rdbuf();
-  const std::string data = bytes.str();
-  return artifact::cacheKey(std::as_bytes(std::span<const char>(data.data(), data.size())), options.canonical());
+  return bytes.str();
+}
+
+// glTF URIs are URI references: %XX escapes stand for bytes of the file name.
+std::string percentDecode(std::string_view uri) {
+  std::string out;
+  for (std::size_t i = 0; i < uri.size(); ++i) {
+    if (uri[i] == '%' && i + 2 < uri.size() && std::isxdigit(static_cast<unsigned char>(uri[i + 1])) &&
+        std::isxdigit(static_cast<unsigned char>(uri[i + 2]))) {
+      out.push_back(static_cast<char>(std::stoi(std::string(uri.substr(i + 1, 2)), nullptr, 16)));
+      i += 2;
+    } else {
+      out.push_back(uri[i]);
+    }
+  }
+  return out;
+}
+
+// The glTF JSON of a .gltf file or of a .glb's first chunk; empty when it cannot be found
+// (the loader reports malformed files; the key then covers the bytes alone).
+std::string_view gltfJson(const std::string& data) {
+  if (data.size() >= 20 && data.compare(0, 4, "glTF") == 0) {
+    std::uint32_t length = 0, type = 0;
+    std::memcpy(&length, data.data() + 12, 4);
+    std::memcpy(&type, data.data() + 16, 4);
+    if (type != 0x4E4F534Au || length > data.size() - 20) return {};
+    return std::string_view(data).substr(20, length);
+  }
+  return data;
+}
+
+}  // namespace
+
+Expected<std::uint64_t> cacheKeyFor(const std::string& scene_path, const PrecomputeOptions& options) {
+  auto data = readBytes(scene_path, "scene");
+  if (!data) return data.status();
+  // The key covers every file the scene reads, not just the .gltf: external buffers (.bin)
+  // hold the geometry and images the albedo, so editing either must not reuse a stale
+  // artifact. Each external file is appended as (uri, size, bytes), in the JSON's order.
+  std::string keyed = std::move(data).value();
+  const nlohmann::json j = nlohmann::json::parse(gltfJson(keyed), nullptr, /*allow_exceptions=*/false);
+  if (!j.is_discarded() && j.is_object()) {
+    const std::filesystem::path dir = std::filesystem::path(scene_path).parent_path();
+    std::string external;
+    for (const char* list : {"buffers", "images"}) {
+      const auto it = j.find(list);
+      if (it == j.end() || !it->is_array()) continue;
+      for (std::size_t i = 0; i < it->size(); ++i) {
+        const nlohmann::json& entry = (*it)[i];
+        if (!entry.is_object() || !entry.contains("uri") || !entry["uri"].is_string()) continue;
+        const std::string uri = entry["uri"].get<std::string>();
+        if (uri.rfind("data:", 0) == 0) continue;  // embedded: already in the bytes
+        auto bytes = readBytes(dir / percentDecode(uri), fmt::format("{}[{}].uri", list, i));
+        if (!bytes) return bytes.status();
+        external += fmt::format("{}\n{}\n", uri, bytes->size());
+        external += *bytes;
+      }
+    }
+    keyed += external;
+  }
+  return artifact::cacheKey(std::as_bytes(std::span<const char>(keyed.data(), keyed.size())), options.canonical());
 }
 
 }  // namespace lightlink::precompute

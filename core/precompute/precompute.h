@@ -55,8 +55,8 @@ struct PrecomputeOptions {
 };
 
 // Named quality presets for `lightlink bake` and the daemon: "draft", "medium" (seed 000
-// Table 2 setting 2: nS 32k, nL 128, 3 bands) and "high". Provisional until the accuracy
-// study (issue 6) derives them from its Pareto front.
+// Table 2 setting 2: nS 32k, nL 128, 3 bands) and "high", chosen on the accuracy study's
+// Pareto front (bench/accuracy; rule, measured error and cost in docs/quality.md).
 Expected<PrecomputeOptions> preset(std::string_view name);
 
 struct StageTime {
@@ -96,6 +96,11 @@ Status save(const Precomputation& p, const std::string& path, std::uint64_t cach
 // The artifact mapped back. The link arrays (the bulk of the file) stay in the mapping and
 // are read through spans; the small structures (surfels, tree, caches, plans) are copied
 // into a Precomputation whose `lightmap_links`/`grid_links` vectors stay empty.
+// open() trusts nothing it reads, checksums or not: every metadata field is type- and
+// range-checked, every stored index (tree children and parents, cache texels, fill plans,
+// link offsets and nodes) is checked against what it indexes, every array size against the
+// counts it must match, every float for NaN/Inf. What it returns is safe to relight; what it
+// rejects gets a Status naming the file, the section and the element (tests/fuzz).
 struct LoadedPrecomputation {
   artifact::Artifact file;
   Precomputation p;

@@ -1,6 +1,7 @@
 #include "core/precompute/precompute.h"
 
 #include <cmath>
+#include <filesystem>
 #include <fstream>
 #include <iterator>
 
@@ -143,6 +144,35 @@ TEST(Precompute, CacheKeyFollowsSceneAndOptions) {
   other.links = 64;
   EXPECT_NE(*a, *cacheKeyFor(kDemo, other));
   EXPECT_FALSE(cacheKeyFor("/no/such/scene.gltf", smallOptions()));
+}
+
+TEST(Precompute, CacheKeyCoversExternalBuffersAndImages) {
+  const std::filesystem::path dir = std::filesystem::path(::testing::TempDir()) / "cache_key_external";
+  std::filesystem::remove_all(dir);
+  std::filesystem::create_directories(dir);
+  auto write = [&](const std::string& name, const std::string& text) {
+    std::ofstream(dir / name, std::ios::binary) << text;
+  };
+  write("scene.gltf", R"({"asset": {"version": "2.0"}, "buffers": [{"uri": "geo%20a.bin", "byteLength": 4}],
+                          "images": [{"uri": "albedo.png"}, {"uri": "data:image/png;base64,AAAA"}]})");
+  write("geo a.bin", "abcd");
+  write("albedo.png", "png1");
+  const std::string scene = (dir / "scene.gltf").string();
+  auto a = cacheKeyFor(scene, smallOptions());
+  ASSERT_TRUE(a) << a.status().message();
+  write("geo a.bin", "abce");  // same size, other geometry
+  auto b = cacheKeyFor(scene, smallOptions());
+  ASSERT_TRUE(b);
+  EXPECT_NE(*a, *b) << "an edited .bin must not reuse the artifact";
+  write("albedo.png", "png2");
+  auto c = cacheKeyFor(scene, smallOptions());
+  ASSERT_TRUE(c);
+  EXPECT_NE(*b, *c) << "an edited texture must not reuse the artifact";
+  EXPECT_EQ(*c, *cacheKeyFor(scene, smallOptions()));
+  std::filesystem::remove(dir / "albedo.png");
+  auto missing = cacheKeyFor(scene, smallOptions());
+  ASSERT_FALSE(missing);
+  EXPECT_NE(missing.status().message().find("images[0].uri"), std::string::npos) << missing.status().message();
 }
 
 }  // namespace
