@@ -722,9 +722,8 @@ Expected<RelightResult> Relighter::relight(const LightSet& lights, const Relight
   return res;
 }
 
-Status Relighter::relightInto(const LightSet& lights, const RelightOptions& o, RelightResult& res) {
-  Impl& m = *impl_;
-  const int link_bands = m.lm_links.bands;
+Status validateRequest(const LightSet& lights, const RelightOptions& o, int link_bands, std::size_t surfels,
+                       std::size_t materials) {
   const int bands = o.bands == 0 ? link_bands : o.bands;
   if (bands < 1 || bands > sh::kMaxBands) return invalidInput("relight: bands {} not in 1..4", bands);
   if (o.link_form == LinkForm::kProjected && bands > link_bands)
@@ -735,15 +734,22 @@ Status Relighter::relightInto(const LightSet& lights, const RelightOptions& o, R
     return invalidInput("relight: bounce_threshold {} must be finite and >= 0", o.bounce_threshold);
   if (o.emitter_samples < 1 || o.emitter_samples > 4096)
     return invalidInput("relight: emitter_samples {} not in 1..4096", o.emitter_samples);
-  if (!o.surfel_irradiance.empty() && o.surfel_irradiance.size() != m.p.surfels.size())
-    return invalidInput("relight: surfel_irradiance has {} entries for {} surfels", o.surfel_irradiance.size(),
-                        m.p.surfels.size());
+  if (!o.surfel_irradiance.empty() && o.surfel_irradiance.size() != surfels)
+    return invalidInput("relight: surfel_irradiance has {} entries for {} surfels", o.surfel_irradiance.size(), surfels);
   for (std::size_t i = 0; i < lights.emissive().size(); ++i)
-    if (lights.emissive()[i].material >= int(m.scene.materials.size()))
+    if (lights.emissive()[i].material >= int(materials))
       return invalidInput("emissive[{}].material: {} is not a material of the scene ({} materials)", i,
-                          lights.emissive()[i].material, m.scene.materials.size());
+                          lights.emissive()[i].material, materials);
   for (std::size_t i = 0; i < lights.lights().size(); ++i)
     if (Status s = LightSet::validate(lights.lights()[i], fmt::format("lights[{}]", i)); !s) return s;
+  return {};
+}
+
+Status Relighter::relightInto(const LightSet& lights, const RelightOptions& o, RelightResult& res) {
+  Impl& m = *impl_;
+  const int link_bands = m.lm_links.bands;
+  const int bands = o.bands == 0 ? link_bands : o.bands;
+  if (Status s = validateRequest(lights, o, link_bands, m.p.surfels.size(), m.scene.materials.size()); !s) return s;
 
   const bool simd_requested = o.kernel == Kernel::kAuto && detail::cpuSupportsAvx2F16c();
   m.simd = simd_requested;

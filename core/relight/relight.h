@@ -212,6 +212,14 @@ class Relighter {
   std::unique_ptr<Impl> impl_;
 };
 
+// Checks a relight request against a precomputation with `link_bands` projected bands,
+// `surfels` surfels and `materials` materials: option ranges, the band count the link form
+// allows, emissive overrides naming real materials, every light (LightSet::validate). The
+// one check every backend runs first, so CPU and GPU reject the same requests with the same
+// message.
+Status validateRequest(const LightSet& lights, const RelightOptions& options, int link_bands, std::size_t surfels,
+                       std::size_t materials);
+
 // Exposed for tests and the benchmark: the cap projection of seed 000 sec 4.6 in closed form
 // (polynomials of cos(half angle) = 1 - omega / 2pi, no trigonometry). Writes band factors
 // k_l with coefficient (l, m) = k_l * Y_lm(direction); equals projectRuntimeLink.

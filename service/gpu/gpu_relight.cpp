@@ -450,25 +450,7 @@ void GpuRelighter::invalidate() {
 Status GpuRelighter::relightInto(const LightSet& lights, const RelightOptions& o, RelightResult& res) {
   Impl& m = *impl_;
   const int link_bands = m.lm_view.bands;
-  const int bands = o.bands == 0 ? link_bands : o.bands;
-  if (bands < 1 || bands > sh::kMaxBands) return invalidInput("relight: bands {} not in 1..4", bands);
-  if (o.link_form == LinkForm::kProjected && bands > link_bands)
-    return invalidInput("relight: bands {} exceeds the {} bands of the projected links (use the runtime form)", bands,
-                        link_bands);
-  if (o.max_bounces < 0 || o.max_bounces > 1000)
-    return invalidInput("relight: max_bounces {} not in 0..1000", o.max_bounces);
-  if (!(o.bounce_threshold >= 0.0f) || !std::isfinite(o.bounce_threshold))
-    return invalidInput("relight: bounce_threshold {} must be finite and >= 0", o.bounce_threshold);
-  if (o.emitter_samples < 1 || o.emitter_samples > 4096)
-    return invalidInput("relight: emitter_samples {} not in 1..4096", o.emitter_samples);
-  if (!o.surfel_irradiance.empty() && o.surfel_irradiance.size() != m.ns)
-    return invalidInput("relight: surfel_irradiance has {} entries for {} surfels", o.surfel_irradiance.size(), m.ns);
-  for (std::size_t i = 0; i < lights.emissive().size(); ++i)
-    if (lights.emissive()[i].material >= int(m.scene.materials.size()))
-      return invalidInput("emissive[{}].material: {} is not a material of the scene ({} materials)", i,
-                          lights.emissive()[i].material, m.scene.materials.size());
-  for (std::size_t i = 0; i < lights.lights().size(); ++i)
-    if (Status s = LightSet::validate(lights.lights()[i], fmt::format("lights[{}]", i)); !s) return s;
+  if (Status s = validateRequest(lights, o, link_bands, m.ns, m.scene.materials.size()); !s) return s;
   GlContext::Current cur(*m.ctx);
   if (!cur.status()) return cur.status();
   Status s = m.run(lights, o, res);
