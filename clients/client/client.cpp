@@ -113,7 +113,7 @@ SceneHandle SceneHandle::fromIdToken(std::string id, std::string token) {
 
 struct Client::Impl {
   std::shared_ptr<grpc::Channel> channel;
-  std::unique_ptr<v1::Lightlink::Stub> stub;
+  std::unique_ptr<v1::Lightlink::Stub> rpc;  // gRPC's generated client ("Stub" is its class name)
   std::string authorization;  // "Bearer <token>" or empty
   std::chrono::milliseconds call_timeout{0};
 
@@ -152,7 +152,7 @@ Expected<Client> Client::connect(const ConnectOptions& options) {
   auto impl = std::make_unique<Impl>();
   impl->channel = grpc::CreateCustomChannel(options.target, creds, args);
   if (!impl->channel) return invalidInput("target: cannot create a channel to '{}'", options.target);
-  impl->stub = v1::Lightlink::NewStub(impl->channel);
+  impl->rpc = v1::Lightlink::NewStub(impl->channel);
   if (!options.bearer_token.empty()) impl->authorization = "Bearer " + options.bearer_token;
   impl->call_timeout = options.call_timeout;
   if (options.connect_timeout.count() > 0 &&
@@ -180,7 +180,7 @@ Expected<SceneHandle> Client::openScene(const OpenOptions& o, const ProgressCall
   req.set_name(o.name);
   grpc::ClientContext ctx;
   impl_->prepare(ctx, o.timeout);
-  auto reader = impl_->stub->OpenScene(&ctx, req);
+  auto reader = impl_->rpc->OpenScene(&ctx, req);
   v1::OpenSceneProgress msg;
   std::optional<v1::SceneOpened> opened;
   while (reader->Read(&msg)) {
@@ -207,7 +207,7 @@ Expected<UpdateResult> Client::updateLights(SceneHandle& scene, const LightUpdat
   impl_->prepare(ctx, impl_->call_timeout.count() > 0 ? impl_->call_timeout + std::chrono::milliseconds(wait_ms)
                                                       : impl_->call_timeout);
   v1::UpdateLightsResponse resp;
-  if (Status s = fromGrpc("UpdateLights", impl_->stub->UpdateLights(&ctx, req, &resp)); !s) return s;
+  if (Status s = fromGrpc("UpdateLights", impl_->rpc->UpdateLights(&ctx, req, &resp)); !s) return s;
   if (scene.ids_known) update.applyToIds(scene.light_ids);
   return UpdateResult{resp.version(), resp.relit()};
 }
@@ -226,7 +226,7 @@ Expected<Textures> Client::relight(const SceneHandle& scene, std::uint64_t versi
   *req.mutable_spec() = toProto(spec);
   grpc::ClientContext ctx;
   impl_->prepare(ctx);
-  auto reader = impl_->stub->Relight(&ctx, req);
+  auto reader = impl_->rpc->Relight(&ctx, req);
   return readOneResult("Relight", reader);
 }
 
@@ -238,7 +238,7 @@ Expected<std::optional<Textures>> Client::getTextures(const SceneHandle& scene, 
   *req.mutable_spec() = toProto(spec);
   grpc::ClientContext ctx;
   impl_->prepare(ctx);
-  auto reader = impl_->stub->GetTextures(&ctx, req);
+  auto reader = impl_->rpc->GetTextures(&ctx, req);
   auto t = readOneResult("GetTextures", reader);
   if (!t) return t.status();
   if (t->info.not_modified) return std::optional<Textures>{};
@@ -301,7 +301,7 @@ Expected<std::unique_ptr<Subscription>> Client::subscribe(const SceneHandle& sce
   std::unique_ptr<Subscription> sub(new Subscription());
   sub->stream_ = std::make_unique<Subscription::Stream>();
   impl_->prepare(sub->stream_->ctx, std::chrono::milliseconds(0));
-  sub->stream_->reader = impl_->stub->Subscribe(&sub->stream_->ctx, req);
+  sub->stream_->reader = impl_->rpc->Subscribe(&sub->stream_->ctx, req);
   return sub;
 }
 
@@ -324,7 +324,7 @@ Expected<std::vector<v1::SceneSummary>> Client::listScenes() {
   grpc::ClientContext ctx;
   impl_->prepare(ctx);
   v1::ListScenesResponse resp;
-  if (Status s = fromGrpc("ListScenes", impl_->stub->ListScenes(&ctx, v1::ListScenesRequest{}, &resp)); !s) return s;
+  if (Status s = fromGrpc("ListScenes", impl_->rpc->ListScenes(&ctx, v1::ListScenesRequest{}, &resp)); !s) return s;
   return std::vector<v1::SceneSummary>(resp.scenes().begin(), resp.scenes().end());
 }
 
@@ -334,14 +334,14 @@ Status Client::closeScene(const SceneHandle& scene) {
   grpc::ClientContext ctx;
   impl_->prepare(ctx);
   v1::CloseSceneResponse resp;
-  return fromGrpc("CloseScene", impl_->stub->CloseScene(&ctx, req, &resp));
+  return fromGrpc("CloseScene", impl_->rpc->CloseScene(&ctx, req, &resp));
 }
 
 Expected<v1::HealthResponse> Client::health() {
   grpc::ClientContext ctx;
   impl_->prepare(ctx);
   v1::HealthResponse resp;
-  if (Status s = fromGrpc("Health", impl_->stub->Health(&ctx, v1::HealthRequest{}, &resp)); !s) return s;
+  if (Status s = fromGrpc("Health", impl_->rpc->Health(&ctx, v1::HealthRequest{}, &resp)); !s) return s;
   return resp;
 }
 
@@ -351,7 +351,7 @@ Expected<v1::StatsResponse> Client::stats(const SceneHandle* scene) {
   grpc::ClientContext ctx;
   impl_->prepare(ctx);
   v1::StatsResponse resp;
-  if (Status s = fromGrpc("Stats", impl_->stub->Stats(&ctx, req, &resp)); !s) return s;
+  if (Status s = fromGrpc("Stats", impl_->rpc->Stats(&ctx, req, &resp)); !s) return s;
   return resp;
 }
 
