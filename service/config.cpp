@@ -76,6 +76,10 @@ Status applyConfigFile(const std::string& path, DaemonConfig& c) {
       if (!v.is_number()) return invalidInput("--config {}: 'drain_seconds' must be a number", path);
       c.drain_seconds = v.get<double>();
     } else if (key == "bounces") s = integer(c.relight_bounces);
+    else if (key == "progressive") {
+      if (!v.is_boolean()) return invalidInput("--config {}: 'progressive' must be true or false", path);
+      c.progressive = v.get<bool>();
+    }
     else if (key == "restore_sessions") {
       if (!v.is_boolean()) return invalidInput("--config {}: 'restore_sessions' must be true or false", path);
       c.restore_sessions = v.get<bool>();
@@ -116,6 +120,9 @@ void declareFlags(CLI::App& app, DaemonConfig& c, std::string& config_path, std:
                  "On SIGTERM/SIGINT: seconds open streams get to finish before the server stops")
       ->capture_default_str();
   app.add_option("--bounces", c.relight_bounces, "Indirect bounce cap of every relight (0..64)")->capture_default_str();
+  app.add_flag("--progressive", c.progressive,
+               "Publish a bounce-free preview of each light change first, then the converged result as the next "
+               "version");
   app.add_flag("--no-restore", no_restore, "Do not re-open the scenes recorded in <cache-dir>/sessions.json");
 }
 

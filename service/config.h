@@ -36,6 +36,7 @@ struct DaemonConfig {
   std::size_t max_send_bytes = 4u << 20;      // largest response message
   double drain_seconds = 5.0;              // SIGTERM: how long open streams may take to finish
   int relight_bounces = 8;                 // relight options of every scene
+  bool progressive = false;                // bounce-free preview first, then the converged result
   bool restore_sessions = true;            // re-open the scenes of sessions.json at start
 
   // Host part of `listen` is a loopback address (127.0.0.0/8, ::1, localhost).

@@ -64,6 +64,7 @@ void fillHeader(const Snapshot& s, const EncodedResult& e, const HeaderExtras& e
   h->set_relight_ms(s.relight_ms);
   h->set_skipped_versions(extras.skipped_versions);
   h->set_coalesced_updates(s.coalesced);
+  h->set_preview(s.preview);
 }
 
 bool sendFull(const Snapshot& s, const EncodedResult& e, const HeaderExtras& extras, std::size_t chunk_bytes,

@@ -210,13 +210,15 @@ Expected<std::shared_ptr<SceneSession>> SceneRegistry::openResident(SessionIdent
   }
   if (Status s = checkMaterials(lights, resident->scene().materials.size(), "lightset_json"); !s) return s;
 
-  relight::RelightOptions ro;
-  ro.max_bounces = config_.relight_bounces;
+  SessionOptions so;
+  so.backend = backendChoiceName(request.backend(), config_.backend);
+  so.relight.max_bounces = config_.relight_bounces;
+  so.progressive = config_.progressive;
+  so.on_own_version = [this] { markDirty(); };
   const bool reused = resident->reused();
   const std::string note = resident->note();
   const double open_s = resident->openSeconds();
-  auto session = SceneSession::start(identity, std::move(resident).value(), std::move(lights), version,
-                                     backendChoiceName(request.backend(), config_.backend), ro);
+  auto session = SceneSession::start(identity, std::move(resident).value(), std::move(lights), version, so);
   if (!session) return session.status();
   {
     std::lock_guard lock(mutex_);

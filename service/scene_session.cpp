@@ -14,10 +14,12 @@ constexpr auto kWaitSlice = std::chrono::milliseconds(50);
 }  // namespace
 
 SceneSession::SceneSession(SessionIdentity identity, precompute::ResidentScene resident, relight::LightSet lights,
-                           std::uint64_t version, const relight::RelightOptions& options)
+                           std::uint64_t version, const SessionOptions& options)
     : identity_(std::move(identity)),
       resident_(std::move(resident)),
-      options_(options),
+      options_(options.relight),
+      progressive_(options.progressive),
+      on_own_version_(options.on_own_version),
       lights_(std::move(lights)),
       version_(version),
       relit_version_(version - 1) {}  // the initial version is the worker's first job
@@ -25,10 +27,9 @@ SceneSession::SceneSession(SessionIdentity identity, precompute::ResidentScene r
 Expected<std::shared_ptr<SceneSession>> SceneSession::start(SessionIdentity identity,
                                                            precompute::ResidentScene resident,
                                                            relight::LightSet lights, std::uint64_t initial_version,
-                                                           const std::string& backend_choice,
-                                                           const relight::RelightOptions& options) {
+                                                           const SessionOptions& options) {
   if (initial_version == 0) initial_version = 1;  // versions start at 1; 0 means "none" on the wire
-  auto choice = gpu::parseBackendChoice(backend_choice);
+  auto choice = gpu::parseBackendChoice(options.backend);
   if (!choice) return choice.status();
   std::shared_ptr<SceneSession> s(
       new SceneSession(std::move(identity), std::move(resident), std::move(lights), initial_version, options));
@@ -144,6 +145,9 @@ void SceneSession::wakeAll() const {
 void SceneSession::workerLoop() {
   relight::RelightResult result;
   std::uint64_t last_relit = 0;
+  const bool progressive = progressive_ && options_.max_bounces > 0;
+  relight::RelightOptions preview_options = options_;
+  preview_options.max_bounces = 0;
   while (true) {
     relight::LightSet lights;
     std::uint64_t v = 0;
@@ -157,36 +161,67 @@ void SceneSession::workerLoop() {
       relit_version_ = v;
     }
     const std::uint64_t coalesced = last_relit == 0 || v <= last_relit ? 0 : v - last_relit - 1;
-    const auto t0 = Clock::now();
-    Status s = backend_->relightInto(lights, options_, result);
-    const double ms = std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
-    if (!s) {
-      std::lock_guard lock(mutex_);
-      ++relight_errors_;
-      logEvent(LogLevel::kError, "relight_failed",
-               {{"scene", identity_.id}, {"version", v}, {"error", s.message()}});
-      // Wait for the next update rather than retrying the same failing state in a loop;
-      // readers waiting for this version run into their deadline.
-      continue;
-    }
-    auto snap = buildSnapshot(result, v, coalesced, ms);
+    if (!relightAndPublish(lights, v, coalesced, progressive ? preview_options : options_, progressive, result))
+      continue;  // wait for the next update rather than retrying a failing state in a loop
+    last_relit = v;
+    if (!progressive) continue;
+    // The converged result of the same lights, under a version of its own, unless a newer
+    // light set is waiting (then its preview comes first).
+    std::uint64_t converged = 0;
     {
       std::lock_guard lock(mutex_);
-      latest_ = std::move(snap);
-      ++relights_;
-      coalesced_ += coalesced;
-      last_ms_ = ms;
-      total_ms_ += ms;
+      if (stop_ || version_ != v) continue;
+      converged = ++version_;
+      relit_version_ = converged;
     }
-    last_relit = v;
-    result_cv_.notify_all();
-    logEvent(LogLevel::kDebug, "relight",
-             {{"scene", identity_.id}, {"version", v}, {"ms", ms}, {"coalesced", coalesced}, {"backend", backend_name_}});
+    if (on_own_version_) on_own_version_();
+    if (relightAndPublish(lights, converged, 0, options_, false, result)) last_relit = converged;
   }
 }
 
+bool SceneSession::relightAndPublish(const relight::LightSet& lights, std::uint64_t v, std::uint64_t coalesced,
+                                     const relight::RelightOptions& options, bool preview,
+                                     relight::RelightResult& result) {
+  const auto t0 = Clock::now();
+  Status s = backend_->relightInto(lights, options, result);
+  const double ms = std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
+  if (!s) {
+    std::lock_guard lock(mutex_);
+    ++relight_errors_;
+    logEvent(LogLevel::kError, "relight_failed", {{"scene", identity_.id}, {"version", v}, {"error", s.message()}});
+    // Readers waiting for this version run into their deadline.
+    return false;
+  }
+  auto snap = buildSnapshot(result, v, coalesced, ms, preview);
+  {
+    std::lock_guard lock(mutex_);
+    latest_ = std::move(snap);
+    ++relights_;
+    previews_ += preview ? 1 : 0;
+    coalesced_ += coalesced;
+    last_ms_ = ms;
+    total_ms_ += ms;
+  }
+  result_cv_.notify_all();
+  // Where the relight's time went, stage by stage (the backend's own clocks), so a slow
+  // relight in the daemon can be compared with bench/relight without a profiler.
+  std::string stages;
+  for (const auto& st : result.timings)
+    stages += fmt::format("{}{}={:.2f}", stages.empty() ? "" : ",", st.stage, st.seconds * 1e3);
+  logEvent(LogLevel::kDebug, "relight",
+           {{"scene", identity_.id},
+            {"version", v},
+            {"ms", ms},
+            {"coalesced", coalesced},
+            {"backend", backend_name_},
+            {"preview", preview},
+            {"incremental", result.passes.incremental != 0},
+            {"stages_ms", stages}});
+  return true;
+}
+
 std::shared_ptr<const Snapshot> SceneSession::buildSnapshot(const relight::RelightResult& r, std::uint64_t version,
-                                                            std::uint64_t coalesced, double ms) {
+                                                            std::uint64_t coalesced, double ms, bool preview) {
   auto s = std::make_shared<Snapshot>();
   s->version = version;
   {
@@ -194,6 +229,7 @@ std::shared_ptr<const Snapshot> SceneSession::buildSnapshot(const relight::Relig
     s->sequence = ++sequence_;
   }
   s->coalesced = coalesced;
+  s->preview = preview;
   s->relight_ms = ms;
   s->backend = r.backend;
   s->bands = r.bands;
@@ -228,6 +264,7 @@ SessionStats SceneSession::stats() const {
   st.relights = relights_;
   st.coalesced = coalesced_;
   st.relight_errors = relight_errors_;
+  st.previews = previews_;
   st.last_relight_ms = last_ms_;
   st.mean_relight_ms = relights_ ? total_ms_ / static_cast<double>(relights_) : 0.0;
   st.artifact_bytes = resident_.artifactBytes();

@@ -9,6 +9,14 @@
 // exists for the versions the worker computed, and the result for version v contains
 // every update acknowledged with a version <= v. Results are published as immutable
 // shared snapshots; waiting readers are woken on each publish.
+//
+// Progressive (SessionOptions::progressive, with bounces enabled): the worker first relights
+// the newest light set without bounces and publishes that `preview`; then, if no update
+// arrived meanwhile, it takes the next version itself (under the same lock as updates, so
+// versions stay unique and increasing), relights the same lights with bounces and publishes
+// the converged result under it. An update that arrives during the converged relight waits
+// for it (at most one bounced relight); one that arrives before it skips it, so a designer
+// dragging a light sees previews and gets the converged result when the drag stops.
 #pragma once
 
 #include <atomic>
@@ -42,9 +50,21 @@ struct SessionIdentity {
   v1::OpenSceneRequest params; // precompute parameters and backend (no source, no lightset_json)
 };
 
+// How a session relights.
+struct SessionOptions {
+  std::string backend;                 // auto | cpu | gpu
+  relight::RelightOptions relight;     // max_bounces: the converged result's bounce cap
+  bool progressive = false;            // bounce-free preview first (only when max_bounces > 0)
+  // Called (worker thread, no lock held) when the session takes a version no client sent:
+  // the progressive converged result. The registry persists then, so a restarted daemon
+  // never resumes below a version clients have already seen.
+  std::function<void()> on_own_version;
+};
+
 struct SessionStats {
   std::uint64_t version = 0, result_version = 0;
   std::uint64_t updates = 0, relights = 0, coalesced = 0, relight_errors = 0;
+  std::uint64_t previews = 0;  // progressive: bounce-free results among `relights`
   double last_relight_ms = 0.0, mean_relight_ms = 0.0;
   std::uint64_t resident_bytes = 0, artifact_bytes = 0;
   std::uint32_t subscribers = 0;
@@ -58,8 +78,7 @@ class SceneSession {
   // the backend and starts the worker, which computes the initial result at once.
   static Expected<std::shared_ptr<SceneSession>> start(SessionIdentity identity, precompute::ResidentScene resident,
                                                       relight::LightSet lights, std::uint64_t initial_version,
-                                                      const std::string& backend_choice,
-                                                      const relight::RelightOptions& options);
+                                                      const SessionOptions& options);
   ~SceneSession();
   SceneSession(const SceneSession&) = delete;
   SceneSession& operator=(const SceneSession&) = delete;
@@ -100,14 +119,20 @@ class SceneSession {
 
  private:
   SceneSession(SessionIdentity identity, precompute::ResidentScene resident, relight::LightSet lights,
-               std::uint64_t version, const relight::RelightOptions& options);
+               std::uint64_t version, const SessionOptions& options);
   void workerLoop();
+  // One relight of `lights` for version `v`, published as a snapshot; false when it failed
+  // (logged, counted).
+  bool relightAndPublish(const relight::LightSet& lights, std::uint64_t v, std::uint64_t coalesced,
+                         const relight::RelightOptions& options, bool preview, relight::RelightResult& result);
   std::shared_ptr<const Snapshot> buildSnapshot(const relight::RelightResult& r, std::uint64_t version,
-                                                std::uint64_t coalesced, double ms);
+                                                std::uint64_t coalesced, double ms, bool preview);
 
   SessionIdentity identity_;
   precompute::ResidentScene resident_;
   relight::RelightOptions options_;
+  bool progressive_ = false;
+  std::function<void()> on_own_version_;
   std::unique_ptr<relight::RelightBackend> backend_;
   std::string backend_name_, backend_note_;
   std::shared_ptr<const std::vector<std::uint8_t>> grid_valid_;
@@ -123,7 +148,7 @@ class SceneSession {
   bool stop_ = false;                          // guarded
   std::atomic<bool> closed_{false};
   // Stats (guarded by mutex_ except the atomics).
-  std::uint64_t updates_ = 0, relights_ = 0, coalesced_ = 0, relight_errors_ = 0;
+  std::uint64_t updates_ = 0, relights_ = 0, coalesced_ = 0, relight_errors_ = 0, previews_ = 0;
   double last_ms_ = 0.0, total_ms_ = 0.0;
   std::atomic<int> subscribers_{0};
   mutable std::atomic<std::uint64_t> wake_epoch_{0};

@@ -16,6 +16,8 @@ namespace {
 
 using Clock = std::chrono::steady_clock;
 constexpr auto kDefaultWait = std::chrono::seconds(60);  // a call without a deadline waits at most this
+// A long poll answers this long before the call's deadline, so the answer arrives in time.
+constexpr auto kAnswerMargin = std::chrono::milliseconds(20);
 
 // Streams precompute progress to the OpenScene caller: one message per stage start and
 // end, updates at most every 100 ms. Progress callbacks come from worker threads, and a
@@ -171,6 +173,18 @@ grpc::Status LightlinkService::lookup(const v1::SceneRef& ref, std::shared_ptr<S
   return grpc::Status::OK;
 }
 
+grpc::Status LightlinkService::beginResultCall(grpc::ServerContext* ctx, const v1::SceneRef& ref,
+                                               const v1::ResultSpec& spec, std::shared_ptr<SceneSession>* scene,
+                                               std::optional<StreamSlot>* slot) {
+  if (auto st = admit(ctx, true); !st.ok()) return st;
+  if (auto st = lookup(ref, scene); !st.ok()) return st;
+  if (Status v = validateSpec(spec, (*scene)->bands()); !v) return toGrpc(v);
+  slot->emplace(*this, clientKey(ctx->peer()));
+  if (!(*slot)->acquired())
+    return grpcError(grpc::StatusCode::RESOURCE_EXHAUSTED, "streams: too many concurrent streams for this client");
+  return grpc::Status::OK;
+}
+
 Clock::time_point LightlinkService::waitDeadline(grpc::ServerContext* ctx) const {
   // The call's own deadline, mapped onto the steady clock; none: kDefaultWait.
   const auto now_sys = std::chrono::system_clock::now();
@@ -239,17 +253,13 @@ grpc::Status LightlinkService::UpdateLights(grpc::ServerContext* ctx, const v1::
 
 grpc::Status LightlinkService::Relight(grpc::ServerContext* ctx, const v1::RelightRequest* request,
                                        grpc::ServerWriter<v1::ResultMessage>* writer) {
-  if (auto st = admit(ctx, true); !st.ok()) return st;
   std::shared_ptr<SceneSession> s;
-  if (auto st = lookup(request->scene(), &s); !st.ok()) return st;
-  if (Status v = validateSpec(request->spec(), s->bands()); !v) return toGrpc(v);
+  std::optional<StreamSlot> slot;
+  if (auto st = beginResultCall(ctx, request->scene(), request->spec(), &s, &slot); !st.ok()) return st;
   const std::uint64_t newest = s->version();
   if (request->version() > newest)
     return grpcError(grpc::StatusCode::OUT_OF_RANGE, fmt::format("version: {} is newer than the scene's newest version {}",
                                                                  request->version(), newest));
-  StreamSlot slot(*this, clientKey(ctx->peer()));
-  if (!slot.acquired())
-    return grpcError(grpc::StatusCode::RESOURCE_EXHAUSTED, "streams: too many concurrent streams for this client");
   auto snap = s->waitForVersion(request->version(), waitDeadline(ctx), [&] { return ctx->IsCancelled() || draining_; });
   if (!snap) {
     if (ctx->IsCancelled()) return grpcError(grpc::StatusCode::CANCELLED, "cancelled");
@@ -265,17 +275,32 @@ grpc::Status LightlinkService::Relight(grpc::ServerContext* ctx, const v1::Relig
 
 grpc::Status LightlinkService::GetTextures(grpc::ServerContext* ctx, const v1::GetTexturesRequest* request,
                                            grpc::ServerWriter<v1::ResultMessage>* writer) {
-  if (auto st = admit(ctx, true); !st.ok()) return st;
   std::shared_ptr<SceneSession> s;
-  if (auto st = lookup(request->scene(), &s); !st.ok()) return st;
-  if (Status v = validateSpec(request->spec(), s->bands()); !v) return toGrpc(v);
-  StreamSlot slot(*this, clientKey(ctx->peer()));
-  if (!slot.acquired())
-    return grpcError(grpc::StatusCode::RESOURCE_EXHAUSTED, "streams: too many concurrent streams for this client");
+  std::optional<StreamSlot> slot;
+  if (auto st = beginResultCall(ctx, request->scene(), request->spec(), &s, &slot); !st.ok()) return st;
+  if (request->wait_ms() > kMaxWaitMs)
+    return grpcError(grpc::StatusCode::INVALID_ARGUMENT,
+                     fmt::format("wait_ms: {} is above the limit of {}", request->wait_ms(), kMaxWaitMs));
+  const auto stop = [&] { return ctx->IsCancelled() || draining_.load(); };
   auto snap = s->latest();
   // Right after OpenScene the first result may still be computing: wait for it.
-  if (!snap) snap = s->waitForVersion(0, waitDeadline(ctx), [&] { return ctx->IsCancelled() || draining_; });
+  if (!snap) snap = s->waitForVersion(0, waitDeadline(ctx), stop);
   if (!snap) return grpcError(grpc::StatusCode::UNAVAILABLE, "scene: no result computed yet");
+  if (snap->version == request->last_seen_version() && request->wait_ms() > 0) {
+    // Long poll: hold the call until a newer result is published. Results are published
+    // in increasing version order, so "newer" is "version > the one the client has". The
+    // answer leaves a little before the call's deadline, so a client whose deadline is
+    // shorter than wait_ms gets not_modified rather than DEADLINE_EXCEEDED.
+    const auto by_call = waitDeadline(ctx) - kAnswerMargin;
+    const auto deadline = std::min(by_call, Clock::now() + std::chrono::milliseconds(request->wait_ms()));
+    if (auto newer = s->waitForVersion(snap->version + 1, deadline, stop)) {
+      snap = std::move(newer);
+    } else {
+      if (ctx->IsCancelled()) return grpcError(grpc::StatusCode::CANCELLED, "cancelled");
+      if (s->closed()) return grpcError(grpc::StatusCode::NOT_FOUND, "scene_id: the scene was closed");
+      // Deadline or drain: the plain answer, not modified.
+    }
+  }
   if (snap->version == request->last_seen_version()) {
     sendNotModified(*s, *snap, writer);
     return grpc::Status::OK;
@@ -287,13 +312,9 @@ grpc::Status LightlinkService::GetTextures(grpc::ServerContext* ctx, const v1::G
 
 grpc::Status LightlinkService::Subscribe(grpc::ServerContext* ctx, const v1::SubscribeRequest* request,
                                          grpc::ServerWriter<v1::ResultMessage>* writer) {
-  if (auto st = admit(ctx, true); !st.ok()) return st;
   std::shared_ptr<SceneSession> s;
-  if (auto st = lookup(request->scene(), &s); !st.ok()) return st;
-  if (Status v = validateSpec(request->spec(), s->bands()); !v) return toGrpc(v);
-  StreamSlot slot(*this, clientKey(ctx->peer()));
-  if (!slot.acquired())
-    return grpcError(grpc::StatusCode::RESOURCE_EXHAUSTED, "streams: too many concurrent streams for this client");
+  std::optional<StreamSlot> slot;
+  if (auto st = beginResultCall(ctx, request->scene(), request->spec(), &s, &slot); !st.ok()) return st;
   s->addSubscriber(1);
   struct Unsubscribe {
     SceneSession& s;
@@ -393,6 +414,7 @@ grpc::Status LightlinkService::Stats(grpc::ServerContext* ctx, const v1::StatsRe
     out->set_resident_bytes(st.resident_bytes);
     out->set_artifact_bytes(st.artifact_bytes);
     out->set_subscribers(st.subscribers);
+    out->set_previews(st.previews);
   }
   return grpc::Status::OK;
 }

@@ -2,8 +2,8 @@
 //
 // Handlers are thin: admit the call (bearer token, draining, per-client stream limit),
 // look up the scene and check its token, translate the request, call the registry or the
-// scene session, translate the answer. All calls share `admit` and `lookup` instead of
-// repeating the checks. Blocking waits (a result for a version, the next result of a
+// scene session, translate the answer. All calls share `admit` and `lookup`, and the three
+// result calls `beginResultCall`, instead of repeating the checks. Blocking waits (a result for a version, the next result of a
 // subscription) poll the call's cancellation and the drain flag every ~50 ms, so no call
 // outlives a cancelled client or a shutdown.
 #pragma once
@@ -13,6 +13,7 @@
 #include <map>
 #include <memory>
 #include <mutex>
+#include <optional>
 #include <string>
 
 #include <grpcpp/grpcpp.h>
@@ -57,6 +58,8 @@ class LightlinkService final : public v1::Lightlink::Service {
    public:
     StreamSlot(LightlinkService& service, std::string client);
     ~StreamSlot();
+    StreamSlot(const StreamSlot&) = delete;
+    StreamSlot& operator=(const StreamSlot&) = delete;
     bool acquired() const { return acquired_; }
 
    private:
@@ -67,6 +70,11 @@ class LightlinkService final : public v1::Lightlink::Service {
 
   grpc::Status admit(grpc::ServerContext* ctx, bool new_work) const;
   grpc::Status lookup(const v1::SceneRef& ref, std::shared_ptr<SceneSession>* out) const;
+  // The preamble of the calls that send results (Relight, GetTextures, Subscribe): admit
+  // as new work, look the scene up and check its token, validate the spec, take a stream
+  // slot of the client (released when `slot` is destroyed).
+  grpc::Status beginResultCall(grpc::ServerContext* ctx, const v1::SceneRef& ref, const v1::ResultSpec& spec,
+                               std::shared_ptr<SceneSession>* scene, std::optional<StreamSlot>* slot);
   std::chrono::steady_clock::time_point waitDeadline(grpc::ServerContext* ctx) const;
 
   DaemonConfig config_;

@@ -5,9 +5,12 @@
 //               lightmap of a version that contains the update, measured at every client for
 //               every update, with 1 and with 50 clients; also minus the daemon's relight time
 //               of the version received (what queueing, encoding, the wire and polling add). Each client is a thread with its own
-//               channel and TCP connection polling GetTextures (lightmap only, half) every
-//               --poll-ms; updates are spaced so each one is measured alone (the driver waits
-//               until every client has it, then pauses --gap-ms).
+//               channel and TCP connection asking GetTextures for the lightmap (half),
+//               either polling every --poll-ms (wait 0: the plain poll) or long polling
+//               (GetTextures wait_ms > 0: one call outstanding, answered when a new version
+//               exists); --wait-ms 0,2000 measures both. Updates are spaced so each one is
+//               measured alone (the driver waits until every client has it, then pauses
+//               --gap-ms).
 //   throughput  updates sent back to back for --burst-s seconds by one client: updates/s
 //               acknowledged, and relights/s the daemon computed meanwhile (Stats), the rest
 //               coalesced.
@@ -16,6 +19,11 @@
 //
 // Fixed scene (the bundled Cornell box, preset medium), fixed light path (a circle below the
 // ceiling). JSON to --json; a summary to stdout.
+//
+// CPU placement (an isolated many-core machine): --daemon-cpus 0-1 runs the started daemon
+// on CPUs 0 and 1 only (sched_setaffinity in the child before exec), --client-cpus 2-15 runs
+// this process (the driver, the simulated clients and their gRPC threads) on CPUs 2..15.
+// Lists use taskset syntax. Without them both share whatever the machine gives.
 #include <algorithm>
 #include <atomic>
 #include <chrono>
@@ -45,9 +53,13 @@ struct Args {
   std::string daemon = LIGHTLINK_DAEMON_PATH;
   std::string cache_dir;
   int bounces = -1;  // >= 0: the started daemon's --bounces (its default is 8)
+  bool progressive = false;  // the started daemon's --progressive: preview, then converged
+  std::vector<std::string> daemon_flags;  // more flags for the started daemon (--daemon-flag, repeated)
   std::string scene = std::string(LIGHTLINK_SOURCE_DIR) + "/clients/demo/cornell_box.gltf";
   std::string preset = "medium";
   std::vector<int> clients = {1, 50};
+  std::vector<int> wait_ms = {0, 2000};  // per scenario: 0 = plain poll every poll_ms, > 0 = long poll
+  std::string daemon_cpus, client_cpus;  // taskset-style CPU lists; empty = no pinning
   int updates = 100;
   double poll_ms = 5.0;  // 200 Hz: a game polling every frame, a little faster than 60 Hz
   double gap_ms = 10.0;
@@ -103,10 +115,12 @@ LightUpdate moveLight(const Args& a, const std::string& id, int step) {
 struct Poller {
   std::unique_ptr<Client> client;
   std::atomic<std::uint64_t> latest{0};
+  std::atomic<std::uint64_t> latest_converged{0};  // newest version held that is not a preview
   struct Arrival {
     std::uint64_t version;
     Clock::time_point whole;  // when the client held the whole lightmap
     double relight_ms;        // the daemon's relight time of that version
+    bool preview;             // progressive daemon: a bounce-free result
   };
   std::vector<Arrival> arrivals;
   std::vector<double> not_modified_ms, fetch_ms;
@@ -115,7 +129,7 @@ struct Poller {
 };
 
 nlohmann::ordered_json latencyScenario(const Args& a, const ConnectOptions& co, Client& driver, SceneHandle& scene,
-                                       const std::string& light, int n_clients, int& step) {
+                                       const std::string& light, int n_clients, std::uint32_t wait_ms, int& step) {
   std::vector<std::unique_ptr<Poller>> pollers;
   for (int i = 0; i < n_clients; ++i) {
     auto p = std::make_unique<Poller>();
@@ -133,18 +147,20 @@ nlohmann::ordered_json latencyScenario(const Args& a, const ConnectOptions& co, 
       auto next = Clock::now();
       while (!stop.load(std::memory_order_relaxed)) {
         const auto t0 = Clock::now();
-        auto r = p->client->getTextures(scene, last, spec);
+        auto r = p->client->getTextures(scene, last, spec, wait_ms);
         const auto t1 = Clock::now();
         if (!r) {
           if (p->errors++ == 0) p->first_error = r.status().toString();
         } else if (r->has_value()) {
           last = (*r)->info.version;
-          p->arrivals.push_back({last, t1, (*r)->info.relight_ms});
+          p->arrivals.push_back({last, t1, (*r)->info.relight_ms, (*r)->info.preview});
           p->fetch_ms.push_back(ms(t1 - t0));
+          if (!(*r)->info.preview) p->latest_converged.store(last, std::memory_order_release);
           p->latest.store(last, std::memory_order_release);
         } else {
           p->not_modified_ms.push_back(ms(t1 - t0));
         }
+        if (wait_ms > 0) continue;  // long poll: the next call goes out at once
         next += poll_period;
         if (next > t1) std::this_thread::sleep_until(next);
         else next = t1;
@@ -152,17 +168,20 @@ nlohmann::ordered_json latencyScenario(const Args& a, const ConnectOptions& co, 
     });
   }
   // Let every client see the current version first.
+  // Progressive: wait for the converged result too, so each update is measured alone.
   auto allAt = [&](std::uint64_t v, Clock::duration limit) {
     const auto deadline = Clock::now() + limit;
     for (;;) {
       bool all = true;
-      for (auto& p : pollers) all &= p->latest.load(std::memory_order_acquire) >= v;
+      for (auto& p : pollers)
+        all &= (a.progressive ? p->latest_converged : p->latest).load(std::memory_order_acquire) >= v;
       if (all) return true;
       if (Clock::now() > deadline) return false;
       std::this_thread::sleep_for(std::chrono::microseconds(200));
     }
   };
   auto current = must(driver.getTextures(scene, 0, spec));
+  if (!current) die(internalError("GetTextures with last_seen 0 answered not modified"));
   if (!allAt(current ? current->info.version : 0, std::chrono::seconds(10))) die(ioError("clients never caught up"));
 
   std::vector<std::pair<std::uint64_t, Clock::time_point>> sent;  // version, send time
@@ -176,9 +195,11 @@ nlohmann::ordered_json latencyScenario(const Args& a, const ConnectOptions& co, 
     std::this_thread::sleep_for(std::chrono::duration<double, std::milli>(a.gap_ms));
   }
   stop = true;
+  // Long polls end at their wait; a small update makes them answer at once.
+  if (wait_ms > 0) (void)must(driver.updateLights(scene, moveLight(a, light, step++)));
   for (auto& t : threads) t.join();
 
-  std::vector<double> latency, overhead, not_modified, fetch;
+  std::vector<double> latency, overhead, not_modified, fetch, converged;
   std::size_t missing = 0, errors = 0;
   std::string first_error;
   for (auto& p : pollers) {
@@ -189,6 +210,8 @@ nlohmann::ordered_json latencyScenario(const Args& a, const ConnectOptions& co, 
         continue;
       }
       latency.push_back(ms(it->whole - t_send));
+      auto c = std::find_if(it, p->arrivals.end(), [&](const auto& x) { return x.version >= v && !x.preview; });
+      if (c != p->arrivals.end()) converged.push_back(ms(c->whole - t_send));
       // What the service and the wire add to the relight itself (queueing, encoding,
       // transfer, the poll interval).
       overhead.push_back(ms(it->whole - t_send) - it->relight_ms);
@@ -200,9 +223,14 @@ nlohmann::ordered_json latencyScenario(const Args& a, const ConnectOptions& co, 
   }
   nlohmann::ordered_json j;
   j["clients"] = n_clients;
+  j["mode"] = wait_ms > 0 ? "long poll" : "poll";
+  j["wait_ms"] = wait_ms;
+  j["poll_ms"] = wait_ms > 0 ? 0.0 : a.poll_ms;
   j["updates"] = a.updates;
   j["latency_ms"] = summary(latency);
   j["latency_minus_relight_ms"] = summary(overhead);
+  // Progressive: to the converged (bounced) result; else the same samples as latency_ms.
+  j["latency_converged_ms"] = summary(converged);
   j["missing"] = missing;
   j["late_updates"] = late;
   j["poll_not_modified_ms"] = summary(not_modified);
@@ -269,9 +297,14 @@ Args parseArgs(int argc, char** argv) {
       else if (k == "--daemon") a.daemon = val();
       else if (k == "--cache-dir") a.cache_dir = val();
       else if (k == "--bounces") a.bounces = std::stoi(val());
+      else if (k == "--progressive") a.progressive = true;
+      else if (k == "--daemon-flag") a.daemon_flags.push_back(val());
       else if (k == "--scene") a.scene = val();
       else if (k == "--preset") a.preset = val();
       else if (k == "--clients") a.clients = parseList(val());
+      else if (k == "--wait-ms") a.wait_ms = parseList(val());
+      else if (k == "--daemon-cpus") a.daemon_cpus = val();
+      else if (k == "--client-cpus") a.client_cpus = val();
       else if (k == "--updates") a.updates = std::stoi(val());
       else if (k == "--poll-ms") a.poll_ms = std::stod(val());
       else if (k == "--gap-ms") a.gap_ms = std::stod(val());
@@ -279,8 +312,16 @@ Args parseArgs(int argc, char** argv) {
       else if (k == "--json") a.json = val();
       else if (k == "--help" || k == "-h") {
         std::printf(
-            "service_bench [--target host:port | --daemon PATH --cache-dir DIR --bounces N] [--scene F] [--preset P]\n"
-            "              [--clients 1,50] [--updates N] [--poll-ms MS] [--gap-ms MS] [--burst-s S] [--json F]\n");
+            "service_bench [--target host:port | --daemon PATH --cache-dir DIR --bounces N --progressive]\n"
+            "              [--scene F] [--preset P]\n"
+            "              [--clients 1,50] [--wait-ms 0,2000] [--updates N] [--poll-ms MS] [--gap-ms MS]\n"
+            "              [--burst-s S] [--daemon-cpus LIST] [--client-cpus LIST] [--daemon-flag F ...] [--json F]\n"
+            "  --wait-ms    one latency scenario per value and client count: 0 = poll every --poll-ms,\n"
+            "               > 0 = long poll (GetTextures wait_ms)\n"
+            "  --daemon-cpus, --client-cpus  taskset-style CPU lists (0-1, 2-15, 0,2,4-7): where the started\n"
+            "               daemon and this process (driver, clients) may run\n"
+            "  --daemon-flag  one more flag for the started daemon (repeat: --daemon-flag --log-level\n"
+            "               --daemon-flag debug --daemon-flag --log-file --daemon-flag d.log)\n");
         std::exit(0);
       } else die(invalidInput("unknown argument {}", k));
     } catch (const std::exception&) {
@@ -291,6 +332,9 @@ Args parseArgs(int argc, char** argv) {
     die(invalidInput("--updates >= 1, --poll-ms > 0, --gap-ms >= 0, --burst-s > 0"));
   for (int c : a.clients)
     if (c < 1 || c > 1000) die(invalidInput("--clients: {} is out of range (1..1000)", c));
+  for (int w : a.wait_ms)
+    if (w < 0 || w > 60000) die(invalidInput("--wait-ms: {} is out of range (0..60000)", w));
+  if (!a.daemon_cpus.empty() && !a.target.empty()) die(invalidInput("--daemon-cpus: only for a daemon it starts (no --target)"));
   return a;
 }
 
@@ -298,14 +342,24 @@ Args parseArgs(int argc, char** argv) {
 
 int main(int argc, char** argv) {
   const Args a = parseArgs(argc, argv);
+  // Pin this process first, so every thread it creates (clients, gRPC) inherits the set.
+  std::vector<int> client_cpus, daemon_cpus;
+  if (!a.client_cpus.empty()) {
+    client_cpus = must(parseCpuList(a.client_cpus));
+    if (Status s = pinCurrentThread(client_cpus); !s) die(s);
+  }
+  if (!a.daemon_cpus.empty()) daemon_cpus = must(parseCpuList(a.daemon_cpus));
   std::unique_ptr<LocalDaemon> daemon;
   std::string target = a.target;
   if (target.empty()) {
     LocalDaemon::Options d;
     d.binary = a.daemon;
+    d.cpus = daemon_cpus;
     d.cache_dir = a.cache_dir;
     d.extra = {"--no-restore"};
     if (a.bounces >= 0) d.extra.insert(d.extra.end(), {"--bounces", std::to_string(a.bounces)});
+    if (a.progressive) d.extra.push_back("--progressive");
+    d.extra.insert(d.extra.end(), a.daemon_flags.begin(), a.daemon_flags.end());
     daemon = must(LocalDaemon::start(d));
     target = daemon->target();
   }
@@ -343,14 +397,19 @@ int main(int argc, char** argv) {
   out["lightmap"] = {{"width", scene.info.lightmap().width()}, {"height", scene.info.lightmap().height()},
                      {"bands", scene.info.bands()}};
   out["daemon_bounces"] = a.bounces >= 0 ? std::to_string(a.bounces) : std::string("daemon default");
+  out["progressive"] = a.progressive;
   out["poll_ms"] = a.poll_ms;
   out["gap_ms"] = a.gap_ms;
+  out["daemon_cpus"] = a.daemon_cpus.empty() ? "any" : a.daemon_cpus;
+  out["client_cpus"] = a.client_cpus.empty() ? "any" : a.client_cpus;
   int step = 0;
   nlohmann::ordered_json scenarios = nlohmann::ordered_json::array();
-  for (int c : a.clients) {
-    std::fprintf(stderr, "service_bench: %d polling client(s), %d updates\n", c, a.updates);
-    scenarios.push_back(latencyScenario(a, co, driver, scene, light, c, step));
-  }
+  for (int w : a.wait_ms)
+    for (int c : a.clients) {
+      std::fprintf(stderr, "service_bench: %d client(s), %s, %d updates\n", c,
+                   w > 0 ? fmt::format("long poll (wait_ms {})", w).c_str() : "poll", a.updates);
+      scenarios.push_back(latencyScenario(a, co, driver, scene, light, c, std::uint32_t(w), step));
+    }
   out["latency"] = scenarios;
   std::fprintf(stderr, "service_bench: update burst for %.1f s\n", a.burst_s);
   out["throughput"] = throughputScenario(a, driver, scene, light, step);
@@ -362,22 +421,26 @@ int main(int argc, char** argv) {
                    {"rss_end_bytes", stats2.rss_bytes()},
                    {"resident_bytes", sc.resident_bytes()},
                    {"artifact_bytes", sc.artifact_bytes()}};
-  out["relight"] = {{"relights", sc.relights()}, {"coalesced", sc.coalesced()}, {"mean_relight_ms", sc.mean_relight_ms()},
-                    {"last_relight_ms", sc.last_relight_ms()}};
+  out["relight"] = {{"relights", sc.relights()}, {"previews", sc.previews()}, {"coalesced", sc.coalesced()},
+                    {"mean_relight_ms", sc.mean_relight_ms()}, {"last_relight_ms", sc.last_relight_ms()}};
   (void)driver.closeScene(scene);
 
   std::string text = fmt::format("scene        {} ({}x{} texels, {} bands, {} backend, open {:.1f} s{})\n", a.scene,
                                  scene.info.lightmap().width(), scene.info.lightmap().height(), scene.info.bands(),
                                  scene.info.backend(), open_s, scene.info.artifact_reused() ? ", artifact reused" : "");
-  for (const auto& s : out["latency"])
-    text += fmt::format("latency      {:>3} client(s): p50 {:6.2f} ms  p99 {:6.2f} ms  max {:6.2f} ms  (minus relight: p50 "
+  for (const auto& s : out["latency"]) {
+    text += fmt::format("latency      {:<9} {:>3} client(s): p50 {:6.2f} ms  p99 {:6.2f} ms  max {:6.2f} ms  (minus relight: p50 "
                         "{:.2f} ms, p99 {:.2f} ms; {} samples, {} missing); not-modified poll p50 {:.3f} ms\n",
-                        s["clients"].get<int>(), s["latency_ms"]["p50"].get<double>(),
+                        s["mode"].get<std::string>(), s["clients"].get<int>(), s["latency_ms"]["p50"].get<double>(),
                         s["latency_ms"]["p99"].get<double>(), s["latency_ms"]["max"].get<double>(),
                         s["latency_minus_relight_ms"]["p50"].get<double>(),
                         s["latency_minus_relight_ms"]["p99"].get<double>(),
                         s["latency_ms"]["count"].get<std::size_t>(), s["missing"].get<std::size_t>(),
                         s["poll_not_modified_ms"]["p50"].get<double>());
+    if (a.progressive)
+      text += fmt::format("             converged (bounced) result: p50 {:6.2f} ms  p99 {:6.2f} ms\n",
+                          s["latency_converged_ms"]["p50"].get<double>(), s["latency_converged_ms"]["p99"].get<double>());
+  }
   const auto& tp = out["throughput"];
   text += fmt::format("throughput   {:.0f} updates/s acknowledged, {:.1f} relights/s ({} coalesced), mean relight {:.2f} ms\n",
                       tp["updates_per_s"].get<double>(), tp["relights_per_s"].get<double>(),

@@ -124,6 +124,11 @@ struct Client::Impl {
     if (deadline.count() > 0) ctx.set_deadline(std::chrono::system_clock::now() + deadline);
   }
   void prepare(grpc::ClientContext& ctx) const { prepare(ctx, call_timeout); }
+  // The deadline of a call that may wait `wait_ms` at the daemon: a waiting call must
+  // outlive its wait.
+  std::chrono::milliseconds waitingDeadline(std::uint32_t wait_ms) const {
+    return call_timeout.count() > 0 ? call_timeout + std::chrono::milliseconds(wait_ms) : call_timeout;
+  }
 };
 
 Client::Client(ConnectOptions options, std::unique_ptr<Impl> impl)
@@ -203,9 +208,7 @@ Expected<UpdateResult> Client::updateLights(SceneHandle& scene, const LightUpdat
   setRef(req.mutable_scene(), scene);
   req.set_wait_ms(wait_ms);
   grpc::ClientContext ctx;
-  // A waiting call must outlive its wait.
-  impl_->prepare(ctx, impl_->call_timeout.count() > 0 ? impl_->call_timeout + std::chrono::milliseconds(wait_ms)
-                                                      : impl_->call_timeout);
+  impl_->prepare(ctx, impl_->waitingDeadline(wait_ms));
   v1::UpdateLightsResponse resp;
   if (Status s = fromGrpc("UpdateLights", impl_->rpc->UpdateLights(&ctx, req, &resp)); !s) return s;
   if (scene.ids_known) update.applyToIds(scene.light_ids);
@@ -231,13 +234,14 @@ Expected<Textures> Client::relight(const SceneHandle& scene, std::uint64_t versi
 }
 
 Expected<std::optional<Textures>> Client::getTextures(const SceneHandle& scene, std::uint64_t last_seen_version,
-                                                      const ResultSpec& spec) {
+                                                      const ResultSpec& spec, std::uint32_t wait_ms) {
   v1::GetTexturesRequest req;
   setRef(req.mutable_scene(), scene);
   req.set_last_seen_version(last_seen_version);
   *req.mutable_spec() = toProto(spec);
+  req.set_wait_ms(wait_ms);
   grpc::ClientContext ctx;
-  impl_->prepare(ctx);
+  impl_->prepare(ctx, impl_->waitingDeadline(wait_ms));
   auto reader = impl_->rpc->GetTextures(&ctx, req);
   auto t = readOneResult("GetTextures", reader);
   if (!t) return t.status();

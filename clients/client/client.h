@@ -123,8 +123,12 @@ class Client {
   // call deadline.
   Expected<Textures> relight(const SceneHandle& scene, std::uint64_t version = 0, const ResultSpec& spec = {});
   // Poll: std::nullopt when the newest result is `last_seen_version` ("not modified").
+  // Long poll with wait_ms > 0 (<= 60000): when nothing is newer, the daemon answers the
+  // moment a newer result exists, or std::nullopt after wait_ms; the call's deadline is
+  // the client's call_timeout plus wait_ms. A loop of long polls sees each new version one
+  // round trip after it is published, without a poll interval.
   Expected<std::optional<Textures>> getTextures(const SceneHandle& scene, std::uint64_t last_seen_version,
-                                                const ResultSpec& spec = {});
+                                                const ResultSpec& spec = {}, std::uint32_t wait_ms = 0);
   // A server stream of results (blocking reader); see Subscription.
   Expected<std::unique_ptr<Subscription>> subscribe(const SceneHandle& scene, const ResultSpec& spec = {},
                                                     bool deltas = true, std::uint64_t after_version = 0);

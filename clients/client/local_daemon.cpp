@@ -2,14 +2,18 @@
 #include "clients/client/local_daemon.h"
 
 #include <fcntl.h>
+#include <sched.h>
 #include <signal.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <fstream>
 #include <random>
 #include <sstream>
 #include <thread>
+
+#include <fmt/ranges.h>
 
 namespace lightlink::client {
 namespace {
@@ -59,9 +63,18 @@ Expected<std::unique_ptr<LocalDaemon>> LocalDaemon::start(const Options& o) {
   argv.push_back(nullptr);
   const std::string out = (d->dir_ / "stdout").string(), err = (d->dir_ / "stderr").string();
 
+  // The CPU set is built before fork: the child of a threaded parent only makes plain
+  // system calls until exec.
+  cpu_set_t cpus;
+  CPU_ZERO(&cpus);
+  for (int c : o.cpus) {
+    if (c < 0 || c >= CPU_SETSIZE) return invalidInput("cpus: {} is not a CPU number", c);
+    CPU_SET(c, &cpus);
+  }
   const pid_t pid = ::fork();
   if (pid < 0) return ioError("fork failed starting {}", o.binary);
   if (pid == 0) {
+    if (!o.cpus.empty() && ::sched_setaffinity(0, sizeof(cpus), &cpus) != 0) ::_exit(126);
     const int fo = ::open(out.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
     const int fe = ::open(err.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
     if (fo >= 0) ::dup2(fo, 1);
@@ -105,12 +118,67 @@ int LocalDaemon::stop(std::chrono::milliseconds limit) {
   return code;
 }
 
+int LocalDaemon::signalAndWait(int sig, std::chrono::milliseconds limit) {
+  if (pid_ <= 0) return -1;
+  ::kill(pid_, sig);
+  const int code = waitUntil(pid_, Clock::now() + limit);
+  if (code != -1) pid_ = -1;
+  return code;
+}
+
 std::string LocalDaemon::log() const { return slurp(dir_ / "stderr") + slurp(dir_ / "stdout"); }
 
 LocalDaemon::~LocalDaemon() {
   stop();
   std::error_code ec;
   fs::remove_all(dir_, ec);
+}
+
+Expected<std::vector<int>> parseCpuList(std::string_view list) {
+  std::vector<int> cpus;
+  const int limit = CPU_SETSIZE;
+  std::size_t pos = 0;
+  auto number = [&](std::string_view part, std::string_view text) -> Expected<int> {
+    int v = 0;
+    if (text.empty() || text.size() > 5) return invalidInput("cpu list '{}': '{}' is not a CPU number", list, part);
+    for (char c : text) {
+      if (c < '0' || c > '9') return invalidInput("cpu list '{}': '{}' is not a CPU number", list, part);
+      v = v * 10 + (c - '0');
+    }
+    if (v >= limit) return invalidInput("cpu list '{}': CPU {} is beyond {}", list, v, limit - 1);
+    return v;
+  };
+  while (pos <= list.size()) {
+    const std::size_t comma = list.find(',', pos);
+    const std::string_view part = list.substr(pos, comma == std::string_view::npos ? list.npos : comma - pos);
+    const std::size_t dash = part.find('-');
+    auto lo = number(part, part.substr(0, dash));
+    if (!lo) return lo.status();
+    int hi_v = *lo;
+    if (dash != std::string_view::npos) {
+      auto hi = number(part, part.substr(dash + 1));
+      if (!hi) return hi.status();
+      if (*hi < *lo) return invalidInput("cpu list '{}': range '{}' runs backwards", list, part);
+      hi_v = *hi;
+    }
+    for (int c = *lo; c <= hi_v; ++c) cpus.push_back(c);
+    if (comma == std::string_view::npos) break;
+    pos = comma + 1;
+  }
+  std::sort(cpus.begin(), cpus.end());
+  cpus.erase(std::unique(cpus.begin(), cpus.end()), cpus.end());
+  return cpus;
+}
+
+Status pinCurrentThread(const std::vector<int>& cpus) {
+  cpu_set_t set;
+  CPU_ZERO(&set);
+  for (int c : cpus)
+    if (c >= 0 && c < CPU_SETSIZE) CPU_SET(c, &set);
+  if (::sched_setaffinity(0, sizeof(set), &set) != 0)
+    return ioError("sched_setaffinity: cannot run on CPUs {} (not on this machine or not allowed)",
+                   fmt::join(cpus, ","));
+  return {};
 }
 
 }  // namespace lightlink::client

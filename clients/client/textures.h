@@ -67,6 +67,7 @@ struct ResultInfo {
   double relight_ms = 0.0;
   std::uint64_t skipped_versions = 0;
   std::uint64_t coalesced_updates = 0;
+  bool preview = false;  // progressive daemon: bounce-free result, the converged one follows
 
   int coeffCount() const { return bands * bands; }
   std::size_t texels() const { return std::size_t(width) * std::size_t(height); }

@@ -3,7 +3,11 @@
 // Once: load the level (the same glTF the daemon opened), give it the lightmap UVs the daemon
 // baked on (the unwrap is deterministic: same scene and preset, same atlas), build the ray
 // tracer the viewer uses. Then every frame: poll GetTextures with the last version seen. A
-// "not modified" answer is one small message and costs next to nothing; a new version is
+// "not modified" answer is one small message and costs next to nothing. With --wait-ms the
+// poll is a long poll: the daemon holds it until a new version exists (or wait_ms passed),
+// so a new version reaches the client one round trip after the relight, with no poll
+// interval, and an idle scene costs one call per wait_ms (a game would keep such a poll on
+// a thread of its own; this example renders between polls). A new version is
 // decoded into the viewer's BakedLighting and a frame is rendered with `lightlink render`'s
 // code and written as PNG. Each rendered frame prints its poll cost, and once a second a line
 // summarises the not-modified polls.
@@ -41,6 +45,7 @@ struct Args {
   double duration_s = 0.0;  // stop after this long (0 = no limit)
   int width = 384, height = 384;
   int first_frame = 0;      // number of the first frame file (scripts call it repeatedly)
+  std::uint32_t wait_ms = 0;  // > 0: long poll (GetTextures wait_ms)
 };
 
 double ms(Clock::duration d) { return std::chrono::duration<double, std::milli>(d).count(); }
@@ -55,6 +60,7 @@ int run(const Args& a) {
   if (a.frames < 0 || a.duration_s < 0.0 || a.first_frame < 0)
     return fail(invalidInput("--frames, --duration and --first-frame must not be negative"));
   if (a.frames == 0 && a.duration_s == 0.0) return fail(invalidInput("give --frames N or --duration S"));
+  if (a.wait_ms > 60000) return fail(invalidInput("--wait-ms {} is out of range (0..60000)", a.wait_ms));
 
   client::Session session;
   if (!a.session.empty()) {
@@ -113,7 +119,7 @@ int run(const Args& a) {
   std::vector<std::uint8_t> rgb;
   for (;;) {
     const auto t0 = Clock::now();
-    auto polled = c->getTextures(session.scene, last_seen);
+    auto polled = c->getTextures(session.scene, last_seen, {}, a.wait_ms);
     const double poll_ms = ms(Clock::now() - t0);
     if (!polled) return fail(polled.status());
     if (polled->has_value()) {
@@ -174,7 +180,9 @@ int main(int argc, char** argv) {
   app.add_option("--preset", a.preset, "Preset the scene was opened with (same lightmap UVs)")->capture_default_str();
   app.add_option("--lights", a.lights_path, "Light-set JSON for realtime lights and dynamic objects");
   app.add_option("-o,--output", a.output_dir, "Directory for frame_NNNN.png")->capture_default_str();
-  app.add_option("--fps", a.fps, "Polls per second")->capture_default_str();
+  app.add_option("--fps", a.fps, "Polls per second (at most, with --wait-ms)")->capture_default_str();
+  app.add_option("--wait-ms", a.wait_ms, "Long poll: the daemon answers when a new version exists or after this long")
+      ->capture_default_str();
   app.add_option("--frames", a.frames, "Stop after N rendered frames");
   app.add_option("--duration", a.duration_s, "Stop after S seconds");
   app.add_option("--width", a.width, "Frame width")->capture_default_str();

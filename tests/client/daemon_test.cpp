@@ -3,6 +3,7 @@
 // precomputes). Every call has a deadline; every child process a time limit.
 #include <gtest/gtest.h>
 
+#include <atomic>
 #include <fstream>
 #include <nlohmann/json.hpp>
 #include <thread>
@@ -161,6 +162,48 @@ TEST_F(ClientDaemon, ErrorsCarryTheGrpcCodeAndTheField) {
   EXPECT_NE(bad.status().message().find("intensity"), std::string::npos) << bad.status().toString();
   // The daemon still serves.
   EXPECT_TRUE(client_->getTextures(scene, 0));
+}
+
+// getTextures with wait_ms: a loop of long polls sees a new version as soon as it exists,
+// and an idle scene answers "not modified" after the wait.
+TEST_F(ClientDaemon, LongPollGetTextures) {
+  SceneHandle scene = open();
+  ASSERT_FALSE(scene.id.empty());
+  auto first = client_->relight(scene, scene.info.version());
+  ASSERT_TRUE(first) << first.status().toString();
+  const std::uint64_t seen = first->info.version;
+  using Clock = std::chrono::steady_clock;
+  auto t0 = Clock::now();
+  auto idle = client_->getTextures(scene, seen, {}, 300);
+  const double idle_ms = std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
+  ASSERT_TRUE(idle) << idle.status().toString();
+  EXPECT_FALSE(idle->has_value());
+  EXPECT_GE(idle_ms, 250.0) << "the long poll did not wait";
+
+  // Another thread moves the light while this one waits.
+  LightUpdate u;
+  ASSERT_TRUE(u.modify(moveTo(scene.info.light_ids(0), 0.2f, 0.4f, 0.25f)));
+  std::uint64_t sent = 0;
+  std::thread mover([&] {
+    std::this_thread::sleep_for(std::chrono::milliseconds(300));
+    auto r = client_->updateLights(scene, u);
+    EXPECT_TRUE(r) << r.status().toString();
+    if (r) sent = r->version;
+  });
+  t0 = Clock::now();
+  auto fresh = client_->getTextures(scene, seen, {}, 30000);
+  const double fresh_ms = std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
+  mover.join();
+  ASSERT_TRUE(fresh) << fresh.status().toString();
+  ASSERT_TRUE(fresh->has_value());
+  EXPECT_EQ((*fresh)->info.version, sent);
+  EXPECT_FALSE((*fresh)->info.preview);
+  EXPECT_LT(fresh_ms, 15000.0) << "answered when the version existed, not at the end of the wait";
+
+  auto absurd = client_->getTextures(scene, sent, {}, 60001);
+  ASSERT_FALSE(absurd);
+  EXPECT_EQ(absurd.status().code(), Code::kInvalidInput) << absurd.status().toString();
+  EXPECT_NE(absurd.status().message().find("wait_ms"), std::string::npos) << absurd.status().toString();
 }
 
 // Subscribe with tile deltas: after applying every delta, the stream's local copy equals a
@@ -372,6 +415,25 @@ TEST_F(ClientDaemon, GameClientRendersAFrame) {
   ASSERT_EQ(r.exit_code, 0) << r.out << r.err;
   EXPECT_TRUE(fs::exists(tmp / "frames" / "frame_0000.png")) << r.out;
   EXPECT_NE(r.out.find("poll"), std::string::npos) << r.out;
+  // Long polling (--wait-ms): each new version is rendered as it appears; a mover thread
+  // keeps changing the light until the client has its two frames (bounded by --duration).
+  std::atomic<bool> done{false};
+  std::thread mover([&] {
+    for (int k = 0; !done.load(); ++k) {
+      LightUpdate u;
+      if (!u.modify(moveTo(scene.info.light_ids(0), 0.2f + 0.01f * float(k % 10), 0.4f, 0.3f))) return;
+      (void)client_->updateLights(scene, u);
+      std::this_thread::sleep_for(std::chrono::milliseconds(300));
+    }
+  });
+  auto waited = runCommand({LIGHTLINK_GAME_CLIENT_PATH, "--session", session, "--preset", kPreset, "--frames", "2",
+                            "--wait-ms", "5000", "--duration", "60", "--width", "32", "--height", "24", "-o",
+                            (tmp / "waited").string()},
+                           std::chrono::seconds(120));
+  done = true;
+  mover.join();
+  ASSERT_EQ(waited.exit_code, 0) << waited.out << waited.err;
+  EXPECT_TRUE(fs::exists(tmp / "waited" / "frame_0001.png")) << waited.out;
   // A preset whose atlas differs from the daemon's is refused, not rendered with wrong UVs.
   auto wrong = runCommand({LIGHTLINK_GAME_CLIENT_PATH, "--session", session, "--preset", "high", "--frames", "1",
                            "-o", (tmp / "frames").string()},

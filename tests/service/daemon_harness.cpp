@@ -1,113 +1,38 @@
 #include "tests/service/daemon_harness.h"
 
-#include <fcntl.h>
 #include <signal.h>
-#include <sys/wait.h>
-#include <unistd.h>
 
 #include <cstring>
-#include <fstream>
 #include <random>
-#include <sstream>
-#include <thread>
 
 #include "core/common/half.h"
+#include "tests/client/process.h"
 #include "tests/common/testing.h"
 
 namespace lightlink::testing {
-namespace {
 
 namespace fs = std::filesystem;
-using Clock = std::chrono::steady_clock;
-
-std::string slurp(const fs::path& p) {
-  std::ifstream in(p, std::ios::binary);
-  std::ostringstream s;
-  s << in.rdbuf();
-  return s.str();
-}
-
-pid_t spawn(const std::vector<std::string>& args, const fs::path& out) {
-  std::vector<std::string> storage = args;
-  std::vector<char*> argv;
-  for (auto& a : storage) argv.push_back(a.data());
-  argv.push_back(nullptr);
-  const pid_t pid = ::fork();
-  if (pid == 0) {
-    const int fd = ::open(out.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
-    if (fd >= 0) {
-      ::dup2(fd, 1);
-      ::dup2(fd, 2);
-    }
-    ::execv(argv[0], argv.data());
-    ::_exit(127);
-  }
-  return pid;
-}
-
-int waitExit(pid_t pid, std::chrono::milliseconds limit) {
-  const auto until = Clock::now() + limit;
-  while (Clock::now() < until) {
-    int status = 0;
-    const pid_t r = ::waitpid(pid, &status, WNOHANG);
-    if (r == pid) return WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status);
-    if (r < 0) return -1;
-    std::this_thread::sleep_for(std::chrono::milliseconds(5));
-  }
-  return -1;
-}
-
-fs::path freshDir() {
-  std::random_device rd;
-  fs::path d = fs::temp_directory_path() / ("lightlinkd-test-" + std::to_string(::getpid()) + "-" + std::to_string(rd()));
-  fs::create_directories(d);
-  return d;
-}
-
-}  // namespace
 
 DaemonProcess::DaemonProcess(const fs::path& cache_dir, std::vector<std::string> extra) {
-  dir_ = freshDir();
-  std::vector<std::string> args = {LIGHTLINKD_PATH, "--listen", "127.0.0.1:0", "--port-file",
-                                   (dir_ / "port").string(), "--cache-dir", cache_dir.string()};
-  args.insert(args.end(), extra.begin(), extra.end());
-  pid_ = spawn(args, dir_ / "log");
-  const auto until = Clock::now() + std::chrono::seconds(30);
-  while (Clock::now() < until) {
-    int status = 0;
-    if (::waitpid(pid_, &status, WNOHANG) == pid_) {
-      pid_ = -1;
-      error_ = "lightlinkd exited before listening: " + log();
-      return;
-    }
-    std::ifstream in(dir_ / "port");
-    int port = 0;
-    if (in >> port && port > 0) {
-      port_ = port;
-      return;
-    }
-    std::this_thread::sleep_for(std::chrono::milliseconds(10));
+  client::LocalDaemon::Options o;
+  o.binary = LIGHTLINKD_PATH;
+  o.cache_dir = cache_dir;
+  o.extra = std::move(extra);
+  auto d = client::LocalDaemon::start(o);
+  if (!d) {
+    error_ = d.status().toString();
+    return;
   }
-  error_ = "lightlinkd wrote no port file within 30 s: " + log();
+  daemon_ = std::move(d).value();
 }
 
 DaemonProcess::~DaemonProcess() {
-  if (pid_ > 0) {
-    ::kill(pid_, SIGKILL);
-    waitExit(pid_, std::chrono::milliseconds(5000));
-  }
-  std::error_code ec;
-  fs::remove_all(dir_, ec);
+  // Tests end with a kill, not a drain: a stream a test left open must not delay it.
+  if (daemon_) daemon_->signalAndWait(SIGKILL, std::chrono::milliseconds(5000));
 }
 
-std::string DaemonProcess::log() const { return slurp(dir_ / "log"); }
-
 int DaemonProcess::signalAndWait(int sig, std::chrono::milliseconds limit) {
-  if (pid_ <= 0) return -1;
-  ::kill(pid_, sig);
-  const int code = waitExit(pid_, limit);
-  if (code != -1) pid_ = -1;
-  return code;
+  return daemon_ ? daemon_->signalAndWait(sig, limit) : -1;
 }
 
 std::shared_ptr<grpc::Channel> DaemonProcess::channel() const {
@@ -122,19 +47,12 @@ std::shared_ptr<grpc::Channel> DaemonProcess::channel() const {
 std::unique_ptr<v1::Lightlink::Stub> DaemonProcess::stub() const { return v1::Lightlink::NewStub(channel()); }
 
 int runDaemonToExit(const std::vector<std::string>& args, std::string* output, std::chrono::milliseconds limit) {
-  const fs::path dir = freshDir();
-  std::vector<std::string> full = {LIGHTLINKD_PATH};
-  full.insert(full.end(), args.begin(), args.end());
-  const pid_t pid = spawn(full, dir / "log");
-  int code = waitExit(pid, limit);
-  if (code == -1) {
-    ::kill(pid, SIGKILL);
-    waitExit(pid, std::chrono::milliseconds(5000));
-  }
-  if (output) *output = slurp(dir / "log");
-  std::error_code ec;
-  fs::remove_all(dir, ec);
-  return code;
+  std::vector<std::string> argv = {LIGHTLINKD_PATH};
+  argv.insert(argv.end(), args.begin(), args.end());
+  const auto seconds = std::chrono::ceil<std::chrono::seconds>(limit);
+  const CommandResult r = runCommand(argv, seconds);
+  if (output) *output = r.out + r.err;
+  return r.timed_out ? -1 : r.exit_code;
 }
 
 std::unique_ptr<grpc::ClientContext> context(int ms, const std::string& bearer) {

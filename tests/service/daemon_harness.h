@@ -16,12 +16,16 @@
 
 #include <grpcpp/grpcpp.h>
 
+#include "clients/client/local_daemon.h"
 #include "proto/lightlink.grpc.pb.h"
 
 namespace lightlink::testing {
 
 namespace v1 = lightlink::v1;
 
+// A lightlinkd for one test: the client library's LocalDaemon (one fork/exec and port-file
+// wait for the tests, the benchmark and tools), here reporting start failures through
+// ok() / error() and killed (SIGKILL, no drain) at the end of the test.
 class DaemonProcess {
  public:
   // Starts lightlinkd with `--listen 127.0.0.1:0 --port-file ... --cache-dir cache_dir` and
@@ -29,12 +33,12 @@ class DaemonProcess {
   DaemonProcess(const std::filesystem::path& cache_dir, std::vector<std::string> extra = {});
   ~DaemonProcess();  // SIGKILL if still running
 
-  bool ok() const { return port_ > 0; }
+  bool ok() const { return daemon_ != nullptr; }
   const std::string& error() const { return error_; }
-  int port() const { return port_; }
-  pid_t pid() const { return pid_; }
-  std::string target() const { return "127.0.0.1:" + std::to_string(port_); }
-  std::string log() const;
+  int port() const { return daemon_ ? daemon_->port() : 0; }
+  pid_t pid() const { return daemon_ ? daemon_->pid() : -1; }
+  std::string target() const { return daemon_ ? daemon_->target() : std::string(); }
+  std::string log() const { return daemon_ ? daemon_->log() : error_; }
 
   // Sends `sig` and waits up to `limit` for the exit; returns the exit code, 128 + signal
   // when killed by one, -1 on timeout.
@@ -44,13 +48,12 @@ class DaemonProcess {
   std::shared_ptr<grpc::Channel> channel() const;
 
  private:
-  std::filesystem::path dir_;
-  pid_t pid_ = -1;
-  int port_ = 0;
+  std::unique_ptr<client::LocalDaemon> daemon_;
   std::string error_;
 };
 
-// Runs a lightlinkd to completion with `args` (no port wait); returns the exit code.
+// Runs a lightlinkd to completion with `args` (no port wait); returns the exit code (-1 when
+// it was still running at `limit` and was killed).
 int runDaemonToExit(const std::vector<std::string>& args, std::string* output,
                     std::chrono::milliseconds limit = std::chrono::milliseconds(10000));
 

@@ -63,7 +63,8 @@ relight::LightEntry pointEntry(const std::string& id, float x, float y, float z,
 }
 
 // The same relight in this process: the artifact the daemon wrote, the same light set.
-relight::RelightResult relightInProcess(const fs::path& cache, const relight::LightSet& lights) {
+relight::RelightResult relightInProcess(const fs::path& cache, const relight::LightSet& lights,
+                                        int bounces = kBounces) {
   auto options = precompute::preset("draft");
   EXPECT_TRUE(options);
   options->surfels = 2048;
@@ -79,7 +80,7 @@ relight::RelightResult relightInProcess(const fs::path& cache, const relight::Li
                                       resident->lightmapLinks(), resident->gridLinks());
   EXPECT_TRUE(r);
   relight::RelightOptions o;
-  o.max_bounces = kBounces;
+  o.max_bounces = bounces;
   auto result = r->relight(lights, o);
   EXPECT_TRUE(result) << result.status().message();
   return std::move(result).value();
@@ -319,6 +320,247 @@ TEST(Daemon, GetTexturesAnswersNotModifiedCheaply) {
   ASSERT_TRUE(readOne(r3.get(), changed, &err).ok()) << err;
   EXPECT_FALSE(changed.header.not_modified());
   EXPECT_EQ(changed.header.version(), ur.version());
+}
+
+// One GetTextures call read to its end: the result, its status and how long it took.
+struct Polled {
+  grpc::Status status;
+  Result result;
+  std::string error;
+  double ms = 0.0;
+};
+
+Polled getTextures(v1::Lightlink::Stub& stub, const v1::GetTexturesRequest& g, int deadline_ms = 30000) {
+  Polled p;
+  const auto t0 = std::chrono::steady_clock::now();
+  auto ctx = context(deadline_ms);
+  auto reader = stub.GetTextures(ctx.get(), g);
+  p.status = readOne(reader.get(), p.result, &p.error);
+  p.ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+  return p;
+}
+
+TEST(Daemon, LongPollAnswersTheMomentANewVersionExists) {
+  Fixture f;
+  DaemonProcess d(f.cache, quickFlags());
+  ASSERT_TRUE(d.ok()) << d.error();
+  auto stub = d.stub();
+  v1::SceneOpened opened;
+  ASSERT_TRUE(openScene(*stub, cornellRequest(), &opened).ok()) << d.log();
+  v1::GetTexturesRequest g;
+  *g.mutable_scene() = refOf(opened);
+  const Polled first = getTextures(*stub, g);
+  ASSERT_TRUE(first.status.ok()) << first.status.error_message() << first.error;
+  const std::uint64_t seen = first.result.header.version();
+
+  // An old client's request (no wait_ms on the wire) is the plain poll: not modified at once.
+  g.set_last_seen_version(seen);
+  const Polled plain = getTextures(*stub, g);
+  ASSERT_TRUE(plain.status.ok());
+  EXPECT_TRUE(plain.result.header.not_modified());
+  EXPECT_LT(plain.ms, 2000.0) << "a poll without wait_ms must not wait";
+
+  // A long poll is held while nothing changes, then answered with the new version.
+  g.set_wait_ms(20000);
+  std::atomic<bool> answered{false};
+  Polled held;
+  std::thread poller([&] {
+    held = getTextures(*stub, g);
+    answered = true;
+  });
+  std::this_thread::sleep_for(std::chrono::milliseconds(400));
+  EXPECT_FALSE(answered.load()) << "the long poll returned before anything changed";
+  v1::UpdateLightsRequest up;
+  *up.mutable_scene() = refOf(opened);
+  *up.add_add() = pointLight("late", 0.3f, 0.3f, 0.3f, 1.0f);
+  v1::UpdateLightsResponse ur;
+  const auto t_update = std::chrono::steady_clock::now();
+  ASSERT_TRUE(stub->UpdateLights(context().get(), up, &ur).ok());
+  poller.join();
+  const double after_update_ms =
+      std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t_update).count();
+  ASSERT_TRUE(held.status.ok()) << held.status.error_message() << held.error;
+  EXPECT_FALSE(held.result.header.not_modified());
+  EXPECT_EQ(held.result.header.version(), ur.version());
+  EXPECT_GT(held.result.payloads[v1::PAYLOAD_LIGHTMAP_SH].size(), 0u);
+  // Answered with the relight (milliseconds at this size), far from the 20 s wait.
+  EXPECT_LT(after_update_ms, 5000.0) << d.log();
+
+  // Something newer than last_seen already exists: answered at once, wait or not.
+  g.set_last_seen_version(seen);
+  const Polled behind = getTextures(*stub, g);
+  ASSERT_TRUE(behind.status.ok());
+  EXPECT_EQ(behind.result.header.version(), ur.version());
+  EXPECT_LT(behind.ms, 5000.0);
+}
+
+TEST(Daemon, LongPollEndsNotModifiedAtItsWaitAndBeforeTheCallDeadline) {
+  Fixture f;
+  DaemonProcess d(f.cache, quickFlags());
+  ASSERT_TRUE(d.ok()) << d.error();
+  auto stub = d.stub();
+  v1::SceneOpened opened;
+  ASSERT_TRUE(openScene(*stub, cornellRequest(), &opened).ok()) << d.log();
+  v1::RelightRequest rq;
+  *rq.mutable_scene() = refOf(opened);
+  rq.set_version(opened.version());
+  rq.mutable_spec()->set_skip_lightmap(true);
+  rq.mutable_spec()->set_skip_grid(true);
+  Result initial;
+  std::string err;
+  auto rctx = context();
+  auto rr = stub->Relight(rctx.get(), rq);
+  ASSERT_TRUE(readOne(rr.get(), initial, &err).ok()) << err;
+
+  v1::GetTexturesRequest g;
+  *g.mutable_scene() = refOf(opened);
+  g.set_last_seen_version(initial.header.version());
+  g.set_wait_ms(600);
+  const Polled waited = getTextures(*stub, g);
+  ASSERT_TRUE(waited.status.ok()) << waited.status.error_message();
+  EXPECT_TRUE(waited.result.header.not_modified());
+  EXPECT_EQ(waited.result.chunks, 0u);
+  EXPECT_GE(waited.ms, 550.0) << "answered before its wait";
+  EXPECT_LT(waited.ms, 10000.0);
+
+  // A call deadline shorter than wait_ms: not modified just before the deadline, not
+  // DEADLINE_EXCEEDED.
+  g.set_wait_ms(30000);
+  const Polled cut = getTextures(*stub, g, 1500);
+  ASSERT_TRUE(cut.status.ok()) << cut.status.error_message();
+  EXPECT_TRUE(cut.result.header.not_modified());
+  EXPECT_GE(cut.ms, 1000.0);
+}
+
+TEST(Daemon, LongPollRejectsAbsurdWaits) {
+  Fixture f;
+  DaemonProcess d(f.cache, quickFlags());
+  ASSERT_TRUE(d.ok()) << d.error();
+  auto stub = d.stub();
+  v1::SceneOpened opened;
+  ASSERT_TRUE(openScene(*stub, cornellRequest(), &opened).ok()) << d.log();
+  v1::GetTexturesRequest g;
+  *g.mutable_scene() = refOf(opened);
+  for (std::uint32_t wait : {60001u, 4000000000u}) {
+    g.set_wait_ms(wait);
+    const Polled p = getTextures(*stub, g);
+    EXPECT_EQ(p.status.error_code(), grpc::StatusCode::INVALID_ARGUMENT) << wait;
+    EXPECT_NE(p.status.error_message().find("wait_ms"), std::string::npos) << p.status.error_message();
+  }
+  // The limit itself is accepted, and the daemon keeps serving.
+  g.set_wait_ms(60000);
+  const Polled ok = getTextures(*stub, g);
+  ASSERT_TRUE(ok.status.ok()) << ok.status.error_message();
+  EXPECT_FALSE(ok.result.header.not_modified()) << "last_seen 0: the newest result at once";
+}
+
+// Results of a Subscribe stream until one that is not a preview with version >= `version`.
+std::vector<Result> readUntilConverged(ResultReader& reader, std::uint64_t version) {
+  std::vector<Result> seen;
+  Result r;
+  while (reader.next(r)) {
+    seen.push_back(r);
+    if (r.header.version() >= version && !r.header.preview()) break;
+  }
+  EXPECT_TRUE(reader.error().empty()) << reader.error();
+  return seen;
+}
+
+TEST(Daemon, ProgressivePublishesAPreviewThenTheConvergedResultAsTheNextVersion) {
+  Fixture f;
+  auto flags = quickFlags();
+  flags.push_back("--progressive");
+  DaemonProcess d(f.cache, flags);
+  ASSERT_TRUE(d.ok()) << d.error();
+  auto stub = d.stub();
+  v1::SceneOpened opened;
+  ASSERT_TRUE(openScene(*stub, cornellRequest(), &opened).ok()) << d.log();
+  v1::SubscribeRequest sub;
+  *sub.mutable_scene() = refOf(opened);
+  sub.mutable_spec()->set_precision(v1::PRECISION_FLOAT);
+  auto ctx = context(60000);
+  auto stream = stub->Subscribe(ctx.get(), sub);
+  ResultReader reader(stream.get());
+  // The initial light set too: a preview (version 1), then its converged result (version 2).
+  auto initial = readUntilConverged(reader, 1);
+  ASSERT_FALSE(initial.empty());
+  const std::uint64_t converged0 = initial.back().header.version();
+  EXPECT_EQ(converged0, 2u);
+
+  v1::UpdateLightsRequest up;
+  *up.mutable_scene() = refOf(opened);
+  *up.add_add() = pointLight("key", 0.2f, 0.4f, 0.3f, 2.0f);
+  v1::UpdateLightsResponse ur;
+  ASSERT_TRUE(stub->UpdateLights(context().get(), up, &ur).ok());
+  EXPECT_EQ(ur.version(), converged0 + 1) << "the converged result took a version of its own";
+  auto results = readUntilConverged(reader, ur.version());
+  ASSERT_FALSE(results.empty());
+  std::uint64_t last = converged0;
+  for (const auto& r : results) {
+    EXPECT_GT(r.header.version(), last) << "versions increase";
+    last = r.header.version();
+  }
+  const Result& converged = results.back();
+  EXPECT_EQ(converged.header.version(), ur.version() + 1);
+  EXPECT_FALSE(converged.header.preview());
+  // The worker relit the update's version as a preview first (its log says so); a stream
+  // still sending it when the converged result is published skips it (skipped_versions).
+  bool logged_preview = false;
+  std::istringstream log(d.log());
+  for (std::string line; std::getline(log, line);)
+    logged_preview |= line.find(" relight ") != std::string::npos &&
+                      line.find(fmt::format("version={} ", ur.version())) != std::string::npos &&
+                      line.find("preview=true") != std::string::npos;
+  EXPECT_TRUE(logged_preview) << d.log();
+  if (results.size() == 1) {
+    EXPECT_EQ(converged.header.skipped_versions(), 1u);
+  }
+
+  // The preview is the bounce-free relight, the converged result the full one, of the same lights.
+  auto scene = scene::loadGltf((sourceDir() / "clients/demo/cornell_box.gltf").string());
+  ASSERT_TRUE(scene);
+  auto lights = relight::LightSet::fromScene(*scene);
+  ASSERT_TRUE(lights.add(pointEntry("key", 0.2f, 0.4f, 0.3f, 2.0f)));
+  const auto full = relightInProcess(f.cache, lights);
+  const auto quick = relightInProcess(f.cache, lights, 0);
+  expectClose(decodeValues(converged.payloads.at(v1::PAYLOAD_LIGHTMAP_SH), v1::PRECISION_FLOAT), full.lightmap_sh,
+              "converged lightmap_sh");
+  expectClose(decodeValues(converged.payloads.at(v1::PAYLOAD_GRID_SH), v1::PRECISION_FLOAT), full.grid_sh,
+              "converged grid_sh");
+  if (results.size() >= 2) {
+    const Result& preview = results.front();
+    EXPECT_EQ(preview.header.version(), ur.version());
+    EXPECT_TRUE(preview.header.preview());
+    expectClose(decodeValues(preview.payloads.at(v1::PAYLOAD_LIGHTMAP_SH), v1::PRECISION_FLOAT), quick.lightmap_sh,
+                "preview lightmap_sh");
+  }
+  ctx->TryCancel();
+
+  v1::StatsRequest sr;
+  *sr.mutable_scene() = refOf(opened);
+  v1::StatsResponse stats;
+  ASSERT_TRUE(stub->Stats(context().get(), sr, &stats).ok());
+  EXPECT_EQ(stats.scene(0).previews(), 2u);
+  EXPECT_EQ(stats.scene(0).version(), ur.version() + 1);
+
+  // The converged version is the session's own (no client sent it), and clients have seen it:
+  // it is persisted without waiting for a shutdown, so a daemon killed now resumes at it.
+  const auto persisted = [&] {
+    std::ifstream in(f.cache / "sessions.json");
+    const auto j = nlohmann::json::parse(in, nullptr, false);
+    if (j.is_discarded() || !j.contains("scenes") || j["scenes"].empty()) return std::uint64_t(0);
+    return j["scenes"][0].value("version", std::uint64_t(0));
+  };
+  for (int i = 0; i < 200 && persisted() != ur.version() + 1; ++i)
+    std::this_thread::sleep_for(std::chrono::milliseconds(25));
+  EXPECT_EQ(persisted(), ur.version() + 1);
+  EXPECT_EQ(d.signalAndWait(SIGKILL), 128 + SIGKILL);
+  DaemonProcess again(f.cache, quickFlags());
+  ASSERT_TRUE(again.ok()) << again.error();
+  v1::ListScenesResponse list;
+  ASSERT_TRUE(again.stub()->ListScenes(context().get(), {}, &list).ok());
+  ASSERT_EQ(list.scenes_size(), 1);
+  EXPECT_EQ(list.scenes(0).version(), ur.version() + 1);
 }
 
 TEST(Daemon, TwentyConcurrentClientsLoseNoUpdateAndSeeNoTornResult) {
@@ -632,7 +874,7 @@ TEST(Daemon, HelpDocumentsEveryFlag) {
   EXPECT_EQ(runDaemonToExit({"--help"}, &out), 0);
   for (const char* flag : {"--listen", "--port-file", "--cache-dir", "--token", "--token-file", "--tls-cert",
                            "--tls-key", "--backend", "--log-format", "--max-streams-per-client", "--config",
-                           "--drain-seconds"})
+                           "--drain-seconds", "--bounces", "--progressive"})
     EXPECT_NE(out.find(flag), std::string::npos) << flag;
 }
 
