@@ -14,7 +14,6 @@ layout(std430, binding = kGaCache) readonly buffer Cache { uint gather_cache[]; 
 layout(std430, binding = kGaWeight) readonly buffer Weight { float gather_weight[]; };
 layout(std430, binding = kGaFromGrid) readonly buffer FromGrid { uint from_grid[]; };
 layout(std430, binding = kGaLightmapSh) readonly buffer LightmapSh { float lm_sh[]; };
-layout(std430, binding = kGaEmitSh) readonly buffer EmitSh { float emit_sh[]; };
 layout(std430, binding = kGaGridSh) readonly buffer GridSh { float grid_sh[]; };
 layout(std430, binding = kGaSurfel) readonly buffer Surfel { vec4 normal_area[]; };
 layout(std430, binding = kGaAlbedoEmit) readonly buffer AlbedoEmit { vec4 albedo_emit[]; };
@@ -23,7 +22,6 @@ layout(std430, binding = kGaB) buffer B { vec4 b[]; };
 layout(std430, binding = kGaPartials) writeonly buffer Partials { vec2 partials[]; };
 
 uniform uint u_count;
-uniform int u_gather_emission;  // lightmap gathers add the emission-lit caches
 
 shared vec2 red[256];
 
@@ -39,8 +37,6 @@ void main() {
       float wt = gather_weight[g];
       if (grid) {
         for (int i = 0; i < STRIDE; ++i) acc[i] += wt * grid_sh[off + uint(i)];
-      } else if (u_gather_emission != 0) {
-        for (int i = 0; i < STRIDE; ++i) acc[i] += wt * (lm_sh[off + uint(i)] + emit_sh[off + uint(i)]);
       } else {
         for (int i = 0; i < STRIDE; ++i) acc[i] += wt * lm_sh[off + uint(i)];
       }

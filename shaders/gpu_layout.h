@@ -83,7 +83,6 @@ LL_CONST kGaCache = 1;       // uint per entry
 LL_CONST kGaWeight = 2;      // float per entry
 LL_CONST kGaFromGrid = 3;    // uint per surfel
 LL_CONST kGaLightmapSh = 4;  // float
-LL_CONST kGaEmitSh = 5;      // float (lightmap caches lit by emission alone)
 LL_CONST kGaGridSh = 6;      // float
 LL_CONST kGaSurfel = 7;      // vec4 per surfel: xyz normal, w area
 LL_CONST kGaAlbedoEmit = 8;  // vec4 x 2 per surfel: albedo, emitted radiosity

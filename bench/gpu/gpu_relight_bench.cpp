@@ -28,6 +28,7 @@
 #include <nlohmann/json.hpp>
 #include <tbb/info.h>
 
+#include "bench/common/bench_common.h"
 #include "bench/rt/throughput.h"
 #include "core/precompute/precompute.h"
 #include "core/relight/backend.h"
@@ -37,7 +38,8 @@
 namespace {
 
 using namespace lightlink;
-using Clock = std::chrono::steady_clock;
+using bench::Clock;
+using bench::median;
 
 struct Args {
   std::string scene = std::string(LIGHTLINK_SOURCE_DIR) + "/clients/demo/cornell_box.gltf";
@@ -73,12 +75,6 @@ bool parse(int argc, char** argv, Args& a) {
   return true;
 }
 
-double median(std::vector<double> v) {
-  if (v.empty()) return 0.0;
-  std::sort(v.begin(), v.end());
-  return v[v.size() / 2];
-}
-
 struct Loaded {
   scene::Scene scene;
   precompute::Precomputation p;
@@ -102,19 +98,6 @@ Expected<std::unique_ptr<Loaded>> load(const std::string& path, const std::strin
   if (!a) return a.status();
   l->accel = std::make_unique<rt::Accel>(std::move(*a));
   return l;
-}
-
-relight::LightSet lightsFor(const scene::Scene& scene) {
-  relight::LightSet lights = relight::LightSet::fromScene(scene);
-  if (lights.lights().empty()) {
-    relight::LightEntry sun;
-    sun.id = "sun";
-    sun.light.kind = scene::Light::Kind::kDirectional;
-    sun.light.direction = glm::normalize(glm::vec3(-0.3f, -1.0f, -0.2f));
-    sun.light.intensity = 10.0f;
-    (void)lights.add(sun);
-  }
-  return lights;
 }
 
 // Median seconds per stage over `repeats` relights (after one warm-up), bounce stages
@@ -221,7 +204,7 @@ int main(int argc, char** argv) {
              copy_bw * 1e-9, args.stream_mb);
 
   // ---- breakdown, both link forms, GPU and CPU ---------------------------------------
-  const relight::LightSet lights = lightsFor(d.scene);
+  const relight::LightSet lights = bench::lightsOrSun(d.scene);
   const int ncl = d.p.lightmap_links.bands * d.p.lightmap_links.bands;
   const std::size_t links = d.p.lightmap_links.linkCount() + d.p.grid_links.linkCount();
   const std::size_t caches = d.p.lightmap.size() + (d.p.has_grid ? d.p.grid.size() : 0);
@@ -291,7 +274,7 @@ int main(int argc, char** argv) {
       std::fprintf(stderr, "%s: %s\n", path.c_str(), (!g ? g.status() : r.status()).toString().c_str());
       continue;
     }
-    relight::LightSet ls = lightsFor(c.scene);
+    relight::LightSet ls = bench::lightsOrSun(c.scene);
     (void)ls.setEmissiveBaked(false);  // the direct light compared is the punctual lights'
     relight::RelightOptions o;
     o.max_bounces = 2;

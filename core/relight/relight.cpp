@@ -129,7 +129,7 @@ nlohmann::ordered_json RelightResult::report() const {
   j["passes"] = {{"surfel_direct", passes.surfel_direct}, {"emission", passes.emission}, {"pulls", passes.pulls},
                  {"cache_lighting", passes.cache_lighting}, {"grid_lighting", passes.grid_lighting},
                  {"sky", passes.sky}, {"bounces", passes.bounces}, {"baked_direct", passes.baked_direct},
-                 {"emissive_direct", passes.emissive_direct}, {"emission_caches", passes.emission_caches},
+                 {"emissive_direct", passes.emissive_direct}, {"surfel_emitter", passes.surfel_emitter},
                  {"fill", passes.fill}, {"incremental", passes.incremental},
                  {"unchanged", passes.unchanged}};
   j["counts"] = {{"surfels", counts.surfels}, {"surfels_lit", counts.surfels_lit}, {"nodes", counts.nodes},
@@ -138,6 +138,7 @@ nlohmann::ordered_json RelightResult::report() const {
                  {"grid_caches_summed", counts.grid_caches_summed}, {"links_read", counts.links_read},
                  {"shadow_rays", counts.shadow_rays}, {"emitter_triangles", counts.emitter_triangles},
                  {"emitter_direct_reused", counts.emitter_direct_reused},
+                 {"surfel_emitter_reused", counts.surfel_emitter_reused},
                  {"texels", counts.texels},
                  {"texels_filled", counts.texels_filled},
                  {"surfels_without_gather", counts.surfels_without_gather}};
@@ -192,7 +193,15 @@ struct Relighter::Impl {
   // `direct` by sampling), while grid caches and bounce gathers need both.
   bool has_emission = false;           // some surfel emits (plan.emissive of the last full relight)
   std::vector<glm::vec3> emission_b;   // pi * L_emit per surfel (after overrides)
-  std::vector<glm::vec3> direct_e;     // sum of per-light E per surfel, in light order
+  std::vector<glm::vec3> direct_e;     // sum of per-light E per surfel, in light order, + surfel_emit
+  // The emitters' direct irradiance per surfel (empty when nothing emits), sampled on the
+  // emitting triangles. Surfels used to receive it through the first bounce gather from the
+  // lightmap caches' links, which lose a small bright emitter in coarse cut nodes and 3-band
+  // SH: that gather gave the surfels 0.72 of the reference's emitter light on the Cornell box
+  // (bench/accuracy/stage_probe, docs/quality.md). Kept while the emission state is.
+  std::vector<glm::vec3> surfel_emit;
+  bool surfel_emit_valid = false;
+  std::vector<EmissiveOverride> surfel_emit_overrides;
   std::vector<glm::vec3> b0, b;        // reflected radiosity rho * E without / with indirect
   std::vector<float> flux[3];          // reflected flux per node, planar (the pull adds channel by channel)
   std::vector<float> rad_rgbx;         // reflected node radiosity, (R, G, B, 0): what the kernels read
@@ -200,7 +209,6 @@ struct Relighter::Impl {
   std::vector<float> rad_emit_rgbx;    // emitted node radiosity (constant while emission is)
   std::vector<float> rad_full_rgbx;    // reflected + emitted: what grid caches read
   std::vector<float> lm_sh, grid_sh;   // per cache, 3 * nc
-  std::vector<float> lm_emit_sh;       // lightmap caches lit by emitted radiosity alone (bounces)
   std::vector<glm::vec3> cache_direct; // per lightmap cache
   std::vector<glm::vec3> emitter_cache;  // emitter direct E per lightmap cache; empty when not baked
   // What emitter_cache was computed for: it depends only on the static scene, the emissive
@@ -247,9 +255,10 @@ Relighter::~Relighter() = default;
 
 bool Relighter::simdAvailable() { return detail::cpuSupportsAvx2F16c(); }
 
-void Relighter::invalidate() {
+void Relighter::invalidate(Forget what) {
   impl_->last_valid = false;
-  impl_->emitter_valid = false;
+  if (what == Forget::kEverything)
+    impl_->emitter_valid = false, impl_->surfel_emit_valid = false;
 }
 
 Expected<Relighter> Relighter::create(const scene::Scene& scene, const rt::Accel& accel,
@@ -575,6 +584,25 @@ void Relighter::Impl::emitterDirect(const LightSet& lights, int samples, Relight
   for (std::size_t r : chunk_rays) counts.shadow_rays += r;
 }
 
+void Relighter::surfelEmitterIrradiance(const LightSet& lights, std::vector<glm::vec3>& out) const {
+  const Impl& m = *impl_;
+  const std::size_t ns = m.p.surfels.size();
+  out.assign(ns, glm::vec3(0.0f));
+  if (!detail::anyEmitter(m.scene, lights.emissive())) return;
+  const detail::EmitterSampler sampler(m.scene, m.accel, lights.emissive());
+  forChunks(ns, kChunk, [&](std::size_t, std::size_t begin, std::size_t end) {
+    detail::EmitterSampler::Scratch scratch;
+    std::size_t rays = 0;
+    for (std::size_t s = begin; s < end; ++s) {
+      // Seeded by the surfel, so its noise does not depend on the split; unbiased, and every
+      // cache averages many surfels, so 16 samples suffice where a texel's direct needs more.
+      const std::uint64_t seed = mixBits(0x73757266656d6974ULL ^ std::uint64_t(s));
+      out[s] = sampler.irradiance(m.p.surfels.position[s], m.p.surfels.normal[s], kSurfelEmitterSamples, seed,
+                                  scratch, rays);
+    }
+  });
+}
+
 void Relighter::Impl::pullEmission() {
   // Emitted flux up the tree once per emission state; reflected flux is pulled per bounce.
   const auto& t = p.tree;
@@ -863,6 +891,7 @@ Status Relighter::relightInto(const LightSet& lights, const RelightOptions& o, R
       for (std::uint32_t s : touched) {
         glm::vec3 e(0.0f);
         for (const auto& pl : m.per_light_surfel) e += pl[s];
+        if (!m.surfel_emit.empty()) e += m.surfel_emit[s];  // the kept emitter direct
         m.direct_e[s] = e;
         m.b0[s] = m.p.surfels.albedo[s] * e;
         m.b[s] = m.b0[s];
@@ -873,8 +902,22 @@ Status Relighter::relightInto(const LightSet& lights, const RelightOptions& o, R
     if (change == kRemoved && !surfels_change) m.per_light_surfel.erase(m.per_light_surfel.begin() + changed);
     if (change == kAdded && !surfels_change) m.per_light_surfel.emplace_back(ns, glm::vec3(0.0f));
 
+    // A change that reaches most surfels (a directional or an unranged point light) changes
+    // nearly every node and cache, and the sparse walks below (serial path marking and sort,
+    // the inverted link index) then cost more than the full pull and cache lighting: Cornell
+    // box medium, all 32k surfels touched, 2 cores: pull 3.2 vs 0.4 ms, cache lighting 6 vs
+    // 2.6 ms (the daemon's relight, docs/results.md "Service"). The sums are the same in the
+    // same order either way, so the result is identical.
+    const bool dense = touched.size() * 2 > ns;
     std::vector<std::uint32_t> changed_nodes;
     timed("pull", [&] {
+      if (dense) {
+        m.pullAll();
+        m.sumFullRadiosity(nullptr);
+        res.counts.nodes_pulled = nodes;
+        res.passes.pulls = 1;
+        return;
+      }
       if (touched.empty()) return;
       std::vector<std::uint8_t> mark(nodes, 0);
       for (std::uint32_t s : touched) {
@@ -895,8 +938,8 @@ Status Relighter::relightInto(const LightSet& lights, const RelightOptions& o, R
     });
 
     timed("cache_lighting", [&] {
-      if (changed_nodes.empty()) return;
-      if (!m.inverted_built) m.buildInverted();
+      if (changed_nodes.empty() && !dense) return;
+      if (!dense && !m.inverted_built) m.buildInverted();
       auto affected = [&](const std::vector<std::uint32_t>& begin, const std::vector<std::uint32_t>& inv,
                           std::size_t count) {
         std::vector<std::uint8_t> hit(count, 0);
@@ -907,18 +950,22 @@ Status Relighter::relightInto(const LightSet& lights, const RelightOptions& o, R
           if (hit[c]) list.push_back(std::uint32_t(c));
         return list;
       };
-      const auto lm_list = affected(m.lm_inv_begin, m.lm_inv, m.lm_links.cacheCount());
-      m.lightCaches(m.lm_links, m.lm_sh, m.p.lightmap.valid, &lm_list, bands, o.link_form, plan.sky,
+      // dense: every cache (a null subset).
+      const auto lm_list =
+          dense ? std::vector<std::uint32_t>{} : affected(m.lm_inv_begin, m.lm_inv, m.lm_links.cacheCount());
+      m.lightCaches(m.lm_links, m.lm_sh, m.p.lightmap.valid, dense ? nullptr : &lm_list, bands, o.link_form, plan.sky,
                     m.rad_rgbx.data());
-      res.counts.caches_summed = lm_list.size();
+      res.counts.caches_summed = dense ? m.lm_links.cacheCount() : lm_list.size();
+      if (dense) res.counts.links_read += m.lm_links.linkCount();
       for (std::uint32_t c : lm_list) res.counts.links_read += m.lm_links.offsets[c + 1] - m.lm_links.offsets[c];
       res.passes.cache_lighting = 1;
       res.passes.sky = plan.sky ? 1 : 0;
       if (plan.grid) {
-        const auto g_list = affected(m.grid_inv_begin, m.grid_inv, m.grid_links.cacheCount());
-        m.lightCaches(m.grid_links, m.grid_sh, m.p.grid.valid, &g_list, bands, o.link_form, plan.sky,
+        const auto g_list =
+            dense ? std::vector<std::uint32_t>{} : affected(m.grid_inv_begin, m.grid_inv, m.grid_links.cacheCount());
+        m.lightCaches(m.grid_links, m.grid_sh, m.p.grid.valid, dense ? nullptr : &g_list, bands, o.link_form, plan.sky,
                       m.gridRadiosity());
-        res.counts.grid_caches_summed = g_list.size();
+        res.counts.grid_caches_summed = dense ? m.grid_links.cacheCount() : g_list.size();
         res.passes.grid_lighting = 1;
       }
     });
@@ -978,12 +1025,30 @@ Status Relighter::relightInto(const LightSet& lights, const RelightOptions& o, R
         m.rad_emit_rgbx.clear(), m.rad_full_rgbx.clear();
       }
     });
+    timed("surfel_emitter", [&] {
+      // The emitters' direct light at the surfels, sampled (see surfel_emit); it depends only
+      // on the emission state, so relights that change punctual lights reuse it.
+      if (!m.surfel_emit_valid || !sameEmissive(m.surfel_emit_overrides, lights.emissive())) {
+        surfelEmitterIrradiance(lights, m.surfel_emit);
+        m.surfel_emit_valid = true;
+        m.surfel_emit_overrides = lights.emissive();
+        res.passes.surfel_emitter = plan.emissive ? 1 : 0;
+      } else if (plan.emissive) {
+        res.counts.surfel_emitter_reused = 1;
+      }
+      for (std::size_t s = 0; s < ns; ++s) m.direct_e[s] += m.surfel_emit[s];
+    });
     m.b0.resize(ns);
     for (std::size_t s = 0; s < ns; ++s) m.b0[s] = m.p.surfels.albedo[s] * m.direct_e[s];
     m.b = m.b0;
     if (plan.sky) m.buildSkyMatrix(lights.sky(), bands, link_bands);
 
-    auto pullAndLight = [&](const char* pull_stage, const char* cache_stage) {
+    // Grid caches are read by the output and by surfels that gather from the grid. When no
+    // surfel does, only the last lighting pass's grid values survive: intermediate passes skip
+    // the grid (the same final values, one grid pass per relight instead of one per bounce).
+    const bool grid_gathered =
+        std::find(m.gather_from_grid.begin(), m.gather_from_grid.end(), std::uint8_t(1)) != m.gather_from_grid.end();
+    auto pullAndLight = [&](const char* pull_stage, const char* cache_stage, bool last_pass) {
       timed(pull_stage, [&] {
         for (std::size_t s = 0; s < ns; ++s) m.setLeafFlux(s);
         m.pullAll();
@@ -998,7 +1063,7 @@ Status Relighter::relightInto(const LightSet& lights, const RelightOptions& o, R
         res.passes.sky += plan.sky ? 1 : 0;
         res.counts.caches_summed = m.lm_links.cacheCount();
         res.counts.links_read += m.lm_links.linkCount();
-        if (plan.grid) {
+        if (plan.grid && (last_pass || grid_gathered)) {
           m.lightCaches(m.grid_links, m.grid_sh, m.p.grid.valid, nullptr, bands, o.link_form, plan.sky,
                         m.gridRadiosity());
           res.passes.grid_lighting++;
@@ -1007,19 +1072,9 @@ Status Relighter::relightInto(const LightSet& lights, const RelightOptions& o, R
         }
       });
     };
-    pullAndLight("pull", "cache_lighting");
-    // Surfels gathering from lightmap caches must receive the emitters' light too (the caches
-    // hold reflected light only): light the lightmap caches once more with the emitted
-    // radiosity alone; bounces gather the sum. Emission is constant, so once per relight.
-    const bool gather_emission = plan.bounces && plan.emissive;
-    if (gather_emission)
-      timed("emission_caches", [&] {
-        m.lightCaches(m.lm_links, m.lm_emit_sh, m.p.lightmap.valid, nullptr, bands, o.link_form, false,
-                      m.rad_emit_rgbx.data());
-        m.applyFill(m.p.lightmap_fill, m.lm_emit_sh.data(), stride);
-        res.passes.emission_caches = 1;
-        res.counts.links_read += m.lm_links.linkCount();
-      });
+    pullAndLight("pull", "cache_lighting", !plan.bounces);
+    // The emitters' light reaches the surfels as direct light (surfel_emit, in b0), so the
+    // bounces gather reflected light only, like the lightmap caches hold it.
 
     if (!(plan.punctual || plan.emissive || plan.sky)) res.bounce_stop = "no light";
     else if (o.max_bounces == 0) res.bounce_stop = "disabled";
@@ -1030,7 +1085,7 @@ Status Relighter::relightInto(const LightSet& lights, const RelightOptions& o, R
         const auto t0 = Clock::now();
         // Fill invalid caches first: surfels may gather from them.
         m.applyFill(m.p.lightmap_fill, m.lm_sh.data(), stride);
-        if (plan.grid) m.applyFill(m.p.grid_fill, m.grid_sh.data(), stride);
+        if (plan.grid && grid_gathered) m.applyFill(m.p.grid_fill, m.grid_sh.data(), stride);
         const std::size_t chunks = (ns + kChunk - 1) / kChunk;
         chunk_added.assign(chunks, 0.0);
         chunk_total.assign(chunks, 0.0);
@@ -1045,12 +1100,7 @@ Status Relighter::relightInto(const LightSet& lights, const RelightOptions& o, R
               const std::size_t off = std::size_t(m.gather_cache[g]) * stride;
               const float* src = base + off;
               const float wt = m.gather_weight[g];
-              if (gather_emission && !from_grid) {
-                const float* emit = m.lm_emit_sh.data() + off;
-                for (std::size_t i = 0; i < stride; ++i) acc[i] += wt * (src[i] + emit[i]);
-              } else {
-                for (std::size_t i = 0; i < stride; ++i) acc[i] += wt * src[i];
-              }
+              for (std::size_t i = 0; i < stride; ++i) acc[i] += wt * src[i];
             }
             const glm::vec3 n = m.p.surfels.normal[s];
             const glm::vec3 e(sh::irradiance(bands, acc, n), sh::irradiance(bands, acc + nc, n),
@@ -1068,10 +1118,12 @@ Status Relighter::relightInto(const LightSet& lights, const RelightOptions& o, R
         double added = 0.0, total = 0.0;  // fixed-order reduction: thread-count independent
         for (std::size_t c = 0; c < chunks; ++c) added += chunk_added[c], total += chunk_total[c];
         res.timings.push_back({fmt::format("bounce{}_gather", k), secondsSince(t0)});
-        pullAndLight(fmt::format("bounce{}_pull", k).c_str(), fmt::format("bounce{}_cache_lighting", k).c_str());
+        const bool converged = added < double(o.bounce_threshold) * total;
+        pullAndLight(fmt::format("bounce{}_pull", k).c_str(), fmt::format("bounce{}_cache_lighting", k).c_str(),
+                     converged || k == plan.max_bounces);
         res.passes.bounces++;
         res.bounce_log.push_back({k, added, total, secondsSince(t0)});
-        if (added < double(o.bounce_threshold) * total) {
+        if (converged) {
           res.bounce_stop = "threshold";
           break;
         }

@@ -98,7 +98,7 @@ struct PassCounts {
   int bounces = 0;
   int baked_direct = 0;
   int emissive_direct = 0;   // emitter-sampled direct light into lightmap texels
-  int emission_caches = 0;   // lightmap caches lit by emitted radiosity alone (bounce gathers)
+  int surfel_emitter = 0;    // the emitters' direct light sampled at the surfels (what bounces start from)
   int fill = 0;
   int incremental = 0;       // 1 when this relight was incremental
   int unchanged = 0;         // 1 when the light set and options equal the last relight's: only
@@ -126,6 +126,7 @@ struct RelightCounts {
   std::size_t shadow_rays = 0;                  // punctual and emitter shadow rays
   std::size_t emitter_triangles = 0;            // triangles sampled for emitter direct light
   std::size_t emitter_direct_reused = 0;        // 1: emission unchanged, the last emitter direct reused
+  std::size_t surfel_emitter_reused = 0;       // 1: emission unchanged, the surfels' emitter light reused
   std::size_t texels = 0, texels_filled = 0;    // texels with a value after fill + dilation
   std::size_t surfels_without_gather = 0;       // bounces: no lightmap texel nor grid to read
 };
@@ -183,9 +184,13 @@ class Relighter {
   // Same, into `out`, reusing its arrays' capacity: the steady state of a daemon or an editor
   // session relighting the same scene allocates nothing. On error `out` is unspecified.
   Status relightInto(const LightSet& lights, const RelightOptions& options, RelightResult& out);
-  // Forgets the last light set, so the next relight is a full one that recomputes everything
-  // (the emitter direct light included).
-  void invalidate();
+  // What invalidate() forgets. kLightState: the next relight is a full one, but what depends
+  // on emission alone (the emitter direct light of texels and of surfels)
+  // is still reused while the emissive overrides are unchanged: the steady state of a session
+  // that edits punctual lights. kEverything: nothing is reused.
+  enum class Forget { kLightState, kEverything };
+  // Forgets the last light set, so the next relight is a full one.
+  void invalidate(Forget what = Forget::kEverything);
   // True when this CPU runs the AVX2 + F16C kernels.
   static bool simdAvailable();
 
@@ -205,6 +210,12 @@ class Relighter {
   void skyMatrix(const Sky& sky, int bands_out, std::vector<float> (&out)[3]) const;
   // Emitted radiosity pi * L_e per surfel (tree order) after the light set's overrides.
   void surfelEmission(const LightSet& lights, std::vector<glm::vec3>& out) const;
+  // The emitters' direct irradiance at every surfel (tree order, lux), sampled on the emitting
+  // triangles with kSurfelEmitterSamples shadow rays per surfel: the surfels' share of the
+  // emitters' light, added to their punctual direct light before the first pull (every
+  // backend feeds it to its surfel lighting). Zeros when no triangle emits.
+  void surfelEmitterIrradiance(const LightSet& lights, std::vector<glm::vec3>& out) const;
+  static constexpr int kSurfelEmitterSamples = 16;
 
  private:
   struct Impl;

@@ -168,7 +168,7 @@ struct GpuRelighter::Impl {
 
   // Per-relight buffers.
   GlBuffer lights_buf, views_buf, given, emission_in, b0, b, albedo_emit, flux, rad, rad_emit, rad_full, sky_matrix;
-  GlBuffer lm_sh, lm_emit_sh, grid_sh, cache_direct, emitter_buf, partials;
+  GlBuffer lm_sh, grid_sh, cache_direct, emitter_buf, partials;
   GlBuffer texel_sh, texel_direct, texel_valid;
   GlBuffer staging;
   void* staging_ptr = nullptr;
@@ -179,6 +179,11 @@ struct GpuRelighter::Impl {
   bool emission_valid = false;
   std::vector<relight::EmissiveOverride> emission_overrides;
   std::vector<glm::vec3> emission_b;
+  // The emitters' direct light at the surfels (the CPU relighter's sampling, so both backends
+  // light surfels with identical values), reused while emission is unchanged.
+  bool surfel_emit_valid = false;
+  std::vector<relight::EmissiveOverride> surfel_emit_overrides;
+  std::vector<glm::vec3> surfel_emit;
   // Emitter direct light per lightmap cache (CPU code), reused while emission is unchanged.
   bool emitter_valid = false;
   std::vector<relight::EmissiveOverride> emitter_overrides;
@@ -368,7 +373,6 @@ void GpuRelighter::Impl::ensureBuffers(int stride) {
   sized_stride = stride;
   const std::size_t s = std::size_t(stride) * 4;
   lm_sh = GlBuffer(ncache * s, nullptr);
-  lm_emit_sh = GlBuffer(ncache * s, nullptr);
   grid_sh = GlBuffer(ngrid * s, nullptr);
   texel_sh = GlBuffer(texels * s, nullptr);
   // Staging: texel SH, texel direct, texel valid, grid SH, surfel radiosity, bounce partials.
@@ -445,6 +449,7 @@ EffectsPlan GpuRelighter::plan(const LightSet& lights, const RelightOptions& opt
 void GpuRelighter::invalidate() {
   impl_->emission_valid = false;
   impl_->emitter_valid = false;
+  impl_->surfel_emit_valid = false;
 }
 
 Status GpuRelighter::relightInto(const LightSet& lights, const RelightOptions& o, RelightResult& res) {
@@ -535,10 +540,21 @@ Status GpuRelighter::Impl::run(const LightSet& lights, const RelightOptions& o, 
   if (any_mapped) glBindTextureUnit(kLpShadowUnit, shadows->texture());
 
   // ---- surfel direct radiosity b0 (and b = b0) ----------------------------------------
+  // The emitters' direct light at the surfels starts the sum the shader adds punctual lights
+  // to (the CPU relighter's surfel_emit, docs/quality.md "Where the energy went").
+  if (!surfel_emit_valid || !sameEmissive(surfel_emit_overrides, lights.emissive())) {
+    cpu->surfelEmitterIrradiance(lights, surfel_emit);
+    surfel_emit_valid = true;
+    surfel_emit_overrides = lights.emissive();
+  }
+  const bool surfel_emits =
+      std::any_of(surfel_emit.begin(), surfel_emit.end(), [](const glm::vec3& e) { return e != glm::vec3(0.0f); });
+  const bool use_given = given_e || surfel_emits;
   if (Status st = gpuStage("surfel_direct", [&]() -> Status {
-        if (given_e) {
+        if (use_given) {
           std::vector<glm::vec4> e(ns);
-          for (std::size_t s = 0; s < ns; ++s) e[s] = glm::vec4(o.surfel_irradiance[s], 0.0f);
+          for (std::size_t s = 0; s < ns; ++s)
+            e[s] = glm::vec4((given_e ? o.surfel_irradiance[s] : glm::vec3(0.0f)) + surfel_emit[s], 0.0f);
           given.upload(e.data(), e.size() * 16);
         }
         surfel_pos.bindStorage(kLpPositions);
@@ -552,7 +568,7 @@ Status GpuRelighter::Impl::run(const LightSet& lights, const RelightOptions& o, 
         b.bindStorage(kLpOut2);
         light_surfels.set("u_count", std::uint32_t(ns));
         light_surfels.set("u_light_count", given_e || !plan.punctual ? 0 : int(L.size()));
-        light_surfels.set("u_use_given", given_e ? 1 : 0);
+        light_surfels.set("u_use_given", use_given ? 1 : 0);
         dispatch(light_surfels, ns, 64);
         return {};
       });
@@ -649,19 +665,8 @@ Status GpuRelighter::Impl::run(const LightSet& lights, const RelightOptions& o, 
     });
   };
   if (Status st = pullAndLight("pull", "node_radiosity", "cache_lighting"); !st) return st;
-  const bool gather_emission = plan.bounces && plan.emissive;
-  if (gather_emission) {
-    if (Status st = gpuStage("emission_caches", [&]() -> Status {
-          if (Status s2 = lightCaches(lm, rad_emit, lm_emit_sh, bands, o.link_form, false); !s2) return s2;
-          applyFill(lm_fill, lm_emit_sh, stride);
-          debugSum("lm_emit_sh", lm_emit_sh);
-          return {};
-        });
-        !st)
-      return st;
-    res.passes.emission_caches = 1;
-    res.counts.links_read += lm.links;
-  }
+  // The emitters' light reached the surfels as direct light (surfel_emit): the bounces
+  // gather reflected light only, as on the CPU.
 
   if (!(plan.punctual || plan.emissive || plan.sky)) res.bounce_stop = "no light";
   else if (o.max_bounces == 0) res.bounce_stop = "disabled";
@@ -682,7 +687,6 @@ Status GpuRelighter::Impl::run(const LightSet& lights, const RelightOptions& o, 
             gather_weight.bindStorage(kGaWeight);
             gather_from_grid.bindStorage(kGaFromGrid);
             lm_sh.bindStorage(kGaLightmapSh);
-            (gather_emission ? lm_emit_sh : dummy).bindStorage(kGaEmitSh);
             (plan.grid ? grid_sh : dummy).bindStorage(kGaGridSh);
             surfel_normal_area.bindStorage(kGaSurfel);
             albedo_emit.bindStorage(kGaAlbedoEmit);
@@ -690,7 +694,6 @@ Status GpuRelighter::Impl::run(const LightSet& lights, const RelightOptions& o, 
             b.bindStorage(kGaB);
             partials.bindStorage(kGaPartials);
             gp.set("u_count", std::uint32_t(ns));
-            gp.set("u_gather_emission", gather_emission ? 1 : 0);
             dispatch(gp, ns, kGatherGroup);
             return {};
           });

@@ -139,7 +139,7 @@ TEST(EmitterDirect, DirectPlusIndirectIsNotDoubleCountedInAFurnace) {
   auto res = r.relight(LightSet{}, {.max_bounces = 40, .bounce_threshold = 1e-4f, .emitter_samples = 64});
   ASSERT_TRUE(res) << res.status().toString();
   EXPECT_EQ(res->bounce_stop, "threshold");
-  EXPECT_EQ(res->passes.emission_caches, 1);
+  EXPECT_EQ(res->passes.surfel_emitter, 1);
   const double e0 = kPi * kEmit, expected = e0 / (1.0 - kRho);
   const auto& lm = baked->p.lightmap;
   const int nc = res->coeffCount();
