@@ -44,8 +44,9 @@ struct Scratch {
   std::vector<rt::Hit> hits;
   std::vector<Sample> samples;
   std::vector<Sample> sort_buffer;
-  std::vector<std::uint32_t> cut;
-  std::vector<CutEntry> open;  // the cut's priority queue, as a heap
+  std::vector<CutEntry> cut;
+  std::vector<CutEntry> open;          // the cut's priority queue, as a heap
+  std::vector<std::uint32_t> at_first;  // per sample: the cut entry starting there
 };
 
 // Stable LSD radix sort of the samples by surfel: they are appended in ray order, so the
@@ -82,8 +83,10 @@ struct ChunkResult {
   LinkStats stats;
 };
 
+// Chooses the cut: `cut` receives its nodes with their sample ranges, ordered by first sample
+// (= by surfel range, the order links are stored in). Nodes nobody sees never enter it.
 void chooseCut(const hierarchy::Tree& tree, const std::vector<Sample>& samples, int max_links,
-               std::vector<std::uint32_t>& cut, std::vector<CutEntry>& open) {
+               std::vector<CutEntry>& cut, std::vector<CutEntry>& open, std::vector<std::uint32_t>& at_first) {
   cut.clear();
   open.clear();
   if (samples.empty() || tree.nodeCount() == 0) return;
@@ -94,7 +97,7 @@ void chooseCut(const hierarchy::Tree& tree, const std::vector<Sample>& samples, 
     if (tree.isLeaf(top.node)) {
       std::pop_heap(open.begin(), open.end());
       open.pop_back();
-      cut.push_back(top.node);
+      cut.push_back(top);
       continue;
     }
     // The left child's surfels come first in the parent's range, so its samples are a
@@ -118,13 +121,17 @@ void chooseCut(const hierarchy::Tree& tree, const std::vector<Sample>& samples, 
       std::push_heap(open.begin(), open.end());
     }
   }
-  for (const CutEntry& e : open) cut.push_back(e.node);
-  // Order by surfel range so the projection walks the sorted samples once.
-  std::sort(cut.begin(), cut.end(), [&](std::uint32_t a, std::uint32_t b) { return tree.begin[a] < tree.begin[b]; });
+  cut.insert(cut.end(), open.begin(), open.end());
+  // The entries' sample ranges partition [0, samples): ordering them by first sample is a
+  // walk over the ranges through a first-sample -> entry table (no comparison sort).
+  for (std::uint32_t e = 0; e < cut.size(); ++e) at_first[cut[e].first] = e;
+  open.clear();
+  for (std::uint32_t k = 0; k < samples.size(); k += open.back().count) open.push_back(cut[at_first[k]]);
+  cut.swap(open);
 }
 
 template <int Bands>
-void linkCache(std::size_t cache, const glm::vec3& p, const glm::vec3& normal, const scene::Scene& scene,
+void linkCache(std::size_t cache, const glm::vec3& p, const glm::vec3& normal, const std::uint8_t* double_sided,
                const rt::Accel& accel, const hierarchy::Tree& tree, const SurfelLocator& locator,
                const LinkOptions& options, const LinkRays& pattern, std::uint32_t surfel_bits, Scratch& s,
                ChunkResult& out) {
@@ -151,7 +158,7 @@ void linkCache(std::size_t cache, const glm::vec3& p, const glm::vec3& normal, c
       continue;
     }
     const bool back = h.backFacing(dir);
-    if (back && !scene.materialOf(scene.meshes[h.mesh]).double_sided) {
+    if (back && !double_sided[h.mesh]) {
       ++out.stats.back_hits;
       continue;
     }
@@ -168,22 +175,19 @@ void linkCache(std::size_t cache, const glm::vec3& p, const glm::vec3& normal, c
   }
   out.stats.rays += count;
   sortSamples(s.samples, s.sort_buffer, surfel_bits);
-  chooseCut(tree, s.samples, options.max_links, s.cut, s.open);
+  chooseCut(tree, s.samples, options.max_links, s.cut, s.open, s.at_first);
 
-  std::size_t k = 0;
-  for (std::uint32_t node : s.cut) {
-    while (k < s.samples.size() && surfelOf(s.samples[k]) < tree.begin[node]) ++k;
+  for (const CutEntry& e : s.cut) {
     float c[kCoeffs] = {};
     glm::vec3 mean_dir(0.0f);
-    std::uint32_t hits = 0;
-    for (; k < s.samples.size() && surfelOf(s.samples[k]) < tree.end[node]; ++k) {
+    const std::uint32_t hits = e.count;
+    for (std::uint32_t k = e.first; k < e.first + e.count; ++k) {
       const glm::vec3& dir = s.rays[rayOf(s.samples[k])].dir;
       sh::evalBasis<Bands>(dir, basis);
       for (int q = 0; q < kCoeffs; ++q) c[q] += w * basis[q];
       mean_dir += dir;
-      ++hits;
     }
-    out.node.push_back(node);
+    out.node.push_back(e.node);
     for (int q = 0; q < kCoeffs; ++q) out.coeffs.push_back(toHalf(c[q]));
     const float len = glm::length(mean_dir);
     out.direction.push_back(encodeOctahedral(len > 0.0f ? mean_dir / len : n));
@@ -213,6 +217,64 @@ LinkRays::LinkRays(const LinkOptions& options) : strata_(strataFor(options)), se
   }
 }
 
+namespace {
+
+// x86-64: the row kernel is compiled twice, for AVX2 and for the baseline (SSE2), and the
+// loader picks one (GCC function multi-versioning). Both are plain loops the compiler
+// vectorises; neither version may use FMA, so every lane rounds exactly as the scalar code
+// did and the rays are bit-identical on every machine (the artifact depends on them).
+#if defined(__x86_64__) && defined(__GNUC__) && !defined(__clang__)
+#define LL_MULTIVERSION __attribute__((target_clones("avx2", "default")))
+#else
+#define LL_MULTIVERSION
+#endif
+
+// Inputs of one row (fixed azimuth stratum sy) of the stratified pattern.
+struct RowSetup {
+  std::uint64_t seed;    // per-cache seed
+  std::uint32_t first;   // ray index of the row's first ray (sy * strata)
+  std::uint32_t strata;  // rays in the row
+  float inv, dphi;       // 1 / strata, 2 pi / strata
+  glm::vec2 col;         // cos, sin of the row's start azimuth
+  bool hemisphere, taylor;
+  glm::vec3 t, b, n;     // frame: directions are l.x t + l.y b + l.z n
+};
+
+// Directions of one row into dx/dy/dz[0 .. strata). Three passes so each vectorises: the
+// 64-bit hashing (unitFloat via int32: bits >> 40 has 24 bits, so the same float), the
+// float maths, and (in the caller) the array-of-structs store.
+LL_MULTIVERSION void rowDirections(const RowSetup& r, float* __restrict ju, float* __restrict jd,
+                                   float* __restrict dx, float* __restrict dy, float* __restrict dz) {
+  for (std::uint32_t sx = 0; sx < r.strata; ++sx) {
+    const std::uint64_t bits = mixBits(r.seed ^ (std::uint64_t(r.first + sx) * 0x9e3779b97f4a7c15ULL));
+    ju[sx] = static_cast<float>(static_cast<std::int32_t>(bits >> 40)) * 0x1.0p-24f;
+    jd[sx] = static_cast<float>(static_cast<std::int32_t>(mixBits(bits) >> 40)) * 0x1.0p-24f;
+  }
+  for (std::uint32_t sx = 0; sx < r.strata; ++sx) {
+    const float u1 = (static_cast<float>(sx) + ju[sx]) * r.inv;
+    const float d = r.dphi * jd[sx];
+    float cd, sd;
+    if (r.taylor) {
+      const float d2 = d * d;
+      cd = 1.0f - d2 * (0.5f - d2 * (1.0f / 24.0f - d2 * (1.0f / 720.0f)));
+      sd = d * (1.0f - d2 * (1.0f / 6.0f - d2 * (1.0f / 120.0f - d2 * (1.0f / 5040.0f))));
+    } else {
+      cd = std::cos(d);
+      sd = std::sin(d);
+    }
+    const float cos_phi = r.col.x * cd - r.col.y * sd, sin_phi = r.col.y * cd + r.col.x * sd;
+    const float z = r.hemisphere ? 1.0f - u1 : 1.0f - 2.0f * u1;
+    const float q = 1.0f - z * z;
+    const float rad = std::sqrt(q > 0.0f ? q : 0.0f);
+    const float a = rad * cos_phi, c = rad * sin_phi;
+    dx[sx] = a * r.t.x + c * r.b.x + z * r.n.x;
+    dy[sx] = a * r.t.y + c * r.b.y + z * r.n.y;
+    dz[sx] = a * r.t.z + c * r.b.z + z * r.n.z;
+  }
+}
+
+}  // namespace
+
 void LinkRays::generate(const rt::Accel& accel, std::size_t cache, const glm::vec3& p, const glm::vec3& normal,
                         std::span<rt::Ray> rays) const {
   const bool hemisphere = glm::dot(normal, normal) > 0.0f;
@@ -231,31 +293,31 @@ void LinkRays::generate(const rt::Accel& accel, std::size_t cache, const glm::ve
   const std::uint64_t seed = mixBits(seed_ ^ (std::uint64_t(cache) * 0xd1b54a32d192ed03ULL));
   // Every hemisphere direction leaves on the normal's side, so one offset origin serves all.
   const glm::vec3 origin = hemisphere ? accel.offsetOrigin(p, n, n) : p;
-  const float inv = 1.0f / static_cast<float>(strata_);
-  const float dphi = 2.0f * kPi * inv;
-  const bool taylor = strata_ >= 16;
-  for (std::uint32_t i = 0; i < count(); ++i) {
-    const std::uint32_t sx = i % strata_, sy = i / strata_;
-    const std::uint64_t bits = mixBits(seed ^ (std::uint64_t(i) * 0x9e3779b97f4a7c15ULL));
-    const float u1 = (static_cast<float>(sx) + unitFloat(bits)) * inv;
-    const float d = dphi * unitFloat(mixBits(bits));
-    float cd, sd;
-    if (taylor) {
-      const float d2 = d * d;
-      cd = 1.0f - d2 * (0.5f - d2 * (1.0f / 24.0f - d2 * (1.0f / 720.0f)));
-      sd = d * (1.0f - d2 * (1.0f / 6.0f - d2 * (1.0f / 120.0f - d2 * (1.0f / 5040.0f))));
-    } else {
-      cd = std::cos(d);
-      sd = std::sin(d);
+  RowSetup row{.seed = seed,
+               .first = 0,
+               .strata = strata_,
+               .inv = 1.0f / static_cast<float>(strata_),
+               .dphi = 0.0f,
+               .col = {},
+               .hemisphere = hemisphere,
+               .taylor = strata_ >= 16,
+               .t = t,
+               .b = b,
+               .n = n};
+  row.dphi = 2.0f * kPi * row.inv;
+  // Rows are at most 1024 rays (rays <= 2^20).
+  float ju[1024], jd[1024], dx[1024], dy[1024], dz[1024];
+  for (std::uint32_t sy = 0; sy < strata_; ++sy) {
+    row.first = sy * strata_;
+    row.col = column_cos_sin_[sy];
+    rowDirections(row, ju, jd, dx, dy, dz);
+    rt::Ray* out = rays.data() + row.first;
+    for (std::uint32_t sx = 0; sx < strata_; ++sx) {
+      out[sx].origin = origin;
+      out[sx].tnear = 0.0f;
+      out[sx].dir = glm::vec3(dx[sx], dy[sx], dz[sx]);
+      out[sx].tfar = std::numeric_limits<float>::infinity();
     }
-    const glm::vec2 col = column_cos_sin_[sy];
-    const float cos_phi = col.x * cd - col.y * sd, sin_phi = col.y * cd + col.x * sd;
-    const float z = hemisphere ? 1.0f - u1 : 1.0f - 2.0f * u1;
-    const float r = std::sqrt(std::max(0.0f, 1.0f - z * z));
-    rays[i].origin = origin;
-    rays[i].dir = (r * cos_phi) * t + (r * sin_phi) * b + z * n;
-    rays[i].tnear = 0.0f;
-    rays[i].tfar = std::numeric_limits<float>::infinity();
   }
 }
 
@@ -318,6 +380,11 @@ Expected<Links> generateLinks(const scene::Scene& scene, const rt::Accel& accel,
   const SurfelLocator locator(surfels, scene);
   const LinkCacheFn link_cache = linkCacheFor(options.bands);
   const LinkRays pattern(options);
+  // Per mesh: are back faces visible (double-sided material)? One byte per hit instead of
+  // a walk through the mesh and material records.
+  std::vector<std::uint8_t> double_sided(scene.meshes.size());
+  for (std::size_t m = 0; m < scene.meshes.size(); ++m)
+    double_sided[m] = scene.materialOf(scene.meshes[m]).double_sided ? 1 : 0;
   const auto surfel_bits =
       std::max<std::uint32_t>(1, static_cast<std::uint32_t>(std::bit_width(std::max<std::size_t>(1, surfels.size()) - 1)));
   const std::size_t n = caches.position.size();
@@ -331,6 +398,7 @@ Expected<Links> generateLinks(const scene::Scene& scene, const rt::Accel& accel,
     thread_local Scratch scratch;
     scratch.rays.resize(pattern.count());
     scratch.hits.resize(pattern.count());
+    scratch.at_first.resize(pattern.count());
     ChunkResult& out = results[chunk];
     const std::size_t end = std::min(n, (chunk + 1) * kChunk);
     if (sink.cancelled()) return;
@@ -341,7 +409,7 @@ Expected<Links> generateLinks(const scene::Scene& scene, const rt::Accel& accel,
     out.direction.reserve(most);
     out.solid_angle.reserve(most);
     for (std::size_t c = chunk * kChunk; c < end; ++c)
-      link_cache(c, caches.position[c], caches.normal[c], scene, accel, tree, locator, options, pattern,
+      link_cache(c, caches.position[c], caches.normal[c], double_sided.data(), accel, tree, locator, options, pattern,
                  surfel_bits, scratch, out);
     counter.add(end - chunk * kChunk);
   });

@@ -224,6 +224,59 @@ TEST(LinkRays, AreTheStratifiedSamplesOfTheCache) {
   }
 }
 
+TEST(LinkRays, AreBitIdenticalToTheScalarFormula) {
+  // The generator's vectorised row loops must round exactly like the per-ray scalar code
+  // the artifacts were built with (no FMA, no reassociation): rays, and so links, may not
+  // change by one bit. This is that scalar code, kept as the reference.
+  Scene s;
+  addQuad(s, {-1, 0, -1}, {-1, 0, 1}, {1, 0, 1}, {1, 0, -1});
+  finish(s);
+  auto accel = rt::Accel::build(s);
+  ASSERT_TRUE(accel);
+  for (int rays : {64, 1024}) {
+    for (const glm::vec3 normal : {glm::vec3(0.3f, 1.0f, -0.2f), glm::vec3(0.0f)}) {
+      const LinkOptions o{.rays = rays, .seed = 91};
+      const LinkRays pattern(o);
+      std::vector<rt::Ray> r(pattern.count());
+      const glm::vec3 p(0.25f, 0.5f, -0.125f);
+      pattern.generate(*accel, 12, p, normal, r);
+      const bool hemisphere = glm::dot(normal, normal) > 0.0f;
+      glm::vec3 t(1, 0, 0), b(0, 1, 0), n(0, 0, 1);
+      if (hemisphere) {
+        n = glm::normalize(normal);
+        orthonormalBasis(n, t, b);
+      }
+      const auto strata = static_cast<std::uint32_t>(std::sqrt(double(rays)));
+      const std::uint64_t seed = mixBits(91 ^ (std::uint64_t(12) * 0xd1b54a32d192ed03ULL));
+      const float inv = 1.0f / static_cast<float>(strata), dphi = 2.0f * kPi * inv;
+      for (std::uint32_t i = 0; i < pattern.count(); ++i) {
+        const std::uint32_t sx = i % strata, sy = i / strata;
+        const std::uint64_t bits = mixBits(seed ^ (std::uint64_t(i) * 0x9e3779b97f4a7c15ULL));
+        const float u1 = (static_cast<float>(sx) + unitFloat(bits)) * inv;
+        const float d = dphi * unitFloat(mixBits(bits));
+        float cd, sd;
+        if (strata >= 16) {
+          const float d2 = d * d;
+          cd = 1.0f - d2 * (0.5f - d2 * (1.0f / 24.0f - d2 * (1.0f / 720.0f)));
+          sd = d * (1.0f - d2 * (1.0f / 6.0f - d2 * (1.0f / 120.0f - d2 * (1.0f / 5040.0f))));
+        } else {
+          cd = std::cos(d);
+          sd = std::sin(d);
+        }
+        const double phi = 2.0 * std::numbers::pi * double(sy) / double(strata);
+        const glm::vec2 col(float(std::cos(phi)), float(std::sin(phi)));
+        const float cos_phi = col.x * cd - col.y * sd, sin_phi = col.y * cd + col.x * sd;
+        const float z = hemisphere ? 1.0f - u1 : 1.0f - 2.0f * u1;
+        const float rad = std::sqrt(std::max(0.0f, 1.0f - z * z));
+        const glm::vec3 expected = (rad * cos_phi) * t + (rad * sin_phi) * b + z * n;
+        ASSERT_EQ(r[i].dir.x, expected.x) << "ray " << i << " of " << rays;
+        ASSERT_EQ(r[i].dir.y, expected.y) << "ray " << i << " of " << rays;
+        ASSERT_EQ(r[i].dir.z, expected.z) << "ray " << i << " of " << rays;
+      }
+    }
+  }
+}
+
 TEST(Octahedral, RoundTripIsAccurate) {
   for (int i = 0; i < 1000; ++i) {
     const float z = 1.0f - 2.0f * (i + 0.5f) / 1000.0f, phi = 2.399963f * i;
