@@ -285,7 +285,7 @@ int main(int argc, char** argv) {
     lamp.light.intensity = 100.0f;
     if (Status s = inc.add(lamp); !s) return 2;
     const relight::RelightOptions o{.max_bounces = 0};
-    relighter->invalidate();
+    relighter->invalidate(relight::Relighter::Forget::kLightState);  // steady state: emission kept
     auto full = relighter->relight(inc, o);
     if (!full) return 2;
     std::vector<double> t;
@@ -311,7 +311,7 @@ int main(int argc, char** argv) {
 
   // ---- bounces ------------------------------------------------------------------------------
   {
-    relighter->invalidate();
+    relighter->invalidate(relight::Relighter::Forget::kLightState);
     auto res = relighter->relight(lights, {.max_bounces = 8});
     if (!res) return 2;
     fmt::print("\nbounces: {} ({}), total {:.3f} ms\n", res->bounce_log.size(), res->bounce_stop,
