@@ -29,7 +29,6 @@ std::uint32_t strataFor(const LinkOptions& options) {
 // so sorting the keys groups hits by surfel (tree order) with a fixed order inside.
 using Sample = std::uint64_t;
 inline Sample makeSample(std::uint32_t surfel, std::uint32_t ray) { return (Sample(surfel) << 32) | ray; }
-inline std::uint32_t surfelOf(Sample s) { return static_cast<std::uint32_t>(s >> 32); }
 inline std::uint32_t rayOf(Sample s) { return static_cast<std::uint32_t>(s); }
 
 // Per-thread scratch, reused across caches so the hot loop never allocates.
