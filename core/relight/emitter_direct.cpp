@@ -138,6 +138,8 @@ EmitterSampler::EmitterSampler(const scene::Scene& scene, const rt::Accel& accel
       inv_pdf_area_.push_back(float(area_m2));  // times W / w_t below
     }
   }
+  weight_ = weight;
+  area_.assign(inv_pdf_area_.begin(), inv_pdf_area_.end());
   double total = 0.0;
   for (double w : weight) total += w;
   cdf_.resize(weight.size());
@@ -161,13 +163,46 @@ glm::vec3 EmitterSampler::irradiance(glm::vec3 position, glm::vec3 normal, int s
   if (cdf_.empty() || samples <= 0) return glm::vec3(0.0f);
   const std::size_t n = std::size_t(samples);
   scratch.rays.resize(n), scratch.contrib.resize(n), scratch.blocked.resize(n);
+  std::span<const double> cdf = cdf_;
+  std::span<const float> inv_pick = inv_pick_, inv_pdf_area = inv_pdf_area_;
+  if (cdf_.size() <= kLocalPickMax) {
+    // The receiver's own pick. Weight 0 only where the triangle cannot light x: entirely
+    // below its horizon (cos_r <= 0 at every point of a convex triangle), or x behind a
+    // one-sided emitter's plane.
+    const std::size_t m = cdf_.size();
+    scratch.cdf.resize(m), scratch.inv_pick.resize(m), scratch.inv_pdf_area.resize(m);
+    double total = 0.0;
+    for (std::size_t e = 0; e < m; ++e) {
+      const glm::vec3 v0 = p0_[e], v1 = p0_[e] + e1_[e], v2 = p0_[e] + e2_[e];
+      const bool below = glm::dot(normal, v0 - position) <= 0.0f && glm::dot(normal, v1 - position) <= 0.0f &&
+                         glm::dot(normal, v2 - position) <= 0.0f;
+      const bool behind = !double_sided_[e] && glm::dot(normal_[e], position - v0) <= 0.0f;
+      double w = 0.0;
+      if (!below && !behind) {
+        const glm::dvec3 d = (glm::dvec3(v0) + glm::dvec3(v1) + glm::dvec3(v2)) / 3.0 - glm::dvec3(position);
+        w = weight_[e] / std::max(glm::dot(d, d), area_[e]);
+      }
+      scratch.inv_pick[e] = float(w);  // the weight, until the total is known
+      total += w;
+      scratch.cdf[e] = total;
+    }
+    if (!(total > 0.0)) return glm::vec3(0.0f);  // every emitter is below or behind x
+    for (std::size_t e = 0; e < m; ++e) {
+      const double w = scratch.inv_pick[e];
+      scratch.cdf[e] /= total;
+      scratch.inv_pick[e] = w > 0.0 ? float(total / w) : 0.0f;
+      scratch.inv_pdf_area[e] = w > 0.0 ? float(area_[e] * total / w) : 0.0f;
+    }
+    scratch.cdf.back() = 1.0;
+    cdf = scratch.cdf, inv_pick = scratch.inv_pick, inv_pdf_area = scratch.inv_pdf_area;
+  }
   // Cranley-Patterson rotation of the Hammersley set: the receiver's own stratified pattern.
   const std::uint64_t bits = mixBits(seed);
   const double r0 = unitFloat(bits), r1 = unitFloat(mixBits(bits));
   std::size_t count = 0;
   // Stratified picks visit triangles in CDF order (one wrap-around): the set-up of the last
   // triangle serves the whole run of samples on it.
-  std::size_t tri_of_setup = cdf_.size();
+  std::size_t tri_of_setup = cdf.size();
   SphericalTriangle tri;
   for (std::size_t i = 0; i < n; ++i) {
     double u = double(i) / double(n) + r0;
@@ -175,11 +210,11 @@ glm::vec3 EmitterSampler::irradiance(glm::vec3 position, glm::vec3 normal, int s
     double v = radicalInverse(i, 2) + r1;
     v -= std::floor(v);
     const std::size_t e =
-        std::min<std::size_t>(std::size_t(std::upper_bound(cdf_.begin(), cdf_.end(), u) - cdf_.begin()),
-                              cdf_.size() - 1);
-    const double lo = e ? cdf_[e - 1] : 0.0;
+        std::min<std::size_t>(std::size_t(std::upper_bound(cdf.begin(), cdf.end(), u) - cdf.begin()),
+                              cdf.size() - 1);
+    const double lo = e ? cdf[e - 1] : 0.0;
     // The pick's remainder is a fresh uniform in [0, 1): keeps the stratification inside t.
-    const double ur = std::clamp((u - lo) / std::max(cdf_[e] - lo, 1e-300), 0.0, 1.0);
+    const double ur = std::clamp((u - lo) / std::max(cdf[e] - lo, 1e-300), 0.0, 1.0);
     // Uniform in the solid angle the triangle subtends (no 1/d^2 peak for a receiver next to
     // an emitter); far or grazing triangles fall back to uniform area sampling.
     glm::vec2 bary;
@@ -208,7 +243,7 @@ glm::vec3 EmitterSampler::irradiance(glm::vec3 position, glm::vec3 normal, int s
         bary = glm::vec2(float(b1), float(b2));
         cos_r = float(glm::dot(glm::dvec3(normal), dir));
         cos_e = -float(glm::dot(glm::dvec3(normal_[e]), dir));
-        weight = cos_r * float(tri.omega_sr) * inv_pick_[e];
+        weight = cos_r * float(tri.omega_sr) * inv_pick[e];
       }
     }
     if (!spherical) {
@@ -220,7 +255,7 @@ glm::vec3 EmitterSampler::irradiance(glm::vec3 position, glm::vec3 normal, int s
       const float inv_d = 1.0f / std::sqrt(d2);
       cos_r = glm::dot(normal, w) * inv_d;
       cos_e = -glm::dot(normal_[e], w) * inv_d;
-      weight = cos_r * std::abs(cos_e) / d2 * inv_pdf_area_[e];
+      weight = cos_r * std::abs(cos_e) / d2 * inv_pdf_area[e];
     }
     if (double_sided_[e]) cos_e = std::abs(cos_e);
     if (cos_r <= 0.0f || cos_e <= 0.0f) continue;  // behind the receiver or the emitter's back

@@ -13,7 +13,10 @@
 // Solid-angle sampling has no 1/d^2 peak, so a receiver next to an emitter (a wall touching
 // a lamp) is as quiet as a far one; triangles subtending < 3e-4 sr (far: the construction
 // loses its digits) or > 6.22 sr (x nearly in their plane) use uniform area sampling,
-// E += L_e V cos_r cos_e / d^2 * A_t / P(t). Samples are a Hammersley set (stratified in the
+// E += L_e V cos_r cos_e / d^2 * A_t / P(t). With few emitting triangles (kLocalPickMax) P(t)
+// is the receiver's own: w_t(x) = w_t / max(d^2, A_t), 0 below its horizon or behind a
+// one-sided emitter, so a texel next to a weak lamp does not spend its samples on a strong
+// one it barely sees (EmissiveStrengthTest: docs/quality.md). Samples are a Hammersley set (stratified in the
 // pick, so emitters get samples in proportion to power, and within each triangle) rotated
 // per receiver by its seed (Cranley-Patterson), so every receiver's result is a pure
 // function of (position, normal, N, seed): deterministic for any thread count. Units: L_e
@@ -50,7 +53,14 @@ class EmitterSampler {
     std::vector<rt::Ray> rays;
     std::vector<glm::vec3> contrib;
     std::vector<std::uint8_t> blocked;
+    std::vector<double> cdf;                 // per-receiver pick (few emitters), see irradiance()
+    std::vector<float> inv_pick, inv_pdf_area;
   };
+  // Up to this many emitting triangles, each receiver picks them by its own estimate of what
+  // they send it (power over squared distance, zero for a triangle below its horizon or
+  // showing it its back); beyond, by power alone. Unbiased either way: a triangle gets
+  // weight 0 only where it cannot contribute.
+  static constexpr std::size_t kLocalPickMax = 64;
 
   // Irradiance at `position` (unit `normal`) from the emitters, with `samples` samples; adds
   // the shadow rays traced to `rays`.
@@ -72,6 +82,7 @@ class EmitterSampler {
   std::vector<double> cdf_;              // cdf_[i] = sum_{j <= i} w_j / W; cdf_.back() = 1
   std::vector<float> inv_pick_;          // 1 / P(t) = W / w_t
   std::vector<float> inv_pdf_area_;      // 1 / pdf_A = A_t W / w_t, m^2
+  std::vector<double> weight_, area_;    // w_t and A_t (m^2), for the per-receiver pick
 };
 
 }  // namespace lightlink::relight::detail
