@@ -44,7 +44,7 @@ std::shared_ptr<grpc::Channel> DaemonProcess::channel() const {
   return grpc::CreateCustomChannel(target(), grpc::InsecureChannelCredentials(), args);
 }
 
-std::unique_ptr<v1::Lightlink::Stub> DaemonProcess::stub() const { return v1::Lightlink::NewStub(channel()); }
+std::unique_ptr<LightlinkRpc> DaemonProcess::rpc() const { return v1::Lightlink::NewStub(channel()); }
 
 int runDaemonToExit(const std::vector<std::string>& args, std::string* output, std::chrono::milliseconds limit) {
   std::vector<std::string> argv = {LIGHTLINKD_PATH};
@@ -62,10 +62,10 @@ std::unique_ptr<grpc::ClientContext> context(int ms, const std::string& bearer) 
   return c;
 }
 
-grpc::Status openScene(v1::Lightlink::Stub& stub, const v1::OpenSceneRequest& request, v1::SceneOpened* opened,
+grpc::Status openScene(LightlinkRpc& rpc, const v1::OpenSceneRequest& request, v1::SceneOpened* opened,
                        std::vector<std::string>* stages, const std::string& bearer, int deadline_ms) {
   auto ctx = context(deadline_ms, bearer);
-  auto reader = stub.OpenScene(ctx.get(), request);
+  auto reader = rpc.OpenScene(ctx.get(), request);
   v1::OpenSceneProgress p;
   bool got = false;
   while (reader->Read(&p)) {

@@ -1,5 +1,5 @@
 // Test harness for the daemon: real lightlinkd processes on loopback (port 0 + port file,
-// a private cache dir), gRPC stubs with deadlines, and a reader that reassembles results
+// a private cache dir), gRPC clients with deadlines, and a reader that reassembles results
 // (header + chunks, full or delta) while checking that none is torn.
 #pragma once
 
@@ -22,6 +22,8 @@
 namespace lightlink::testing {
 
 namespace v1 = lightlink::v1;
+// gRPC's generated client class for the Lightlink service (its own name for it is Stub).
+using LightlinkRpc = v1::Lightlink::Stub;
 
 // A lightlinkd for one test: the client library's LocalDaemon (one fork/exec and port-file
 // wait for the tests, the benchmark and tools), here reporting start failures through
@@ -44,7 +46,7 @@ class DaemonProcess {
   // when killed by one, -1 on timeout.
   int signalAndWait(int sig, std::chrono::milliseconds limit = std::chrono::milliseconds(10000));
 
-  std::unique_ptr<v1::Lightlink::Stub> stub() const;
+  std::unique_ptr<LightlinkRpc> rpc() const;
   std::shared_ptr<grpc::Channel> channel() const;
 
  private:
@@ -61,7 +63,7 @@ int runDaemonToExit(const std::vector<std::string>& args, std::string* output,
 std::unique_ptr<grpc::ClientContext> context(int ms = 20000, const std::string& bearer = "");
 
 // OpenScene to completion. Fills `opened` and the progress stages seen.
-grpc::Status openScene(v1::Lightlink::Stub& stub, const v1::OpenSceneRequest& request, v1::SceneOpened* opened,
+grpc::Status openScene(LightlinkRpc& rpc, const v1::OpenSceneRequest& request, v1::SceneOpened* opened,
                        std::vector<std::string>* stages = nullptr, const std::string& bearer = "",
                        int deadline_ms = 60000);
 

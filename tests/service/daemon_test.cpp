@@ -101,14 +101,32 @@ struct Fixture {
   fs::path cache = tmp / "cache";
 };
 
+// A daemon (quick flags) with the bundled Cornell box open: how most tests here begin.
+// `auto& [f, d, rpc, opened] = cornell;` gives a test the usual names.
+struct CornellDaemon {
+  Fixture f;
+  DaemonProcess d{f.cache, quickFlags()};
+  std::unique_ptr<LightlinkRpc> rpc;
+  v1::SceneOpened opened;
+
+  // The failure message carries the daemon's log.
+  ::testing::AssertionResult open() {
+    if (!d.ok()) return ::testing::AssertionFailure() << d.error();
+    rpc = d.rpc();
+    const grpc::Status s = openScene(*rpc, cornellRequest(), &opened);
+    if (!s.ok()) return ::testing::AssertionFailure() << s.error_message() << "\n" << d.log();
+    return ::testing::AssertionSuccess();
+  }
+};
+
 TEST(Daemon, RoundTripOpenUpdateRelightMatchesInProcess) {
   Fixture f;
   DaemonProcess d(f.cache, quickFlags());
   ASSERT_TRUE(d.ok()) << d.error();
-  auto stub = d.stub();
+  auto rpc = d.rpc();
   v1::SceneOpened opened;
   std::vector<std::string> stages;
-  ASSERT_TRUE(openScene(*stub, cornellRequest(), &opened, &stages).ok()) << d.log();
+  ASSERT_TRUE(openScene(*rpc, cornellRequest(), &opened, &stages).ok()) << d.log();
   EXPECT_FALSE(opened.artifact_reused());
   EXPECT_EQ(opened.backend(), "cpu");
   EXPECT_EQ(opened.version(), 1u);
@@ -123,7 +141,7 @@ TEST(Daemon, RoundTripOpenUpdateRelightMatchesInProcess) {
   *up.add_add() = pointLight("key", 0.2f, 0.4f, 0.3f, 2.0f);
   up.set_wait_ms(15000);
   v1::UpdateLightsResponse ur;
-  ASSERT_TRUE(stub->UpdateLights(context().get(), up, &ur).ok());
+  ASSERT_TRUE(rpc->UpdateLights(context().get(), up, &ur).ok());
   EXPECT_EQ(ur.version(), 2u);
   EXPECT_TRUE(ur.relit());
 
@@ -132,7 +150,7 @@ TEST(Daemon, RoundTripOpenUpdateRelightMatchesInProcess) {
   rq.set_version(2);
   rq.mutable_spec()->set_precision(v1::PRECISION_FLOAT);
   auto ctx = context();
-  auto reader = stub->Relight(ctx.get(), rq);
+  auto reader = rpc->Relight(ctx.get(), rq);
   Result res;
   std::string err;
   ASSERT_TRUE(readOne(reader.get(), res, &err).ok());
@@ -169,7 +187,7 @@ TEST(Daemon, RoundTripOpenUpdateRelightMatchesInProcess) {
   rq.mutable_spec()->set_component(v1::COMPONENT_INDIRECT);
   rq.mutable_spec()->set_skip_grid(true);
   auto ctx2 = context();
-  auto reader2 = stub->Relight(ctx2.get(), rq);
+  auto reader2 = rpc->Relight(ctx2.get(), rq);
   Result half;
   ASSERT_TRUE(readOne(reader2.get(), half, &err).ok());
   EXPECT_EQ(half.payloads.count(v1::PAYLOAD_LIGHTMAP_DIRECT), 0u);
@@ -185,20 +203,17 @@ TEST(Daemon, RoundTripOpenUpdateRelightMatchesInProcess) {
 }
 
 TEST(Daemon, SubscribeDeliversEveryVersionInOrderAndDeltasReassemble) {
-  Fixture f;
-  DaemonProcess d(f.cache, quickFlags());
-  ASSERT_TRUE(d.ok()) << d.error();
-  auto stub = d.stub();
-  v1::SceneOpened opened;
-  ASSERT_TRUE(openScene(*stub, cornellRequest(), &opened).ok()) << d.log();
+  CornellDaemon cornell;
+  ASSERT_TRUE(cornell.open());
+  auto& [f, d, rpc, opened] = cornell;
 
   v1::SubscribeRequest full_req, delta_req;
   *full_req.mutable_scene() = refOf(opened);
   *delta_req.mutable_scene() = refOf(opened);
   delta_req.set_deltas(true);
   auto full_ctx = context(30000), delta_ctx = context(30000);
-  auto full_stream = stub->Subscribe(full_ctx.get(), full_req);
-  auto delta_stream = stub->Subscribe(delta_ctx.get(), delta_req);
+  auto full_stream = rpc->Subscribe(full_ctx.get(), full_req);
+  auto delta_stream = rpc->Subscribe(delta_ctx.get(), delta_req);
   ResultReader full_reader(full_stream.get()), delta_reader(delta_stream.get());
   Result a, b;
   ASSERT_TRUE(full_reader.next(a)) << full_reader.error();
@@ -214,7 +229,7 @@ TEST(Daemon, SubscribeDeliversEveryVersionInOrderAndDeltasReassemble) {
     *(i == 0 ? up.add_add() : up.add_modify()) = pointLight("moving", 0.1f + 0.05f * i, 0.1f, 0.1f, 0.3f);
     up.set_wait_ms(15000);
     v1::UpdateLightsResponse ur;
-    ASSERT_TRUE(stub->UpdateLights(context().get(), up, &ur).ok());
+    ASSERT_TRUE(rpc->UpdateLights(context().get(), up, &ur).ok());
     ASSERT_TRUE(ur.relit());
     ASSERT_TRUE(full_reader.next(a)) << full_reader.error();
     ASSERT_TRUE(delta_reader.next(b)) << delta_reader.error();
@@ -231,17 +246,14 @@ TEST(Daemon, SubscribeDeliversEveryVersionInOrderAndDeltasReassemble) {
 }
 
 TEST(Daemon, BurstOfUpdatesIsCoalescedAndSubscribersEndAtTheNewest) {
-  Fixture f;
-  DaemonProcess d(f.cache, quickFlags());
-  ASSERT_TRUE(d.ok()) << d.error();
-  auto stub = d.stub();
-  v1::SceneOpened opened;
-  ASSERT_TRUE(openScene(*stub, cornellRequest(), &opened).ok()) << d.log();
+  CornellDaemon cornell;
+  ASSERT_TRUE(cornell.open());
+  auto& [f, d, rpc, opened] = cornell;
   v1::SubscribeRequest sub;
   *sub.mutable_scene() = refOf(opened);
   sub.mutable_spec()->set_skip_grid(true);
   auto ctx = context(30000);
-  auto stream = stub->Subscribe(ctx.get(), sub);
+  auto stream = rpc->Subscribe(ctx.get(), sub);
   ResultReader reader(stream.get());
   Result r;
   ASSERT_TRUE(reader.next(r)) << reader.error();
@@ -255,7 +267,7 @@ TEST(Daemon, BurstOfUpdatesIsCoalescedAndSubscribersEndAtTheNewest) {
     *up.mutable_scene() = refOf(opened);
     *(i == 0 ? up.add_add() : up.add_modify()) = pointLight("burst", 0.1f + 0.005f * i, 0.3f, 0.3f, 0.5f);
     v1::UpdateLightsResponse ur;
-    ASSERT_TRUE(stub->UpdateLights(context().get(), up, &ur).ok());
+    ASSERT_TRUE(rpc->UpdateLights(context().get(), up, &ur).ok());
     EXPECT_EQ(ur.version(), last == 0 ? 2u : last + 1) << "versions are consecutive";
     last = ur.version();
   }
@@ -274,7 +286,7 @@ TEST(Daemon, BurstOfUpdatesIsCoalescedAndSubscribersEndAtTheNewest) {
   v1::StatsRequest sr;
   *sr.mutable_scene() = refOf(opened);
   v1::StatsResponse stats;
-  ASSERT_TRUE(stub->Stats(context().get(), sr, &stats).ok());
+  ASSERT_TRUE(rpc->Stats(context().get(), sr, &stats).ok());
   const auto& st = stats.scene(0);
   EXPECT_EQ(st.relights() + st.coalesced(), last) << "every version is either relit or folded into a later relight";
   EXPECT_GT(st.coalesced(), 0u) << "a burst of " << kBurst << " updates should coalesce";
@@ -282,18 +294,15 @@ TEST(Daemon, BurstOfUpdatesIsCoalescedAndSubscribersEndAtTheNewest) {
 }
 
 TEST(Daemon, GetTexturesAnswersNotModifiedCheaply) {
-  Fixture f;
-  DaemonProcess d(f.cache, quickFlags());
-  ASSERT_TRUE(d.ok()) << d.error();
-  auto stub = d.stub();
-  v1::SceneOpened opened;
-  ASSERT_TRUE(openScene(*stub, cornellRequest(), &opened).ok()) << d.log();
+  CornellDaemon cornell;
+  ASSERT_TRUE(cornell.open());
+  auto& [f, d, rpc, opened] = cornell;
   v1::GetTexturesRequest g;
   *g.mutable_scene() = refOf(opened);
   Result first;
   std::string err;
   auto c1 = context();
-  auto r1 = stub->GetTextures(c1.get(), g);
+  auto r1 = rpc->GetTextures(c1.get(), g);
   ASSERT_TRUE(readOne(r1.get(), first, &err).ok()) << err;
   EXPECT_FALSE(first.header.not_modified());
   EXPECT_GT(first.header.payload_bytes(), 0u);
@@ -301,7 +310,7 @@ TEST(Daemon, GetTexturesAnswersNotModifiedCheaply) {
   g.set_last_seen_version(first.header.version());
   Result again;
   auto c2 = context();
-  auto r2 = stub->GetTextures(c2.get(), g);
+  auto r2 = rpc->GetTextures(c2.get(), g);
   ASSERT_TRUE(readOne(r2.get(), again, &err).ok()) << err;
   EXPECT_TRUE(again.header.not_modified());
   EXPECT_EQ(again.header.payload_bytes(), 0u);
@@ -313,10 +322,10 @@ TEST(Daemon, GetTexturesAnswersNotModifiedCheaply) {
   *up.add_add() = pointLight("extra", 0.3f, 0.3f, 0.3f, 1.0f);
   up.set_wait_ms(15000);
   v1::UpdateLightsResponse ur;
-  ASSERT_TRUE(stub->UpdateLights(context().get(), up, &ur).ok());
+  ASSERT_TRUE(rpc->UpdateLights(context().get(), up, &ur).ok());
   Result changed;
   auto c3 = context();
-  auto r3 = stub->GetTextures(c3.get(), g);
+  auto r3 = rpc->GetTextures(c3.get(), g);
   ASSERT_TRUE(readOne(r3.get(), changed, &err).ok()) << err;
   EXPECT_FALSE(changed.header.not_modified());
   EXPECT_EQ(changed.header.version(), ur.version());
@@ -330,32 +339,29 @@ struct Polled {
   double ms = 0.0;
 };
 
-Polled getTextures(v1::Lightlink::Stub& stub, const v1::GetTexturesRequest& g, int deadline_ms = 30000) {
+Polled getTextures(LightlinkRpc& rpc, const v1::GetTexturesRequest& g, int deadline_ms = 30000) {
   Polled p;
   const auto t0 = std::chrono::steady_clock::now();
   auto ctx = context(deadline_ms);
-  auto reader = stub.GetTextures(ctx.get(), g);
+  auto reader = rpc.GetTextures(ctx.get(), g);
   p.status = readOne(reader.get(), p.result, &p.error);
   p.ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
   return p;
 }
 
 TEST(Daemon, LongPollAnswersTheMomentANewVersionExists) {
-  Fixture f;
-  DaemonProcess d(f.cache, quickFlags());
-  ASSERT_TRUE(d.ok()) << d.error();
-  auto stub = d.stub();
-  v1::SceneOpened opened;
-  ASSERT_TRUE(openScene(*stub, cornellRequest(), &opened).ok()) << d.log();
+  CornellDaemon cornell;
+  ASSERT_TRUE(cornell.open());
+  auto& [f, d, rpc, opened] = cornell;
   v1::GetTexturesRequest g;
   *g.mutable_scene() = refOf(opened);
-  const Polled first = getTextures(*stub, g);
+  const Polled first = getTextures(*rpc, g);
   ASSERT_TRUE(first.status.ok()) << first.status.error_message() << first.error;
   const std::uint64_t seen = first.result.header.version();
 
   // An old client's request (no wait_ms on the wire) is the plain poll: not modified at once.
   g.set_last_seen_version(seen);
-  const Polled plain = getTextures(*stub, g);
+  const Polled plain = getTextures(*rpc, g);
   ASSERT_TRUE(plain.status.ok());
   EXPECT_TRUE(plain.result.header.not_modified());
   EXPECT_LT(plain.ms, 2000.0) << "a poll without wait_ms must not wait";
@@ -365,7 +371,7 @@ TEST(Daemon, LongPollAnswersTheMomentANewVersionExists) {
   std::atomic<bool> answered{false};
   Polled held;
   std::thread poller([&] {
-    held = getTextures(*stub, g);
+    held = getTextures(*rpc, g);
     answered = true;
   });
   std::this_thread::sleep_for(std::chrono::milliseconds(400));
@@ -375,7 +381,7 @@ TEST(Daemon, LongPollAnswersTheMomentANewVersionExists) {
   *up.add_add() = pointLight("late", 0.3f, 0.3f, 0.3f, 1.0f);
   v1::UpdateLightsResponse ur;
   const auto t_update = std::chrono::steady_clock::now();
-  ASSERT_TRUE(stub->UpdateLights(context().get(), up, &ur).ok());
+  ASSERT_TRUE(rpc->UpdateLights(context().get(), up, &ur).ok());
   poller.join();
   const double after_update_ms =
       std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t_update).count();
@@ -388,19 +394,16 @@ TEST(Daemon, LongPollAnswersTheMomentANewVersionExists) {
 
   // Something newer than last_seen already exists: answered at once, wait or not.
   g.set_last_seen_version(seen);
-  const Polled behind = getTextures(*stub, g);
+  const Polled behind = getTextures(*rpc, g);
   ASSERT_TRUE(behind.status.ok());
   EXPECT_EQ(behind.result.header.version(), ur.version());
   EXPECT_LT(behind.ms, 5000.0);
 }
 
 TEST(Daemon, LongPollEndsNotModifiedAtItsWaitAndBeforeTheCallDeadline) {
-  Fixture f;
-  DaemonProcess d(f.cache, quickFlags());
-  ASSERT_TRUE(d.ok()) << d.error();
-  auto stub = d.stub();
-  v1::SceneOpened opened;
-  ASSERT_TRUE(openScene(*stub, cornellRequest(), &opened).ok()) << d.log();
+  CornellDaemon cornell;
+  ASSERT_TRUE(cornell.open());
+  auto& [f, d, rpc, opened] = cornell;
   v1::RelightRequest rq;
   *rq.mutable_scene() = refOf(opened);
   rq.set_version(opened.version());
@@ -409,14 +412,14 @@ TEST(Daemon, LongPollEndsNotModifiedAtItsWaitAndBeforeTheCallDeadline) {
   Result initial;
   std::string err;
   auto rctx = context();
-  auto rr = stub->Relight(rctx.get(), rq);
+  auto rr = rpc->Relight(rctx.get(), rq);
   ASSERT_TRUE(readOne(rr.get(), initial, &err).ok()) << err;
 
   v1::GetTexturesRequest g;
   *g.mutable_scene() = refOf(opened);
   g.set_last_seen_version(initial.header.version());
   g.set_wait_ms(600);
-  const Polled waited = getTextures(*stub, g);
+  const Polled waited = getTextures(*rpc, g);
   ASSERT_TRUE(waited.status.ok()) << waited.status.error_message();
   EXPECT_TRUE(waited.result.header.not_modified());
   EXPECT_EQ(waited.result.chunks, 0u);
@@ -426,30 +429,27 @@ TEST(Daemon, LongPollEndsNotModifiedAtItsWaitAndBeforeTheCallDeadline) {
   // A call deadline shorter than wait_ms: not modified just before the deadline, not
   // DEADLINE_EXCEEDED.
   g.set_wait_ms(30000);
-  const Polled cut = getTextures(*stub, g, 1500);
+  const Polled cut = getTextures(*rpc, g, 1500);
   ASSERT_TRUE(cut.status.ok()) << cut.status.error_message();
   EXPECT_TRUE(cut.result.header.not_modified());
   EXPECT_GE(cut.ms, 1000.0);
 }
 
 TEST(Daemon, LongPollRejectsAbsurdWaits) {
-  Fixture f;
-  DaemonProcess d(f.cache, quickFlags());
-  ASSERT_TRUE(d.ok()) << d.error();
-  auto stub = d.stub();
-  v1::SceneOpened opened;
-  ASSERT_TRUE(openScene(*stub, cornellRequest(), &opened).ok()) << d.log();
+  CornellDaemon cornell;
+  ASSERT_TRUE(cornell.open());
+  auto& [f, d, rpc, opened] = cornell;
   v1::GetTexturesRequest g;
   *g.mutable_scene() = refOf(opened);
   for (std::uint32_t wait : {60001u, 4000000000u}) {
     g.set_wait_ms(wait);
-    const Polled p = getTextures(*stub, g);
+    const Polled p = getTextures(*rpc, g);
     EXPECT_EQ(p.status.error_code(), grpc::StatusCode::INVALID_ARGUMENT) << wait;
     EXPECT_NE(p.status.error_message().find("wait_ms"), std::string::npos) << p.status.error_message();
   }
   // The limit itself is accepted, and the daemon keeps serving.
   g.set_wait_ms(60000);
-  const Polled ok = getTextures(*stub, g);
+  const Polled ok = getTextures(*rpc, g);
   ASSERT_TRUE(ok.status.ok()) << ok.status.error_message();
   EXPECT_FALSE(ok.result.header.not_modified()) << "last_seen 0: the newest result at once";
 }
@@ -472,14 +472,14 @@ TEST(Daemon, ProgressivePublishesAPreviewThenTheConvergedResultAsTheNextVersion)
   flags.push_back("--progressive");
   DaemonProcess d(f.cache, flags);
   ASSERT_TRUE(d.ok()) << d.error();
-  auto stub = d.stub();
+  auto rpc = d.rpc();
   v1::SceneOpened opened;
-  ASSERT_TRUE(openScene(*stub, cornellRequest(), &opened).ok()) << d.log();
+  ASSERT_TRUE(openScene(*rpc, cornellRequest(), &opened).ok()) << d.log();
   v1::SubscribeRequest sub;
   *sub.mutable_scene() = refOf(opened);
   sub.mutable_spec()->set_precision(v1::PRECISION_FLOAT);
   auto ctx = context(60000);
-  auto stream = stub->Subscribe(ctx.get(), sub);
+  auto stream = rpc->Subscribe(ctx.get(), sub);
   ResultReader reader(stream.get());
   // The initial light set too: a preview (version 1), then its converged result (version 2).
   auto initial = readUntilConverged(reader, 1);
@@ -491,7 +491,7 @@ TEST(Daemon, ProgressivePublishesAPreviewThenTheConvergedResultAsTheNextVersion)
   *up.mutable_scene() = refOf(opened);
   *up.add_add() = pointLight("key", 0.2f, 0.4f, 0.3f, 2.0f);
   v1::UpdateLightsResponse ur;
-  ASSERT_TRUE(stub->UpdateLights(context().get(), up, &ur).ok());
+  ASSERT_TRUE(rpc->UpdateLights(context().get(), up, &ur).ok());
   EXPECT_EQ(ur.version(), converged0 + 1) << "the converged result took a version of its own";
   auto results = readUntilConverged(reader, ur.version());
   ASSERT_FALSE(results.empty());
@@ -539,7 +539,7 @@ TEST(Daemon, ProgressivePublishesAPreviewThenTheConvergedResultAsTheNextVersion)
   v1::StatsRequest sr;
   *sr.mutable_scene() = refOf(opened);
   v1::StatsResponse stats;
-  ASSERT_TRUE(stub->Stats(context().get(), sr, &stats).ok());
+  ASSERT_TRUE(rpc->Stats(context().get(), sr, &stats).ok());
   EXPECT_EQ(stats.scene(0).previews(), 2u);
   EXPECT_EQ(stats.scene(0).version(), ur.version() + 1);
 
@@ -558,7 +558,7 @@ TEST(Daemon, ProgressivePublishesAPreviewThenTheConvergedResultAsTheNextVersion)
   DaemonProcess again(f.cache, quickFlags());
   ASSERT_TRUE(again.ok()) << again.error();
   v1::ListScenesResponse list;
-  ASSERT_TRUE(again.stub()->ListScenes(context().get(), {}, &list).ok());
+  ASSERT_TRUE(again.rpc()->ListScenes(context().get(), {}, &list).ok());
   ASSERT_EQ(list.scenes_size(), 1);
   EXPECT_EQ(list.scenes(0).version(), ur.version() + 1);
 }
@@ -569,8 +569,8 @@ TEST(Daemon, TwentyConcurrentClientsLoseNoUpdateAndSeeNoTornResult) {
   ASSERT_TRUE(d.ok()) << d.error();
   v1::SceneOpened opened;
   {
-    auto stub = d.stub();
-    ASSERT_TRUE(openScene(*stub, cornellRequest(), &opened).ok()) << d.log();
+    auto rpc = d.rpc();
+    ASSERT_TRUE(openScene(*rpc, cornellRequest(), &opened).ok()) << d.log();
   }
   constexpr int kClients = 20, kUpdates = 4;
   std::vector<std::vector<std::uint64_t>> acked(kClients);
@@ -578,7 +578,7 @@ TEST(Daemon, TwentyConcurrentClientsLoseNoUpdateAndSeeNoTornResult) {
   std::vector<std::thread> threads;
   for (int c = 0; c < kClients; ++c) {
     threads.emplace_back([&, c] {
-      auto stub = d.stub();  // one connection per client
+      auto rpc = d.rpc();  // one connection per client
       std::uint64_t last_seen = 0, last_polled = 0;
       for (int u = 0; u < kUpdates; ++u) {
         v1::UpdateLightsRequest up;
@@ -586,7 +586,7 @@ TEST(Daemon, TwentyConcurrentClientsLoseNoUpdateAndSeeNoTornResult) {
         const auto l = pointLight(fmt::format("c{}", c), 0.05f + 0.02f * c, 0.2f + 0.05f * u, 0.3f, 0.1f * (u + 1));
         *(u == 0 ? up.add_add() : up.add_modify()) = l;
         v1::UpdateLightsResponse ur;
-        auto st = stub->UpdateLights(context().get(), up, &ur);
+        auto st = rpc->UpdateLights(context().get(), up, &ur);
         if (!st.ok()) {
           errors[c] = "update: " + st.error_message();
           return;
@@ -599,7 +599,7 @@ TEST(Daemon, TwentyConcurrentClientsLoseNoUpdateAndSeeNoTornResult) {
         Result r;
         std::string err;
         auto ctx = context();
-        auto reader = stub->GetTextures(ctx.get(), g);
+        auto reader = rpc->GetTextures(ctx.get(), g);
         st = readOne(reader.get(), r, &err);
         if (!st.ok() || !err.empty()) {
           errors[c] = fmt::format("poll: {} {}", st.error_message(), err);
@@ -636,14 +636,14 @@ TEST(Daemon, TwentyConcurrentClientsLoseNoUpdateAndSeeNoTornResult) {
   EXPECT_EQ(*versions.rbegin(), std::uint64_t(1 + kClients * kUpdates));
 
   // The result for the newest version reflects every client's last update.
-  auto stub = d.stub();
+  auto rpc = d.rpc();
   v1::RelightRequest rq;
   *rq.mutable_scene() = refOf(opened);
   rq.set_version(*versions.rbegin());
   rq.mutable_spec()->set_precision(v1::PRECISION_FLOAT);
   rq.mutable_spec()->set_skip_grid(true);
   auto ctx = context(30000);
-  auto reader = stub->Relight(ctx.get(), rq);
+  auto reader = rpc->Relight(ctx.get(), rq);
   Result final_result;
   std::string err;
   ASSERT_TRUE(readOne(reader.get(), final_result, &err).ok()) << err;
@@ -662,7 +662,7 @@ TEST(Daemon, TwentyConcurrentClientsLoseNoUpdateAndSeeNoTornResult) {
   v1::StatsRequest sr;
   *sr.mutable_scene() = refOf(opened);
   v1::StatsResponse stats;
-  ASSERT_TRUE(stub->Stats(context().get(), sr, &stats).ok());
+  ASSERT_TRUE(rpc->Stats(context().get(), sr, &stats).ok());
   ASSERT_EQ(stats.scene_size(), 1);
   EXPECT_EQ(stats.scene(0).updates(), std::uint64_t(kClients * kUpdates));
   EXPECT_GT(stats.rss_bytes(), 0u);
@@ -672,23 +672,20 @@ TEST(Daemon, TwentyConcurrentClientsLoseNoUpdateAndSeeNoTornResult) {
 }
 
 TEST(Daemon, HostileRequestsGetTheRightStatusAndTheDaemonKeepsServing) {
-  Fixture f;
-  DaemonProcess d(f.cache, quickFlags());
-  ASSERT_TRUE(d.ok()) << d.error();
-  auto stub = d.stub();
-  v1::SceneOpened opened;
-  ASSERT_TRUE(openScene(*stub, cornellRequest(), &opened).ok()) << d.log();
+  CornellDaemon cornell;
+  ASSERT_TRUE(cornell.open());
+  auto& [f, d, rpc, opened] = cornell;
 
   // Oversized: a 65 MiB inline scene is beyond the 64 MiB receive limit.
   {
     v1::OpenSceneRequest big;
     big.set_gltf_bytes(std::string((65u << 20), 'x'));
-    auto st = openScene(*stub, big, nullptr, nullptr, "", 30000);
+    auto st = openScene(*rpc, big, nullptr, nullptr, "", 30000);
     EXPECT_EQ(st.error_code(), grpc::StatusCode::RESOURCE_EXHAUSTED) << st.error_message();
   }
   auto update = [&](const v1::UpdateLightsRequest& up) {
     v1::UpdateLightsResponse ur;
-    return stub->UpdateLights(context().get(), up, &ur);
+    return rpc->UpdateLights(context().get(), up, &ur);
   };
   // NaN and negative intensities, named by field.
   {
@@ -732,7 +729,7 @@ TEST(Daemon, HostileRequestsGetTheRightStatusAndTheDaemonKeepsServing) {
     v1::GetTexturesRequest g;
     *g.mutable_scene() = up.scene();
     auto ctx = context();
-    auto reader = stub->GetTextures(ctx.get(), g);
+    auto reader = rpc->GetTextures(ctx.get(), g);
     Result r;
     EXPECT_EQ(readOne(reader.get(), r, nullptr).error_code(), grpc::StatusCode::PERMISSION_DENIED);
   }
@@ -740,25 +737,25 @@ TEST(Daemon, HostileRequestsGetTheRightStatusAndTheDaemonKeepsServing) {
   {
     v1::OpenSceneRequest r = cornellRequest();
     r.set_surfels(1000000000u);
-    auto st = openScene(*stub, r, nullptr);
+    auto st = openScene(*rpc, r, nullptr);
     EXPECT_EQ(st.error_code(), grpc::StatusCode::INVALID_ARGUMENT);
     EXPECT_NE(st.error_message().find("surfels"), std::string::npos) << st.error_message();
     r = cornellRequest();
     r.set_links(-5);
-    EXPECT_EQ(openScene(*stub, r, nullptr).error_code(), grpc::StatusCode::INVALID_ARGUMENT);
+    EXPECT_EQ(openScene(*rpc, r, nullptr).error_code(), grpc::StatusCode::INVALID_ARGUMENT);
     r = cornellRequest();
     r.set_grid_spacing(std::nanf(""));
-    EXPECT_EQ(openScene(*stub, r, nullptr).error_code(), grpc::StatusCode::INVALID_ARGUMENT);
+    EXPECT_EQ(openScene(*rpc, r, nullptr).error_code(), grpc::StatusCode::INVALID_ARGUMENT);
     r = cornellRequest();
     r.set_path((f.tmp / "missing.gltf").string());
-    EXPECT_EQ(openScene(*stub, r, nullptr).error_code(), grpc::StatusCode::NOT_FOUND);
+    EXPECT_EQ(openScene(*rpc, r, nullptr).error_code(), grpc::StatusCode::NOT_FOUND);
     r = cornellRequest();
     r.set_gltf_bytes("{ this is not gltf");
-    EXPECT_EQ(openScene(*stub, r, nullptr).error_code(), grpc::StatusCode::INVALID_ARGUMENT);
+    EXPECT_EQ(openScene(*rpc, r, nullptr).error_code(), grpc::StatusCode::INVALID_ARGUMENT);
     // Inline bytes may not make the daemon read files of its own machine.
     r = cornellRequest();
     r.set_gltf_bytes(R"({"asset": {"version": "2.0"}, "buffers": [{"uri": "/etc/passwd", "byteLength": 4}]})");
-    const grpc::Status external = openScene(*stub, r, nullptr);
+    const grpc::Status external = openScene(*rpc, r, nullptr);
     EXPECT_EQ(external.error_code(), grpc::StatusCode::INVALID_ARGUMENT);
     EXPECT_NE(external.error_message().find("buffers[0].uri"), std::string::npos) << external.error_message();
   }
@@ -768,24 +765,24 @@ TEST(Daemon, HostileRequestsGetTheRightStatusAndTheDaemonKeepsServing) {
     *rq.mutable_scene() = refOf(opened);
     rq.mutable_spec()->set_bands(7);
     auto ctx = context();
-    auto reader = stub->Relight(ctx.get(), rq);
+    auto reader = rpc->Relight(ctx.get(), rq);
     Result r;
     EXPECT_EQ(readOne(reader.get(), r, nullptr).error_code(), grpc::StatusCode::INVALID_ARGUMENT);
     rq.mutable_spec()->set_bands(0);
     rq.set_version(1000);
     auto ctx2 = context();
-    auto reader2 = stub->Relight(ctx2.get(), rq);
+    auto reader2 = rpc->Relight(ctx2.get(), rq);
     EXPECT_EQ(readOne(reader2.get(), r, nullptr).error_code(), grpc::StatusCode::OUT_OF_RANGE);
   }
   // Still serving: health, and a valid update goes through.
   v1::HealthResponse health;
-  ASSERT_TRUE(stub->Health(context().get(), {}, &health).ok());
+  ASSERT_TRUE(rpc->Health(context().get(), {}, &health).ok());
   EXPECT_EQ(health.status(), v1::HealthResponse::STATUS_SERVING);
   v1::UpdateLightsRequest up;
   *up.mutable_scene() = refOf(opened);
   *up.add_add() = pointLight("fine", 0.2f, 0.2f, 0.2f, 1.0f);
   v1::UpdateLightsResponse ur;
-  ASSERT_TRUE(stub->UpdateLights(context().get(), up, &ur).ok());
+  ASSERT_TRUE(rpc->UpdateLights(context().get(), up, &ur).ok());
   EXPECT_EQ(ur.version(), 2u) << "rejected updates must not consume versions";
 }
 
@@ -795,12 +792,12 @@ TEST(Daemon, BearerTokenIsRequiredWhenConfigured) {
   flags.insert(flags.end(), {"--token", "s3cret-token"});
   DaemonProcess d(f.cache, flags);
   ASSERT_TRUE(d.ok()) << d.error();
-  auto stub = d.stub();
+  auto rpc = d.rpc();
   v1::HealthResponse h;
-  EXPECT_EQ(stub->Health(context().get(), {}, &h).error_code(), grpc::StatusCode::UNAUTHENTICATED);
-  EXPECT_EQ(stub->Health(context(20000, "wrong").get(), {}, &h).error_code(), grpc::StatusCode::UNAUTHENTICATED);
-  EXPECT_EQ(openScene(*stub, cornellRequest(), nullptr).error_code(), grpc::StatusCode::UNAUTHENTICATED);
-  EXPECT_TRUE(stub->Health(context(20000, "s3cret-token").get(), {}, &h).ok());
+  EXPECT_EQ(rpc->Health(context().get(), {}, &h).error_code(), grpc::StatusCode::UNAUTHENTICATED);
+  EXPECT_EQ(rpc->Health(context(20000, "wrong").get(), {}, &h).error_code(), grpc::StatusCode::UNAUTHENTICATED);
+  EXPECT_EQ(openScene(*rpc, cornellRequest(), nullptr).error_code(), grpc::StatusCode::UNAUTHENTICATED);
+  EXPECT_TRUE(rpc->Health(context(20000, "s3cret-token").get(), {}, &h).ok());
   EXPECT_EQ(h.protocol_version(), 1u);
 }
 
@@ -811,13 +808,13 @@ TEST(Daemon, ConfigFileJsonLogsAndSceneLimit) {
                                            "bounces": 2, "log_level": "debug"})");
   DaemonProcess d(f.cache, {"--config", config});
   ASSERT_TRUE(d.ok()) << d.error();
-  auto stub = d.stub();
+  auto rpc = d.rpc();
   v1::HealthResponse h;
-  EXPECT_EQ(stub->Health(context().get(), {}, &h).error_code(), grpc::StatusCode::UNAUTHENTICATED);
-  ASSERT_TRUE(stub->Health(context(20000, "from-file").get(), {}, &h).ok());
+  EXPECT_EQ(rpc->Health(context().get(), {}, &h).error_code(), grpc::StatusCode::UNAUTHENTICATED);
+  ASSERT_TRUE(rpc->Health(context(20000, "from-file").get(), {}, &h).ok());
   v1::SceneOpened opened;
-  ASSERT_TRUE(openScene(*stub, cornellRequest(), &opened, nullptr, "from-file").ok()) << d.log();
-  const auto st = openScene(*stub, cornellRequest(), nullptr, nullptr, "from-file");
+  ASSERT_TRUE(openScene(*rpc, cornellRequest(), &opened, nullptr, "from-file").ok()) << d.log();
+  const auto st = openScene(*rpc, cornellRequest(), nullptr, nullptr, "from-file");
   EXPECT_EQ(st.error_code(), grpc::StatusCode::RESOURCE_EXHAUSTED) << st.error_message();
   // Every log line is one JSON object with a timestamp and an event name.
   std::istringstream lines(d.log());
@@ -858,7 +855,7 @@ TEST(Daemon, ServesTlsWithTheGivenCertificate) {
   EXPECT_TRUE(st.ok()) << st.error_message();
   EXPECT_EQ(h.status(), v1::HealthResponse::STATUS_SERVING);
   // A plaintext client cannot talk to a TLS daemon.
-  EXPECT_FALSE(d.stub()->Health(context(3000, "tls-token").get(), {}, &h).ok());
+  EXPECT_FALSE(d.rpc()->Health(context(3000, "tls-token").get(), {}, &h).ok());
 }
 
 TEST(Daemon, RefusesToListenBeyondLoopbackWithoutToken) {
@@ -884,24 +881,24 @@ TEST(Daemon, PerClientStreamLimit) {
   flags.insert(flags.end(), {"--max-streams-per-client", "2"});
   DaemonProcess d(f.cache, flags);
   ASSERT_TRUE(d.ok()) << d.error();
-  auto stub = d.stub();
+  auto rpc = d.rpc();
   v1::SceneOpened opened;
-  ASSERT_TRUE(openScene(*stub, cornellRequest(), &opened).ok()) << d.log();
+  ASSERT_TRUE(openScene(*rpc, cornellRequest(), &opened).ok()) << d.log();
   v1::SubscribeRequest s;
   *s.mutable_scene() = refOf(opened);
   auto c1 = context(), c2 = context(), c3 = context();
-  auto s1 = stub->Subscribe(c1.get(), s);
-  auto s2 = stub->Subscribe(c2.get(), s);
+  auto s1 = rpc->Subscribe(c1.get(), s);
+  auto s2 = rpc->Subscribe(c2.get(), s);
   ResultReader r1(s1.get()), r2(s2.get());
   Result r;
   ASSERT_TRUE(r1.next(r));
   ASSERT_TRUE(r2.next(r));
-  auto s3 = stub->Subscribe(c3.get(), s);
+  auto s3 = rpc->Subscribe(c3.get(), s);
   v1::ResultMessage m;
   EXPECT_FALSE(s3->Read(&m));
   EXPECT_EQ(s3->Finish().error_code(), grpc::StatusCode::RESOURCE_EXHAUSTED);
   // Another connection is another client.
-  auto other = d.stub();
+  auto other = d.rpc();
   auto c4 = context();
   auto s4 = other->Subscribe(c4.get(), s);
   ResultReader r4(s4.get());
@@ -919,9 +916,9 @@ TEST(Daemon, KillDuringPrecomputeThenRestartServesNoCorruptArtifact) {
   {
     DaemonProcess d(f.cache, quickFlags());
     ASSERT_TRUE(d.ok()) << d.error();
-    auto stub = d.stub();
+    auto rpc = d.rpc();
     auto ctx = context(60000);
-    auto reader = stub->OpenScene(ctx.get(), slow);
+    auto reader = rpc->OpenScene(ctx.get(), slow);
     v1::OpenSceneProgress p;
     bool killed = false;
     while (reader->Read(&p)) {
@@ -942,14 +939,14 @@ TEST(Daemon, KillDuringPrecomputeThenRestartServesNoCorruptArtifact) {
   // The killed daemon's temp files are gone.
   for (const auto& e : fs::directory_iterator(f.cache))
     EXPECT_EQ(e.path().filename().string().find(".tmp."), std::string::npos) << e.path();
-  auto stub = d.stub();
+  auto rpc = d.rpc();
   v1::SceneOpened reopened;
-  ASSERT_TRUE(openScene(*stub, slow, &reopened).ok()) << d.log();
+  ASSERT_TRUE(openScene(*rpc, slow, &reopened).ok()) << d.log();
   EXPECT_FALSE(reopened.artifact_reused());
 
   // A damaged artifact: the next open recomputes it instead of serving it.
   v1::SceneOpened opened;
-  ASSERT_TRUE(openScene(*stub, cornellRequest(), &opened).ok()) << d.log();
+  ASSERT_TRUE(openScene(*rpc, cornellRequest(), &opened).ok()) << d.log();
   const fs::path artifact = f.cache / (opened.cache_key() + ".llk");
   ASSERT_TRUE(fs::exists(artifact));
   {
@@ -959,11 +956,11 @@ TEST(Daemon, KillDuringPrecomputeThenRestartServesNoCorruptArtifact) {
     io.write(junk, sizeof junk);
   }
   v1::SceneOpened again;
-  ASSERT_TRUE(openScene(*stub, cornellRequest(), &again).ok()) << d.log();
+  ASSERT_TRUE(openScene(*rpc, cornellRequest(), &again).ok()) << d.log();
   EXPECT_FALSE(again.artifact_reused()) << "a damaged artifact must be recomputed";
   EXPECT_NE(again.scene_id(), opened.scene_id());
   v1::SceneOpened third;
-  ASSERT_TRUE(openScene(*stub, cornellRequest(), &third).ok());
+  ASSERT_TRUE(openScene(*rpc, cornellRequest(), &third).ok());
   EXPECT_TRUE(third.artifact_reused()) << "the recomputed artifact replaced the damaged one";
 }
 
@@ -974,19 +971,19 @@ TEST(Daemon, RestartReopensPersistedSessionsWithoutRecomputing) {
   {
     DaemonProcess d(f.cache, quickFlags());
     ASSERT_TRUE(d.ok()) << d.error();
-    auto stub = d.stub();
-    ASSERT_TRUE(openScene(*stub, cornellRequest(), &opened).ok()) << d.log();
+    auto rpc = d.rpc();
+    ASSERT_TRUE(openScene(*rpc, cornellRequest(), &opened).ok()) << d.log();
     v1::UpdateLightsRequest up;
     *up.mutable_scene() = refOf(opened);
     *up.add_add() = pointLight("kept", 0.3f, 0.2f, 0.25f, 1.5f);
     up.set_wait_ms(15000);
     v1::UpdateLightsResponse ur;
-    ASSERT_TRUE(stub->UpdateLights(context().get(), up, &ur).ok());
+    ASSERT_TRUE(rpc->UpdateLights(context().get(), up, &ur).ok());
     ASSERT_EQ(ur.version(), 2u);
     v1::GetTexturesRequest g;
     *g.mutable_scene() = refOf(opened);
     auto ctx = context();
-    auto reader = stub->GetTextures(ctx.get(), g);
+    auto reader = rpc->GetTextures(ctx.get(), g);
     std::string err;
     ASSERT_TRUE(readOne(reader.get(), before, &err).ok()) << err;
     ASSERT_EQ(before.header.version(), 2u);
@@ -995,9 +992,9 @@ TEST(Daemon, RestartReopensPersistedSessionsWithoutRecomputing) {
   ASSERT_TRUE(fs::exists(f.cache / "sessions.json"));
   DaemonProcess d(f.cache, quickFlags());
   ASSERT_TRUE(d.ok()) << d.error();
-  auto stub = d.stub();
+  auto rpc = d.rpc();
   v1::ListScenesResponse list;
-  ASSERT_TRUE(stub->ListScenes(context().get(), {}, &list).ok());
+  ASSERT_TRUE(rpc->ListScenes(context().get(), {}, &list).ok());
   ASSERT_EQ(list.scenes_size(), 1);
   EXPECT_EQ(list.scenes(0).scene_id(), opened.scene_id());
   EXPECT_EQ(list.scenes(0).version(), 2u);
@@ -1005,7 +1002,7 @@ TEST(Daemon, RestartReopensPersistedSessionsWithoutRecomputing) {
   v1::GetTexturesRequest g;
   *g.mutable_scene() = refOf(opened);
   auto ctx = context();
-  auto reader = stub->GetTextures(ctx.get(), g);
+  auto reader = rpc->GetTextures(ctx.get(), g);
   Result after;
   std::string err;
   ASSERT_TRUE(readOne(reader.get(), after, &err).ok()) << err;
@@ -1019,21 +1016,18 @@ TEST(Daemon, RestartReopensPersistedSessionsWithoutRecomputing) {
   *up.mutable_scene() = refOf(opened);
   up.add_remove("kept");
   v1::UpdateLightsResponse ur;
-  ASSERT_TRUE(stub->UpdateLights(context().get(), up, &ur).ok());
+  ASSERT_TRUE(rpc->UpdateLights(context().get(), up, &ur).ok());
   EXPECT_EQ(ur.version(), 3u);
 }
 
 TEST(Daemon, SigtermDrainsStreamsAndExitsZero) {
-  Fixture f;
-  DaemonProcess d(f.cache, quickFlags());
-  ASSERT_TRUE(d.ok()) << d.error();
-  auto stub = d.stub();
-  v1::SceneOpened opened;
-  ASSERT_TRUE(openScene(*stub, cornellRequest(), &opened).ok()) << d.log();
+  CornellDaemon cornell;
+  ASSERT_TRUE(cornell.open());
+  auto& [f, d, rpc, opened] = cornell;
   v1::SubscribeRequest s;
   *s.mutable_scene() = refOf(opened);
   auto ctx = context(30000);
-  auto stream = stub->Subscribe(ctx.get(), s);
+  auto stream = rpc->Subscribe(ctx.get(), s);
   ResultReader reader(stream.get());
   Result r;
   ASSERT_TRUE(reader.next(r)) << reader.error();
