@@ -195,25 +195,32 @@ TEST(Links, RejectsAbsurdOptions) {
   }
 }
 
+// The rays LinkRays makes for one cache (`rays` per cache, link seed `seed`), over a 2 m quad
+// (generate() offsets the origin with the accel's epsilon).
+std::vector<rt::Ray> cacheRays(int rays, std::uint64_t seed, std::uint32_t cache, glm::vec3 p, glm::vec3 normal) {
+  static const rt::Accel accel = [] {
+    Scene s;
+    addQuad(s, {-1, 0, -1}, {-1, 0, 1}, {1, 0, 1}, {1, 0, -1});
+    finish(s);
+    return std::move(rt::Accel::build(s)).value();
+  }();
+  const LinkRays pattern(LinkOptions{.rays = rays, .seed = seed});
+  std::vector<rt::Ray> r(pattern.count());
+  pattern.generate(accel, cache, p, normal, r);
+  return r;
+}
+
 TEST(LinkRays, AreTheStratifiedSamplesOfTheCache) {
   // The fast generator must produce the directions of stratifiedSample + the equal-area
   // hemisphere map for the cache's seed, to float precision, for strata above and below 16.
-  Scene s;
-  addQuad(s, {-1, 0, -1}, {-1, 0, 1}, {1, 0, 1}, {1, 0, -1});
-  finish(s);
-  auto accel = rt::Accel::build(s);
-  ASSERT_TRUE(accel);
   for (int rays : {64, 1024}) {
-    const LinkOptions o{.rays = rays, .seed = 77};
-    const LinkRays pattern(o);
-    std::vector<rt::Ray> r(pattern.count());
     const glm::vec3 n = glm::normalize(glm::vec3(0.3f, 1.0f, -0.2f));
-    pattern.generate(*accel, 5, {0, 0, 0}, n, r);
+    const std::vector<rt::Ray> r = cacheRays(rays, 77, 5, {0, 0, 0}, n);
     glm::vec3 t, b;
     orthonormalBasis(n, t, b);
     const auto strata = static_cast<std::uint32_t>(std::sqrt(double(rays)));
     const std::uint64_t seed = mixBits(77 ^ (std::uint64_t(5) * 0xd1b54a32d192ed03ULL));
-    for (std::uint32_t i = 0; i < pattern.count(); ++i) {
+    for (std::uint32_t i = 0; i < r.size(); ++i) {
       const glm::vec2 u = stratifiedSample(i, strata, seed);
       const glm::vec3 l = uniformHemisphere(u.x, u.y);
       const glm::vec3 expected = l.x * t + l.y * b + l.z * n;
@@ -227,19 +234,12 @@ TEST(LinkRays, AreTheStratifiedSamplesOfTheCache) {
 TEST(LinkRays, AreBitIdenticalToTheScalarFormula) {
   // The generator's vectorised row loops must round exactly like the per-ray scalar code
   // the artifacts were built with (no FMA, no reassociation): rays, and so links, may not
-  // change by one bit. This is that scalar code, kept as the reference.
-  Scene s;
-  addQuad(s, {-1, 0, -1}, {-1, 0, 1}, {1, 0, 1}, {1, 0, -1});
-  finish(s);
-  auto accel = rt::Accel::build(s);
-  ASSERT_TRUE(accel);
+  // change by one bit. This is that scalar code, kept as the reference: an independent copy
+  // of the formula on purpose (calling the library's would test nothing).
   for (int rays : {64, 1024}) {
     for (const glm::vec3 normal : {glm::vec3(0.3f, 1.0f, -0.2f), glm::vec3(0.0f)}) {
-      const LinkOptions o{.rays = rays, .seed = 91};
-      const LinkRays pattern(o);
-      std::vector<rt::Ray> r(pattern.count());
       const glm::vec3 p(0.25f, 0.5f, -0.125f);
-      pattern.generate(*accel, 12, p, normal, r);
+      const std::vector<rt::Ray> r = cacheRays(rays, 91, 12, p, normal);
       const bool hemisphere = glm::dot(normal, normal) > 0.0f;
       glm::vec3 t(1, 0, 0), b(0, 1, 0), n(0, 0, 1);
       if (hemisphere) {
@@ -249,7 +249,7 @@ TEST(LinkRays, AreBitIdenticalToTheScalarFormula) {
       const auto strata = static_cast<std::uint32_t>(std::sqrt(double(rays)));
       const std::uint64_t seed = mixBits(91 ^ (std::uint64_t(12) * 0xd1b54a32d192ed03ULL));
       const float inv = 1.0f / static_cast<float>(strata), dphi = 2.0f * kPi * inv;
-      for (std::uint32_t i = 0; i < pattern.count(); ++i) {
+      for (std::uint32_t i = 0; i < r.size(); ++i) {
         const std::uint32_t sx = i % strata, sy = i / strata;
         const std::uint64_t bits = mixBits(seed ^ (std::uint64_t(i) * 0x9e3779b97f4a7c15ULL));
         const float u1 = (static_cast<float>(sx) + unitFloat(bits)) * inv;

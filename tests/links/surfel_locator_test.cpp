@@ -85,6 +85,15 @@ Counts compareOnLattice(const scene::Scene& scene, const SurfelLocator& locator,
   return counts;
 }
 
+// The pruned lookup against the exhaustive scan on `rays` hits traced from `seed`: no owner
+// may differ, and at least `min_compared` hits must land on a surface to compare.
+void expectExhaustiveOwnersOnTracedHits(const scene::Scene& s, const SurfelLocator& locator, int rays,
+                                        std::uint32_t seed, std::size_t min_compared) {
+  const Counts traced = compareOnTracedHits(s, locator, s.bounds, rays, seed);
+  EXPECT_GT(traced.compared, min_compared);
+  EXPECT_EQ(traced.mismatched, 0u);
+}
+
 TEST(SurfelLocator, PrunedListsGiveTheExhaustiveOwnerInABoxRoom) {
   scene::Scene s;
   addBox(s, {0, 0, 0}, {4, 3, 5}, /*inward=*/true);
@@ -94,9 +103,7 @@ TEST(SurfelLocator, PrunedListsGiveTheExhaustiveOwnerInABoxRoom) {
   auto placed = surfels::placeSurfels(s, {.count = 8192});
   ASSERT_TRUE(placed) << placed.status().toString();
   const SurfelLocator locator(*placed, s);
-  const Counts traced = compareOnTracedHits(s, locator, s.bounds, 200000, 1);
-  EXPECT_GT(traced.compared, 150000u);
-  EXPECT_EQ(traced.mismatched, 0u);
+  expectExhaustiveOwnersOnTracedHits(s, locator, 200000, 1, 150000);
   // (u, v) on multiples of 1/360 hit every fine-cell corner of triangles with g up to 45.
   const Counts lattice = compareOnLattice(s, locator, 360);
   EXPECT_GT(lattice.compared, 1000000u);
@@ -113,9 +120,7 @@ TEST(SurfelLocator, PrunedListsGiveTheExhaustiveOwnerFarFromTheOrigin) {
   auto placed = surfels::placeSurfels(s, {.count = 4096});
   ASSERT_TRUE(placed) << placed.status().toString();
   const SurfelLocator locator(*placed, s);
-  const Counts traced = compareOnTracedHits(s, locator, s.bounds, 100000, 2);
-  EXPECT_GT(traced.compared, 90000u);
-  EXPECT_EQ(traced.mismatched, 0u);
+  expectExhaustiveOwnersOnTracedHits(s, locator, 100000, 2, 90000);
   EXPECT_EQ(compareOnLattice(s, locator, 200).mismatched, 0u);
 }
 
@@ -129,9 +134,7 @@ TEST(SurfelLocator, PrunedListsGiveTheExhaustiveOwnerInTheDemoScene) {
   // The lists are in use and short (~8 here; the exhaustive scan sees ~20 candidates).
   EXPECT_GT(locator.fineListCount(), 10000u);
   EXPECT_LT(locator.meanFineListLength(), 12.0);
-  const Counts traced = compareOnTracedHits(*loaded, locator, loaded->bounds, 300000, 3);
-  EXPECT_GT(traced.compared, 200000u);
-  EXPECT_EQ(traced.mismatched, 0u);
+  expectExhaustiveOwnersOnTracedHits(*loaded, locator, 300000, 3, 200000);
 }
 
 }  // namespace
