@@ -171,6 +171,9 @@ struct Relighter::Impl {
   std::vector<float> gather_weight;
   std::vector<std::uint8_t> gather_from_grid;
   std::size_t surfels_without_gather = 0;
+  // Some surfel gathers from the grid: bounce passes must then light the grid each time,
+  // otherwise only the last pass's grid values are used (output).
+  bool grid_gathered = false;
   std::vector<std::uint8_t> lm_has_value, grid_has_value;  // valid or filled
 
   // Per-relight state, kept for incremental updates.
@@ -385,6 +388,7 @@ void Relighter::Impl::buildGather() {
     if (added == 0) ++surfels_without_gather;
     gather_begin.push_back(std::uint32_t(gather_cache.size()));
   }
+  grid_gathered = std::find(gather_from_grid.begin(), gather_from_grid.end(), std::uint8_t(1)) != gather_from_grid.end();
 }
 
 void Relighter::Impl::buildInverted() {
@@ -1046,8 +1050,7 @@ Status Relighter::relightInto(const LightSet& lights, const RelightOptions& o, R
     // Grid caches are read by the output and by surfels that gather from the grid. When no
     // surfel does, only the last lighting pass's grid values survive: intermediate passes skip
     // the grid (the same final values, one grid pass per relight instead of one per bounce).
-    const bool grid_gathered =
-        std::find(m.gather_from_grid.begin(), m.gather_from_grid.end(), std::uint8_t(1)) != m.gather_from_grid.end();
+    const bool grid_gathered = m.grid_gathered;
     auto pullAndLight = [&](const char* pull_stage, const char* cache_stage, bool last_pass) {
       timed(pull_stage, [&] {
         for (std::size_t s = 0; s < ns; ++s) m.setLeafFlux(s);
