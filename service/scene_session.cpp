@@ -223,6 +223,7 @@ bool SceneSession::relightAndPublish(const relight::LightSet& lights, std::uint6
 std::shared_ptr<const Snapshot> SceneSession::buildSnapshot(const relight::RelightResult& r, std::uint64_t version,
                                                             std::uint64_t coalesced, double ms, bool preview) {
   auto s = std::make_shared<Snapshot>();
+  s->scene_id = identity_.id;
   s->version = version;
   {
     std::lock_guard lock(mutex_);

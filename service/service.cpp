@@ -4,6 +4,9 @@
 
 #include <fstream>
 
+#include <google/protobuf/descriptor.h>
+
+#include "core/common/check.h"
 #include "service/auth.h"
 #include "service/gpu/backend_factory.h"
 #include "service/logging.h"
@@ -106,14 +109,29 @@ MessageWriter writerFor(grpc::ServerWriter<v1::ResultMessage>* writer) {
 }
 
 // Header of a GetTextures answer when nothing changed.
-void sendNotModified(const SceneSession& s, const Snapshot& snap, grpc::ServerWriter<v1::ResultMessage>* writer) {
+template <typename Stream>
+grpc::Status sendNotModified(const SceneSession& s, const Snapshot& snap, Stream* stream) {
   v1::ResultMessage m;
   auto* h = m.mutable_header();
   h->mutable_scene()->set_scene_id(s.identity().id);
   h->set_version(snap.version);
   h->set_not_modified(true);
   h->set_backend(snap.backend);
-  writer->Write(m);
+  grpc::ByteBuffer bytes;
+  bool own = false;
+  if (auto st = grpc::SerializationTraits<v1::ResultMessage>::Serialize(m, &bytes, &own); !st.ok()) return st;
+  stream->Write(WireMessage{&bytes});
+  return grpc::Status::OK;
+}
+
+// Sends a whole result from the snapshot's shared wire form; stops when the client is gone.
+template <typename Stream>
+grpc::Status sendWire(const Snapshot& snap, const SpecKey& spec, std::size_t chunk_bytes, Stream* stream) {
+  const auto wire = snap.wire(spec, chunk_bytes);
+  if (!wire) return grpcError(grpc::StatusCode::INTERNAL, "result: could not serialize the result messages");
+  for (const grpc::ByteBuffer& m : wire->messages)
+    if (!stream->Write(WireMessage{&m})) break;
+  return grpc::Status::OK;
 }
 
 }  // namespace
@@ -125,8 +143,27 @@ std::uint64_t residentSetBytes() {
   return resident * static_cast<std::uint64_t>(::sysconf(_SC_PAGESIZE));
 }
 
+template <typename Request>
+void LightlinkService::replaceWithWireHandler(
+    const char* name,
+    grpc::Status (LightlinkService::*handler)(grpc::ServerContext*, grpc::ServerSplitStreamer<Request, WireMessage>*)) {
+  // The generated Service registers its methods in the order of the proto file, which is
+  // the descriptor's method order.
+  const auto* service = google::protobuf::DescriptorPool::generated_pool()->FindServiceByName(
+      v1::Lightlink::service_full_name());
+  const auto* method = service ? service->FindMethodByName(name) : nullptr;
+  LL_CHECK(method != nullptr);
+  MarkMethodStreamed(method->index(), new grpc::internal::SplitServerStreamingHandler<Request, WireMessage>(
+                                          [this, handler](grpc::ServerContext* ctx, auto* stream) {
+                                            return (this->*handler)(ctx, stream);
+                                          }));
+}
+
 LightlinkService::LightlinkService(const DaemonConfig& config, SceneRegistry& registry)
-    : config_(config), registry_(registry) {}
+    : config_(config), registry_(registry) {
+  replaceWithWireHandler("Relight", &LightlinkService::RelightWire);
+  replaceWithWireHandler("GetTextures", &LightlinkService::GetTexturesWire);
+}
 
 LightlinkService::StreamSlot::StreamSlot(LightlinkService& service, std::string client)
     : service_(service), client_(std::move(client)) {
@@ -251,8 +288,11 @@ grpc::Status LightlinkService::UpdateLights(grpc::ServerContext* ctx, const v1::
   return grpc::Status::OK;
 }
 
-grpc::Status LightlinkService::Relight(grpc::ServerContext* ctx, const v1::RelightRequest* request,
-                                       grpc::ServerWriter<v1::ResultMessage>* writer) {
+grpc::Status LightlinkService::RelightWire(grpc::ServerContext* ctx, RelightStreamer* stream) {
+  v1::RelightRequest request_message;
+  if (!stream->Read(&request_message))
+    return grpcError(grpc::StatusCode::INVALID_ARGUMENT, "Relight: no request message");
+  const v1::RelightRequest* request = &request_message;
   std::shared_ptr<SceneSession> s;
   std::optional<StreamSlot> slot;
   if (auto st = beginResultCall(ctx, request->scene(), request->spec(), &s, &slot); !st.ok()) return st;
@@ -268,13 +308,14 @@ grpc::Status LightlinkService::Relight(grpc::ServerContext* ctx, const v1::Relig
     return grpcError(grpc::StatusCode::DEADLINE_EXCEEDED,
                      fmt::format("version: no result >= {} within the deadline", request->version()));
   }
-  const auto e = snap->encoded(SpecKey::from(request->spec(), snap->bands));
-  sendFull(*snap, *e, {s->identity().id, 0}, config_.chunk_bytes, writerFor(writer));
-  return grpc::Status::OK;
+  return sendWire(*snap, SpecKey::from(request->spec(), snap->bands), config_.chunk_bytes, stream);
 }
 
-grpc::Status LightlinkService::GetTextures(grpc::ServerContext* ctx, const v1::GetTexturesRequest* request,
-                                           grpc::ServerWriter<v1::ResultMessage>* writer) {
+grpc::Status LightlinkService::GetTexturesWire(grpc::ServerContext* ctx, GetTexturesStreamer* stream) {
+  v1::GetTexturesRequest request_message;
+  if (!stream->Read(&request_message))
+    return grpcError(grpc::StatusCode::INVALID_ARGUMENT, "GetTextures: no request message");
+  const v1::GetTexturesRequest* request = &request_message;
   std::shared_ptr<SceneSession> s;
   std::optional<StreamSlot> slot;
   if (auto st = beginResultCall(ctx, request->scene(), request->spec(), &s, &slot); !st.ok()) return st;
@@ -301,13 +342,8 @@ grpc::Status LightlinkService::GetTextures(grpc::ServerContext* ctx, const v1::G
       // Deadline or drain: the plain answer, not modified.
     }
   }
-  if (snap->version == request->last_seen_version()) {
-    sendNotModified(*s, *snap, writer);
-    return grpc::Status::OK;
-  }
-  const auto e = snap->encoded(SpecKey::from(request->spec(), snap->bands));
-  sendFull(*snap, *e, {s->identity().id, 0}, config_.chunk_bytes, writerFor(writer));
-  return grpc::Status::OK;
+  if (snap->version == request->last_seen_version()) return sendNotModified(*s, *snap, stream);
+  return sendWire(*snap, SpecKey::from(request->spec(), snap->bands), config_.chunk_bytes, stream);
 }
 
 grpc::Status LightlinkService::Subscribe(grpc::ServerContext* ctx, const v1::SubscribeRequest* request,

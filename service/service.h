@@ -21,6 +21,7 @@
 #include "proto/lightlink.grpc.pb.h"
 #include "service/config.h"
 #include "service/scene_registry.h"
+#include "service/wire_message.h"
 
 namespace lightlink::service {
 
@@ -32,12 +33,16 @@ class LightlinkService final : public v1::Lightlink::Service {
                          grpc::ServerWriter<v1::OpenSceneProgress>* writer) override;
   grpc::Status UpdateLights(grpc::ServerContext* ctx, const v1::UpdateLightsRequest* request,
                             v1::UpdateLightsResponse* response) override;
-  grpc::Status Relight(grpc::ServerContext* ctx, const v1::RelightRequest* request,
-                       grpc::ServerWriter<v1::ResultMessage>* writer) override;
   grpc::Status Subscribe(grpc::ServerContext* ctx, const v1::SubscribeRequest* request,
                          grpc::ServerWriter<v1::ResultMessage>* writer) override;
-  grpc::Status GetTextures(grpc::ServerContext* ctx, const v1::GetTexturesRequest* request,
-                           grpc::ServerWriter<v1::ResultMessage>* writer) override;
+  // Relight and GetTextures send whole results, serialized once per result and spec and
+  // shared by all their callers (service/wire_message.h). The constructor registers them in
+  // place of the generated handlers, as split-streaming methods whose responses are
+  // WireMessages (the same bytes as a serialized ResultMessage).
+  using RelightStreamer = grpc::ServerSplitStreamer<v1::RelightRequest, WireMessage>;
+  using GetTexturesStreamer = grpc::ServerSplitStreamer<v1::GetTexturesRequest, WireMessage>;
+  grpc::Status RelightWire(grpc::ServerContext* ctx, RelightStreamer* stream);
+  grpc::Status GetTexturesWire(grpc::ServerContext* ctx, GetTexturesStreamer* stream);
   grpc::Status ListScenes(grpc::ServerContext* ctx, const v1::ListScenesRequest* request,
                           v1::ListScenesResponse* response) override;
   grpc::Status CloseScene(grpc::ServerContext* ctx, const v1::CloseSceneRequest* request,
@@ -76,6 +81,12 @@ class LightlinkService final : public v1::Lightlink::Service {
   grpc::Status beginResultCall(grpc::ServerContext* ctx, const v1::SceneRef& ref, const v1::ResultSpec& spec,
                                std::shared_ptr<SceneSession>* scene, std::optional<StreamSlot>* slot);
   std::chrono::steady_clock::time_point waitDeadline(grpc::ServerContext* ctx) const;
+  // Registers `handler` for the method `name` of lightlink.v1.Lightlink in place of the
+  // generated one.
+  template <typename Request>
+  void replaceWithWireHandler(const char* name,
+                              grpc::Status (LightlinkService::*handler)(grpc::ServerContext*,
+                                                                        grpc::ServerSplitStreamer<Request, WireMessage>*));
 
   DaemonConfig config_;
   SceneRegistry& registry_;

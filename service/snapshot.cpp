@@ -2,7 +2,10 @@
 
 #include <cstring>
 
+#include <grpcpp/impl/codegen/proto_utils.h>
+
 #include "core/common/half.h"
+#include "service/result_stream.h"
 
 namespace lightlink::service {
 namespace {
@@ -66,6 +69,27 @@ std::shared_ptr<const EncodedResult> Snapshot::encoded(const SpecKey& spec) cons
   auto e = std::make_shared<const EncodedResult>(encodeSnapshot(*this, spec));
   cache_.emplace(spec, e);
   return e;
+}
+
+std::shared_ptr<const WireResult> Snapshot::wire(const SpecKey& spec, std::size_t chunk_bytes) const {
+  // Built under the lock, as encoded(): a new result wakes every long-polling client at
+  // once, and they must wait for one build rather than each build their own (50 builds of
+  // the same bytes were the daemon's largest cost before this lock).
+  std::lock_guard lock(wire_mutex_);
+  const auto key = std::make_pair(spec, chunk_bytes);
+  if (auto it = wire_cache_.find(key); it != wire_cache_.end()) return it->second;
+  const auto e = encoded(spec);
+  auto w = std::make_shared<WireResult>();
+  const bool ok = sendFull(*this, *e, {scene_id, 0}, chunk_bytes, [&](const v1::ResultMessage& m) {
+    grpc::ByteBuffer buffer;
+    bool own = false;
+    if (!grpc::SerializationTraits<v1::ResultMessage>::Serialize(m, &buffer, &own).ok()) return false;
+    w->bytes += buffer.Length();
+    w->messages.emplace_back().Swap(&buffer);
+    return true;
+  });
+  if (!ok) return nullptr;
+  return wire_cache_.emplace(key, std::move(w)).first->second;
 }
 
 EncodedResult encodeSnapshot(const Snapshot& s, const SpecKey& spec) {

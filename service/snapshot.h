@@ -18,6 +18,7 @@
 #include <vector>
 
 #include <glm/glm.hpp>
+#include <grpcpp/support/byte_buffer.h>
 
 #include "proto/lightlink.pb.h"
 
@@ -51,6 +52,13 @@ struct EncodedResult {
   std::size_t half_clamped = 0;  // values beyond the half range, clamped when encoding
 };
 
+// A full result serialized for the wire: the header message, then the chunk messages, as
+// sendFull (result_stream.h) produces them. Shared by every reader (service/wire_message.h).
+struct WireResult {
+  std::vector<grpc::ByteBuffer> messages;
+  std::uint64_t bytes = 0;  // serialized size of all messages
+};
+
 struct GridGeometry {
   bool present = false;
   glm::vec3 origin{0.0f};
@@ -60,6 +68,7 @@ struct GridGeometry {
 
 class Snapshot {
  public:
+  std::string scene_id;            // the scene this result belongs to (its headers name it)
   std::uint64_t version = 0;       // light-set version this result is for
   std::uint64_t sequence = 0;      // 1 for the scene's first result, +1 per result
   std::uint64_t coalesced = 0;     // updates folded into this result besides its own
@@ -79,10 +88,16 @@ class Snapshot {
   std::size_t bytes() const;
   // The wire form for `spec`, encoded on first use and cached (thread-safe).
   std::shared_ptr<const EncodedResult> encoded(const SpecKey& spec) const;
+  // The full result for `spec` in chunks of at most `chunk_bytes`, serialized once and cached
+  // (thread-safe): what Relight and GetTextures send to every client asking for it. Null
+  // when protobuf could not serialize a message (nothing is cached then).
+  std::shared_ptr<const WireResult> wire(const SpecKey& spec, std::size_t chunk_bytes) const;
 
  private:
   mutable std::mutex cache_mutex_;
   mutable std::map<SpecKey, std::shared_ptr<const EncodedResult>> cache_;
+  mutable std::mutex wire_mutex_;
+  mutable std::map<std::pair<SpecKey, std::size_t>, std::shared_ptr<const WireResult>> wire_cache_;
 };
 
 // Encodes a snapshot for a spec (what Snapshot::encoded caches).
