@@ -6,6 +6,7 @@
 
 #include <grpcpp/grpcpp.h>
 
+#include "clients/client/raw_result.h"
 #include "proto/lightlink.grpc.pb.h"
 
 namespace lightlink::client {
@@ -47,13 +48,30 @@ Expected<std::string> readFile(const std::string& path, const char* what) {
   return ss.str();
 }
 
-// Reads one result (header + chunks) from a stream that carries exactly one.
-template <typename Reader>
-Expected<Textures> readOneResult(const char* rpc, Reader& reader) {
+// Reads the one result (header + chunks) a Relight or GetTextures stream carries, each
+// message as a RawResultMessage: chunk data goes from gRPC's receive slices straight into the payload (clients/client/raw_result.h).
+// The method is called by its full name, as the generated stub does.
+template <typename Request>
+Expected<Textures> readOneRawResult(const char* rpc, const char* method, grpc::ChannelInterface* channel,
+                                    grpc::ClientContext& ctx, const Request& request) {
+  const grpc::internal::RpcMethod rpc_method(method, grpc::internal::RpcMethod::SERVER_STREAMING);
+  std::unique_ptr<grpc::ClientReader<RawResultMessage>> reader(
+      grpc::internal::ClientReaderFactory<RawResultMessage>::Create(channel, rpc_method, &ctx, request));
   ResultAssembler assembler;
-  v1::ResultMessage msg;
+  RawResultMessage msg;
+  RawResult decoded;
+  Status status;
   while (reader->Read(&msg)) {
-    if (Status s = assembler.add(msg); !s) return Status(s.code(), fmt::format("{}: {}", rpc, s.message()));
+    status = decodeRawResult(msg.bytes, decoded);
+    if (status) status = assembler.add(decoded);
+    if (!status) {
+      // A torn or malformed result: stop the call, drain what is in flight, report.
+      ctx.TryCancel();
+      while (reader->Read(&msg)) {
+      }
+      (void)reader->Finish();
+      return Status(status.code(), fmt::format("{}: {}", rpc, status.message()));
+    }
   }
   if (Status s = fromGrpc(rpc, reader->Finish()); !s) return s;
   auto t = assembler.take();
@@ -229,8 +247,7 @@ Expected<Textures> Client::relight(const SceneHandle& scene, std::uint64_t versi
   *req.mutable_spec() = toProto(spec);
   grpc::ClientContext ctx;
   impl_->prepare(ctx);
-  auto reader = impl_->rpc->Relight(&ctx, req);
-  return readOneResult("Relight", reader);
+  return readOneRawResult("Relight", "/lightlink.v1.Lightlink/Relight", impl_->channel.get(), ctx, req);
 }
 
 Expected<std::optional<Textures>> Client::getTextures(const SceneHandle& scene, std::uint64_t last_seen_version,
@@ -242,8 +259,7 @@ Expected<std::optional<Textures>> Client::getTextures(const SceneHandle& scene, 
   req.set_wait_ms(wait_ms);
   grpc::ClientContext ctx;
   impl_->prepare(ctx, impl_->waitingDeadline(wait_ms));
-  auto reader = impl_->rpc->GetTextures(&ctx, req);
-  auto t = readOneResult("GetTextures", reader);
+  auto t = readOneRawResult("GetTextures", "/lightlink.v1.Lightlink/GetTextures", impl_->channel.get(), ctx, req);
   if (!t) return t.status();
   if (t->info.not_modified) return std::optional<Textures>{};
   return std::optional<Textures>(std::move(t).value());

@@ -5,6 +5,7 @@
 #include <cstring>
 
 #include "core/common/half.h"
+#include "clients/client/raw_result.h"
 #include "proto/lightlink.pb.h"
 
 namespace lightlink::client {
@@ -159,54 +160,73 @@ void ResultAssembler::reset() {
 }
 
 Status ResultAssembler::add(const v1::ResultMessage& message) {
-  if (message.has_header()) {
-    if (started_ && !complete())
-      return invalidInput("result stream: header of version {} arrived before version {} was complete "
-                          "({} of {} bytes)",
-                          message.header().version(), info_.version, received_, info_.payload_bytes);
-    reset();
-    started_ = true;
-    info_ = ResultInfo::fromProto(message.header());
-    if (info_.bands < 0 || info_.bands > 4) return invalidInput("result header: bands {} is out of range", info_.bands);
-    if (info_.width < 0 || info_.height < 0) return invalidInput("result header: negative lightmap size");
-    if (info_.nx < 0 || info_.ny < 0 || info_.nz < 0) return invalidInput("result header: negative grid size");
-    if (info_.delta && info_.tile_size <= 0)
-      return invalidInput("result header: delta result with tile_size {}", info_.tile_size);
-    return {};
-  }
+  if (message.has_header()) return addHeader(message.header());
   if (!message.has_chunk()) return invalidInput("result stream: empty message");
-  if (!started_) return invalidInput("result stream: chunk before the header");
   const v1::Chunk& c = message.chunk();
-  if (!validPayload(c.payload())) return invalidInput("chunk.payload: {} is not a known payload", int(c.payload()));
-  const Payload p = Payload(c.payload());
+  const std::span<const std::uint8_t> data(reinterpret_cast<const std::uint8_t*>(c.data().data()), c.data().size());
+  return addChunk(c.payload(), c.offset(), c.tile(), std::span(&data, 1));
+}
+
+Status ResultAssembler::add(const RawResult& message) {
+  switch (message.kind) {
+    case RawResult::Kind::kHeader: return addHeader(message.header);
+    case RawResult::Kind::kChunk: return addChunk(message.payload, message.offset, message.tile, message.data);
+    case RawResult::Kind::kNone: break;
+  }
+  return invalidInput("result stream: empty message");
+}
+
+Status ResultAssembler::addHeader(const v1::ResultHeader& header) {
+  if (started_ && !complete())
+    return invalidInput("result stream: header of version {} arrived before version {} was complete "
+                        "({} of {} bytes)",
+                        header.version(), info_.version, received_, info_.payload_bytes);
+  reset();
+  started_ = true;
+  info_ = ResultInfo::fromProto(header);
+  if (info_.bands < 0 || info_.bands > 4) return invalidInput("result header: bands {} is out of range", info_.bands);
+  if (info_.width < 0 || info_.height < 0) return invalidInput("result header: negative lightmap size");
+  if (info_.nx < 0 || info_.ny < 0 || info_.nz < 0) return invalidInput("result header: negative grid size");
+  if (info_.delta && info_.tile_size <= 0)
+    return invalidInput("result header: delta result with tile_size {}", info_.tile_size);
+  return {};
+}
+
+Status ResultAssembler::addChunk(int payload, std::uint64_t offset, std::uint32_t tile,
+                                 std::span<const std::span<const std::uint8_t>> data) {
+  if (!started_) return invalidInput("result stream: chunk before the header");
+  if (!validPayload(payload)) return invalidInput("chunk.payload: {} is not a known payload", payload);
+  const Payload p = Payload(payload);
   if (isLightmap(p) && info_.texels() == 0)
     return invalidInput("chunk.payload: {} sent but the header has no lightmap", payloadName(p));
   if (!isLightmap(p) && (!info_.has_grid || info_.gridPoints() == 0))
     return invalidInput("chunk.payload: {} sent but the header has no grid", payloadName(p));
-  received_ += c.data().size();
+  std::size_t size = 0;
+  for (const auto& piece : data) size += piece.size();
+  received_ += size;
   if (received_ > info_.payload_bytes)
     return invalidInput("result stream: {} bytes received, header announced {}", received_, info_.payload_bytes);
 
+  std::vector<std::uint8_t>* buf = nullptr;
   if (info_.delta && isLightmap(p)) {
-    auto& buf = tiles_[{int(p), c.tile()}].bytes;
-    if (c.offset() != buf.size())
-      return invalidInput("chunk.offset: {} for {} tile {}, expected {}", c.offset(), payloadName(p), c.tile(),
-                          buf.size());
-    if (std::find(info_.changed_tiles.begin(), info_.changed_tiles.end(), c.tile()) == info_.changed_tiles.end())
-      return invalidInput("chunk.tile: {} is not in the header's changed_tiles", c.tile());
-    buf.insert(buf.end(), c.data().begin(), c.data().end());
-    return {};
+    buf = &tiles_[{int(p), tile}].bytes;
+    if (offset != buf->size())
+      return invalidInput("chunk.offset: {} for {} tile {}, expected {}", offset, payloadName(p), tile, buf->size());
+    if (std::find(info_.changed_tiles.begin(), info_.changed_tiles.end(), tile) == info_.changed_tiles.end())
+      return invalidInput("chunk.tile: {} is not in the header's changed_tiles", tile);
+  } else {
+    buf = &full_[int(p)];
+    const std::size_t expected = info_.elements(p) * info_.elementBytes(p);
+    if (offset != buf->size())
+      return invalidInput("chunk.offset: {} for {}, expected {} (chunks must arrive in order)", offset,
+                          payloadName(p), buf->size());
+    if (buf->size() + size > expected)
+      return invalidInput("chunk: {} would grow to {} bytes, its size is {}", payloadName(p), buf->size() + size,
+                          expected);
+    if (buf->capacity() < expected) buf->reserve(expected);
   }
-  auto& buf = full_[int(p)];
-  const std::size_t expected = info_.elements(p) * info_.elementBytes(p);
-  if (c.offset() != buf.size())
-    return invalidInput("chunk.offset: {} for {}, expected {} (chunks must arrive in order)", c.offset(),
-                        payloadName(p), buf.size());
-  if (buf.size() + c.data().size() > expected)
-    return invalidInput("chunk: {} would grow to {} bytes, its size is {}", payloadName(p),
-                        buf.size() + c.data().size(), expected);
-  if (buf.capacity() < expected) buf.reserve(expected);
-  buf.insert(buf.end(), c.data().begin(), c.data().end());
+  // Byte ranges of the same type: one memmove per piece, no zero fill first.
+  for (const auto& piece : data) buf->insert(buf->end(), piece.begin(), piece.end());
   return {};
 }
 
