@@ -16,12 +16,7 @@ void appendValues(std::string& out, const float* src, std::size_t count, bool ha
   if (half) {
     const std::size_t at = out.size();
     out.resize(at + count * 2);
-    auto* dst = reinterpret_cast<half_bits*>(out.data() + at);
-    for (std::size_t i = 0; i < count; ++i) {
-      bool c = false;
-      dst[i] = toHalfSaturating(src[i], c);
-      clamped += c ? 1 : 0;
-    }
+    clamped += toHalfSaturating(std::span<const float>(src, count), reinterpret_cast<half_bits*>(out.data() + at));
   } else {
     const std::size_t at = out.size();
     out.resize(at + count * 4);

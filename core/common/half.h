@@ -6,7 +6,9 @@
 #pragma once
 
 #include <cmath>
+#include <cstddef>
 #include <cstdint>
+#include <span>
 
 #include <Imath/half.h>
 
@@ -27,5 +29,10 @@ inline half_bits toHalfSaturating(float v, bool& clamped) {
   }
   return imath_float_to_half(v);
 }
+
+// toHalfSaturating over an array, bit-identical to the scalar call per value; returns how
+// many values were clamped. On x86-64 with F16C it converts 8 values per instruction (the
+// daemon encodes ~0.5 M values per result on the path between relight and clients).
+std::size_t toHalfSaturating(std::span<const float> src, half_bits* dst);
 
 }  // namespace lightlink

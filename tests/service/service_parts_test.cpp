@@ -232,5 +232,30 @@ TEST(ServicePayload, FullResultChunksCoverEachPayloadInOrder) {
   EXPECT_EQ(total, declared);
 }
 
+TEST(ServicePayload, WireFormIsSerializedOnceAndIsWhatSendFullSends) {
+  Snapshot s;
+  fillSnapshot(s, 1.0f);
+  s.scene_id = "scene-a";
+  const SpecKey key = SpecKey::from(v1::ResultSpec{}, 2);
+  std::vector<std::string> sent;
+  ASSERT_TRUE(sendFull(s, *s.encoded(key), {"scene-a", 0}, 4096, [&](const v1::ResultMessage& m) {
+    sent.push_back(m.SerializeAsString());
+    return true;
+  }));
+  const auto w = s.wire(key, 4096);
+  ASSERT_TRUE(w);
+  ASSERT_EQ(w->messages.size(), sent.size());
+  std::uint64_t bytes = 0;
+  for (std::size_t i = 0; i < sent.size(); ++i) {
+    grpc::Slice one;
+    ASSERT_TRUE(w->messages[i].DumpToSingleSlice(&one).ok());
+    EXPECT_EQ(std::string(reinterpret_cast<const char*>(one.begin()), one.size()), sent[i]) << "message " << i;
+    bytes += one.size();
+  }
+  EXPECT_EQ(w->bytes, bytes);
+  EXPECT_EQ(s.wire(key, 4096), w) << "serialized once per (spec, chunk size), then shared";
+  EXPECT_NE(s.wire(key, 8192), w) << "another chunk size is another wire form";
+}
+
 }  // namespace
 }  // namespace lightlink::service
