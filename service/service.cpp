@@ -10,7 +10,6 @@
 #include "service/auth.h"
 #include "service/gpu/backend_factory.h"
 #include "service/logging.h"
-#include "service/result_stream.h"
 #include "service/status_map.h"
 #include "service/validation.h"
 
@@ -104,10 +103,6 @@ void fillOpened(const SceneSession& s, v1::SceneOpened* o) {
   o->set_open_seconds(r.openSeconds());
 }
 
-MessageWriter writerFor(grpc::ServerWriter<v1::ResultMessage>* writer) {
-  return [writer](const v1::ResultMessage& m) { return writer->Write(m); };
-}
-
 // Header of a GetTextures answer when nothing changed.
 template <typename Stream>
 grpc::Status sendNotModified(const SceneSession& s, const Snapshot& snap, Stream* stream) {
@@ -163,6 +158,7 @@ LightlinkService::LightlinkService(const DaemonConfig& config, SceneRegistry& re
     : config_(config), registry_(registry) {
   replaceWithWireHandler("Relight", &LightlinkService::RelightWire);
   replaceWithWireHandler("GetTextures", &LightlinkService::GetTexturesWire);
+  replaceWithWireHandler("Subscribe", &LightlinkService::SubscribeWire);
 }
 
 LightlinkService::StreamSlot::StreamSlot(LightlinkService& service, std::string client)
@@ -346,8 +342,11 @@ grpc::Status LightlinkService::GetTexturesWire(grpc::ServerContext* ctx, GetText
   return sendWire(*snap, SpecKey::from(request->spec(), snap->bands), config_.chunk_bytes, stream);
 }
 
-grpc::Status LightlinkService::Subscribe(grpc::ServerContext* ctx, const v1::SubscribeRequest* request,
-                                         grpc::ServerWriter<v1::ResultMessage>* writer) {
+grpc::Status LightlinkService::SubscribeWire(grpc::ServerContext* ctx, SubscribeStreamer* stream) {
+  v1::SubscribeRequest request_message;
+  if (!stream->Read(&request_message))
+    return grpcError(grpc::StatusCode::INVALID_ARGUMENT, "Subscribe: no request message");
+  const v1::SubscribeRequest* request = &request_message;
   std::shared_ptr<SceneSession> s;
   std::optional<StreamSlot> slot;
   if (auto st = beginResultCall(ctx, request->scene(), request->spec(), &s, &slot); !st.ok()) return st;
@@ -357,8 +356,6 @@ grpc::Status LightlinkService::Subscribe(grpc::ServerContext* ctx, const v1::Sub
     ~Unsubscribe() { s.addSubscriber(-1); }
   } unsubscribe{*s};
 
-  const std::string& id = s->identity().id;
-  const MessageWriter write = writerFor(writer);
   std::uint64_t last_sequence = 0;
   std::shared_ptr<const EncodedResult> previous;
   const auto stop = [&] { return ctx->IsCancelled() || draining_.load(); };
@@ -374,14 +371,21 @@ grpc::Status LightlinkService::Subscribe(grpc::ServerContext* ctx, const v1::Sub
       last_sequence = snap->sequence;
       continue;
     }
-    const std::uint64_t skipped = last_sequence == 0 || previous == nullptr ? 0 : snap->sequence - last_sequence - 1;
-    auto e = snap->encoded(SpecKey::from(request->spec(), snap->bands));
-    const HeaderExtras extras{id, skipped};
-    const bool ok = request->deltas() && previous ? sendDelta(*snap, *e, *previous, extras, config_.chunk_bytes, write)
-                                                  : sendFull(*snap, *e, extras, config_.chunk_bytes, write);
-    if (!ok) return grpc::Status::OK;  // the client went away
+    // Streams that saw the same previous result ask for the same bytes: the wire form is
+    // shared by all of them (Snapshot::wire), full or delta.
+    const SpecKey spec = SpecKey::from(request->spec(), snap->bands);
+    WireRequest wr;
+    wr.skipped_versions = last_sequence == 0 || previous == nullptr ? 0 : snap->sequence - last_sequence - 1;
+    if (request->deltas() && previous) {
+      wr.delta_base = previous.get();
+      wr.delta_base_sequence = last_sequence;
+    }
+    const auto wire = snap->wire(spec, config_.chunk_bytes, wr);
+    if (!wire) return grpcError(grpc::StatusCode::INTERNAL, "result: could not serialize the result messages");
+    for (const grpc::ByteBuffer& m : wire->messages)
+      if (!stream->Write(WireMessage{&m})) return grpc::Status::OK;  // the client went away
     last_sequence = snap->sequence;
-    previous = std::move(e);
+    previous = snap->encoded(spec);
   }
 }
 

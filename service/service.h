@@ -33,16 +33,17 @@ class LightlinkService final : public v1::Lightlink::Service {
                          grpc::ServerWriter<v1::OpenSceneProgress>* writer) override;
   grpc::Status UpdateLights(grpc::ServerContext* ctx, const v1::UpdateLightsRequest* request,
                             v1::UpdateLightsResponse* response) override;
-  grpc::Status Subscribe(grpc::ServerContext* ctx, const v1::SubscribeRequest* request,
-                         grpc::ServerWriter<v1::ResultMessage>* writer) override;
-  // Relight and GetTextures send whole results, serialized once per result and spec and
-  // shared by all their callers (service/wire_message.h). The constructor registers them in
-  // place of the generated handlers, as split-streaming methods whose responses are
-  // WireMessages (the same bytes as a serialized ResultMessage).
+  // Relight, GetTextures and Subscribe send results serialized once per result and spec
+  // (and, for Subscribe, per previous result) and shared by all their callers
+  // (service/wire_message.h). The constructor registers them in place of the generated
+  // handlers, as split-streaming methods whose responses are WireMessages (the same bytes
+  // as a serialized ResultMessage).
   using RelightStreamer = grpc::ServerSplitStreamer<v1::RelightRequest, WireMessage>;
   using GetTexturesStreamer = grpc::ServerSplitStreamer<v1::GetTexturesRequest, WireMessage>;
+  using SubscribeStreamer = grpc::ServerSplitStreamer<v1::SubscribeRequest, WireMessage>;
   grpc::Status RelightWire(grpc::ServerContext* ctx, RelightStreamer* stream);
   grpc::Status GetTexturesWire(grpc::ServerContext* ctx, GetTexturesStreamer* stream);
+  grpc::Status SubscribeWire(grpc::ServerContext* ctx, SubscribeStreamer* stream);
   grpc::Status ListScenes(grpc::ServerContext* ctx, const v1::ListScenesRequest* request,
                           v1::ListScenesResponse* response) override;
   grpc::Status CloseScene(grpc::ServerContext* ctx, const v1::CloseSceneRequest* request,

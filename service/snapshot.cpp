@@ -66,23 +66,28 @@ std::shared_ptr<const EncodedResult> Snapshot::encoded(const SpecKey& spec) cons
   return e;
 }
 
-std::shared_ptr<const WireResult> Snapshot::wire(const SpecKey& spec, std::size_t chunk_bytes) const {
-  // Built under the lock, as encoded(): a new result wakes every long-polling client at
-  // once, and they must wait for one build rather than each build their own (50 builds of
-  // the same bytes were the daemon's largest cost before this lock).
+std::shared_ptr<const WireResult> Snapshot::wire(const SpecKey& spec, std::size_t chunk_bytes,
+                                                 const WireRequest& request) const {
+  // Built under the lock, as encoded(): a new result wakes every long-polling client and
+  // every subscriber at once, and they must wait for one build rather than each build their
+  // own (50 builds of the same bytes were the daemon's largest cost before this lock).
   std::lock_guard lock(wire_mutex_);
-  const auto key = std::make_pair(spec, chunk_bytes);
+  const WireKey key{spec, chunk_bytes, request.skipped_versions,
+                    request.delta_base ? request.delta_base_sequence : 0};
   if (auto it = wire_cache_.find(key); it != wire_cache_.end()) return it->second;
   const auto e = encoded(spec);
   auto w = std::make_shared<WireResult>();
-  const bool ok = sendFull(*this, *e, {scene_id, 0}, chunk_bytes, [&](const v1::ResultMessage& m) {
+  const MessageWriter serialize = [&](const v1::ResultMessage& m) {
     grpc::ByteBuffer buffer;
     bool own = false;
     if (!grpc::SerializationTraits<v1::ResultMessage>::Serialize(m, &buffer, &own).ok()) return false;
     w->bytes += buffer.Length();
     w->messages.emplace_back().Swap(&buffer);
     return true;
-  });
+  };
+  const HeaderExtras extras{scene_id, request.skipped_versions};
+  const bool ok = request.delta_base ? sendDelta(*this, *e, *request.delta_base, extras, chunk_bytes, serialize)
+                                     : sendFull(*this, *e, extras, chunk_bytes, serialize);
   if (!ok) return nullptr;
   return wire_cache_.emplace(key, std::move(w)).first->second;
 }

@@ -48,13 +48,21 @@ Expected<std::string> readFile(const std::string& path, const char* what) {
   return ss.str();
 }
 
+// The calls read raw, described as the generated stub describes them (by full name); a call
+// keeps pointers into its description, so these live as long as the program.
+const grpc::internal::RpcMethod kRelightMethod("/lightlink.v1.Lightlink/Relight",
+                                               grpc::internal::RpcMethod::SERVER_STREAMING);
+const grpc::internal::RpcMethod kGetTexturesMethod("/lightlink.v1.Lightlink/GetTextures",
+                                                   grpc::internal::RpcMethod::SERVER_STREAMING);
+const grpc::internal::RpcMethod kSubscribeMethod("/lightlink.v1.Lightlink/Subscribe",
+                                                 grpc::internal::RpcMethod::SERVER_STREAMING);
+
 // Reads the one result (header + chunks) a Relight or GetTextures stream carries, each
-// message as a RawResultMessage: chunk data goes from gRPC's receive slices straight into the payload (clients/client/raw_result.h).
-// The method is called by its full name, as the generated stub does.
+// message as a RawResultMessage: chunk data goes from gRPC's receive slices straight into
+// the payload (clients/client/raw_result.h).
 template <typename Request>
-Expected<Textures> readOneRawResult(const char* rpc, const char* method, grpc::ChannelInterface* channel,
-                                    grpc::ClientContext& ctx, const Request& request) {
-  const grpc::internal::RpcMethod rpc_method(method, grpc::internal::RpcMethod::SERVER_STREAMING);
+Expected<Textures> readOneRawResult(const char* rpc, const grpc::internal::RpcMethod& rpc_method,
+                                    grpc::ChannelInterface* channel, grpc::ClientContext& ctx, const Request& request) {
   std::unique_ptr<grpc::ClientReader<RawResultMessage>> reader(
       grpc::internal::ClientReaderFactory<RawResultMessage>::Create(channel, rpc_method, &ctx, request));
   ResultAssembler assembler;
@@ -247,7 +255,7 @@ Expected<Textures> Client::relight(const SceneHandle& scene, std::uint64_t versi
   *req.mutable_spec() = toProto(spec);
   grpc::ClientContext ctx;
   impl_->prepare(ctx);
-  return readOneRawResult("Relight", "/lightlink.v1.Lightlink/Relight", impl_->channel.get(), ctx, req);
+  return readOneRawResult("Relight", kRelightMethod, impl_->channel.get(), ctx, req);
 }
 
 Expected<std::optional<Textures>> Client::getTextures(const SceneHandle& scene, std::uint64_t last_seen_version,
@@ -259,7 +267,7 @@ Expected<std::optional<Textures>> Client::getTextures(const SceneHandle& scene, 
   req.set_wait_ms(wait_ms);
   grpc::ClientContext ctx;
   impl_->prepare(ctx, impl_->waitingDeadline(wait_ms));
-  auto t = readOneRawResult("GetTextures", "/lightlink.v1.Lightlink/GetTextures", impl_->channel.get(), ctx, req);
+  auto t = readOneRawResult("GetTextures", kGetTexturesMethod, impl_->channel.get(), ctx, req);
   if (!t) return t.status();
   if (t->info.not_modified) return std::optional<Textures>{};
   return std::optional<Textures>(std::move(t).value());
@@ -267,8 +275,10 @@ Expected<std::optional<Textures>> Client::getTextures(const SceneHandle& scene, 
 
 struct Subscription::Stream {
   grpc::ClientContext ctx;
-  std::unique_ptr<grpc::ClientReader<v1::ResultMessage>> reader;
+  std::unique_ptr<grpc::ClientReader<RawResultMessage>> reader;  // read without a copy (raw_result.h)
   ResultAssembler assembler;
+  RawResultMessage msg;
+  RawResult decoded;
   std::atomic<bool> cancelled{false};
 };
 
@@ -276,8 +286,7 @@ Subscription::~Subscription() {
   if (stream_ && !done_) {
     // Finish() on a live stream would block until the daemon ends it: cancel first.
     stream_->ctx.TryCancel();
-    v1::ResultMessage msg;
-    while (stream_->reader->Read(&msg)) {
+    while (stream_->reader->Read(&stream_->msg)) {
     }
     (void)stream_->reader->Finish();
   }
@@ -291,10 +300,11 @@ void Subscription::cancel() {
 
 Expected<const Textures*> Subscription::next() {
   if (done_) return static_cast<const Textures*>(nullptr);
-  v1::ResultMessage msg;
   Stream& s = *stream_;
-  while (s.reader->Read(&msg)) {
-    if (Status st = s.assembler.add(msg); !st) return Status(st.code(), "Subscribe: " + st.message());
+  while (s.reader->Read(&s.msg)) {
+    Status st = decodeRawResult(s.msg.bytes, s.decoded);
+    if (st) st = s.assembler.add(s.decoded);
+    if (!st) return Status(st.code(), "Subscribe: " + st.message());
     if (!s.assembler.complete()) continue;
     auto t = s.assembler.take(have_current_ ? &current_ : nullptr);
     if (!t) return Status(t.status().code(), "Subscribe: " + t.status().message());
@@ -321,7 +331,8 @@ Expected<std::unique_ptr<Subscription>> Client::subscribe(const SceneHandle& sce
   std::unique_ptr<Subscription> sub(new Subscription());
   sub->stream_ = std::make_unique<Subscription::Stream>();
   impl_->prepare(sub->stream_->ctx, std::chrono::milliseconds(0));
-  sub->stream_->reader = impl_->rpc->Subscribe(&sub->stream_->ctx, req);
+  sub->stream_->reader.reset(grpc::internal::ClientReaderFactory<RawResultMessage>::Create(
+      impl_->channel.get(), kSubscribeMethod, &sub->stream_->ctx, req));
   return sub;
 }
 

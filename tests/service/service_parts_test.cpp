@@ -255,6 +255,36 @@ TEST(ServicePayload, WireFormIsSerializedOnceAndIsWhatSendFullSends) {
   EXPECT_EQ(w->bytes, bytes);
   EXPECT_EQ(s.wire(key, 4096), w) << "serialized once per (spec, chunk size), then shared";
   EXPECT_NE(s.wire(key, 8192), w) << "another chunk size is another wire form";
+
+  // A subscriber's delta against the previous result: the bytes sendDelta produces, shared
+  // by every stream with the same previous result; a stream that skipped versions gets its
+  // own header.
+  Snapshot next;
+  fillSnapshot(next, 1.0f);
+  next.scene_id = "scene-a";
+  next.version = 2;
+  next.sequence = 2;
+  next.lightmap_sh[(35 * 70 + 66) * 12 + 3] = 9.0f;
+  const auto previous = s.encoded(key);
+  std::vector<std::string> delta;
+  ASSERT_TRUE(sendDelta(next, *next.encoded(key), *previous, {"scene-a", 0}, 4096, [&](const v1::ResultMessage& m) {
+    delta.push_back(m.SerializeAsString());
+    return true;
+  }));
+  const WireRequest after_one{.skipped_versions = 0, .delta_base = previous.get(), .delta_base_sequence = 1};
+  const auto d = next.wire(key, 4096, after_one);
+  ASSERT_TRUE(d);
+  ASSERT_EQ(d->messages.size(), delta.size());
+  for (std::size_t i = 0; i < delta.size(); ++i) {
+    grpc::Slice one;
+    ASSERT_TRUE(d->messages[i].DumpToSingleSlice(&one).ok());
+    EXPECT_EQ(std::string(reinterpret_cast<const char*>(one.begin()), one.size()), delta[i]) << "message " << i;
+  }
+  EXPECT_LT(d->bytes, next.wire(key, 4096)->bytes / 4) << "one changed tile of 6";
+  EXPECT_EQ(next.wire(key, 4096, after_one), d);
+  WireRequest skipped = after_one;
+  skipped.skipped_versions = 3;
+  EXPECT_NE(next.wire(key, 4096, skipped), d);
 }
 
 }  // namespace
