@@ -8,7 +8,8 @@
 //               channel and TCP connection asking GetTextures for the lightmap (half),
 //               either polling every --poll-ms (wait 0: the plain poll) or long polling
 //               (GetTextures wait_ms > 0: one call outstanding, answered when a new version
-//               exists); --wait-ms 0,2000 measures both. Updates are spaced so each one is
+//               exists); --wait-ms 0,2000 measures both; --subscribe adds clients that hold
+//               a Subscribe stream (tile deltas) instead. Updates are spaced so each one is
 //               measured alone (the driver waits until every client has it, then pauses
 //               --gap-ms).
 //   throughput  updates sent back to back for --burst-s seconds by one client: updates/s
@@ -54,6 +55,7 @@ struct Args {
   std::string cache_dir;
   int bounces = -1;  // >= 0: the started daemon's --bounces (its default is 8)
   bool progressive = false;  // the started daemon's --progressive: preview, then converged
+  bool subscribe = false;    // also measure clients holding a Subscribe stream (tile deltas)
   std::vector<std::string> daemon_flags;  // more flags for the started daemon (--daemon-flag, repeated)
   std::string scene = std::string(LIGHTLINK_SOURCE_DIR) + "/clients/demo/cornell_box.gltf";
   std::string preset = "medium";
@@ -128,8 +130,10 @@ struct Poller {
   std::string first_error;
 };
 
+// wait_ms 0: poll, > 0: long poll; subscribe: a Subscribe stream with tile deltas instead.
 nlohmann::ordered_json latencyScenario(const Args& a, const ConnectOptions& co, Client& driver, SceneHandle& scene,
-                                       const std::string& light, int n_clients, std::uint32_t wait_ms, int& step) {
+                                       const std::string& light, int n_clients, std::uint32_t wait_ms, bool subscribe,
+                                       int& step) {
   std::vector<std::unique_ptr<Poller>> pollers;
   for (int i = 0; i < n_clients; ++i) {
     auto p = std::make_unique<Poller>();
@@ -143,6 +147,22 @@ nlohmann::ordered_json latencyScenario(const Args& a, const ConnectOptions& co, 
   std::vector<std::thread> threads;
   for (auto& pp : pollers) {
     threads.emplace_back([&, p = pp.get()] {
+      if (subscribe) {
+        // Each result is recorded the moment the stream has it whole; after `stop` the next
+        // result (the driver's wake-up update) ends the stream.
+        const Status st = p->client->subscribe(
+            scene,
+            [&](const Textures& t) {
+              const auto now = Clock::now();
+              p->arrivals.push_back({t.info.version, now, t.info.relight_ms, t.info.preview});
+              if (!t.info.preview) p->latest_converged.store(t.info.version, std::memory_order_release);
+              p->latest.store(t.info.version, std::memory_order_release);
+              return !stop.load(std::memory_order_relaxed);
+            },
+            spec, /*deltas=*/true);
+        if (!st && p->errors++ == 0) p->first_error = st.toString();
+        return;
+      }
       std::uint64_t last = 0;
       auto next = Clock::now();
       while (!stop.load(std::memory_order_relaxed)) {
@@ -196,7 +216,7 @@ nlohmann::ordered_json latencyScenario(const Args& a, const ConnectOptions& co, 
   }
   stop = true;
   // Long polls end at their wait; a small update makes them answer at once.
-  if (wait_ms > 0) (void)must(driver.updateLights(scene, moveLight(a, light, step++)));
+  if (wait_ms > 0 || subscribe) (void)must(driver.updateLights(scene, moveLight(a, light, step++)));
   for (auto& t : threads) t.join();
 
   std::vector<double> latency, overhead, not_modified, fetch, converged;
@@ -223,9 +243,9 @@ nlohmann::ordered_json latencyScenario(const Args& a, const ConnectOptions& co, 
   }
   nlohmann::ordered_json j;
   j["clients"] = n_clients;
-  j["mode"] = wait_ms > 0 ? "long poll" : "poll";
-  j["wait_ms"] = wait_ms;
-  j["poll_ms"] = wait_ms > 0 ? 0.0 : a.poll_ms;
+  j["mode"] = subscribe ? "subscribe" : wait_ms > 0 ? "long poll" : "poll";
+  j["wait_ms"] = subscribe ? 0 : wait_ms;
+  j["poll_ms"] = wait_ms > 0 || subscribe ? 0.0 : a.poll_ms;
   j["updates"] = a.updates;
   j["latency_ms"] = summary(latency);
   j["latency_minus_relight_ms"] = summary(overhead);
@@ -298,6 +318,7 @@ Args parseArgs(int argc, char** argv) {
       else if (k == "--cache-dir") a.cache_dir = val();
       else if (k == "--bounces") a.bounces = std::stoi(val());
       else if (k == "--progressive") a.progressive = true;
+      else if (k == "--subscribe") a.subscribe = true;
       else if (k == "--daemon-flag") a.daemon_flags.push_back(val());
       else if (k == "--scene") a.scene = val();
       else if (k == "--preset") a.preset = val();
@@ -316,10 +337,12 @@ Args parseArgs(int argc, char** argv) {
             "              [--scene F] [--preset P]\n"
             "              [--clients 1,50] [--wait-ms 0,2000] [--updates N] [--poll-ms MS] [--gap-ms MS]\n"
             "              [--burst-s S] [--daemon-cpus LIST] [--client-cpus LIST] [--daemon-flag F ...] [--json F]\n"
+            "              [--subscribe]\n"
             "  --wait-ms    one latency scenario per value and client count: 0 = poll every --poll-ms,\n"
             "               > 0 = long poll (GetTextures wait_ms)\n"
             "  --daemon-cpus, --client-cpus  taskset-style CPU lists (0-1, 2-15, 0,2,4-7): where the started\n"
             "               daemon and this process (driver, clients) may run\n"
+            "  --subscribe  also one scenario per client count with Subscribe streams (tile deltas)\n"
             "  --daemon-flag  one more flag for the started daemon (repeat: --daemon-flag --log-level\n"
             "               --daemon-flag debug --daemon-flag --log-file --daemon-flag d.log)\n");
         std::exit(0);
@@ -408,7 +431,12 @@ int main(int argc, char** argv) {
     for (int c : a.clients) {
       std::fprintf(stderr, "service_bench: %d client(s), %s, %d updates\n", c,
                    w > 0 ? fmt::format("long poll (wait_ms {})", w).c_str() : "poll", a.updates);
-      scenarios.push_back(latencyScenario(a, co, driver, scene, light, c, std::uint32_t(w), step));
+      scenarios.push_back(latencyScenario(a, co, driver, scene, light, c, std::uint32_t(w), false, step));
+    }
+  if (a.subscribe)
+    for (int c : a.clients) {
+      std::fprintf(stderr, "service_bench: %d client(s), subscribe (deltas), %d updates\n", c, a.updates);
+      scenarios.push_back(latencyScenario(a, co, driver, scene, light, c, 0, true, step));
     }
   out["latency"] = scenarios;
   std::fprintf(stderr, "service_bench: update burst for %.1f s\n", a.burst_s);
