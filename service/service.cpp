@@ -218,6 +218,15 @@ grpc::Status LightlinkService::beginResultCall(grpc::ServerContext* ctx, const v
   return grpc::Status::OK;
 }
 
+template <typename Request>
+grpc::Status LightlinkService::beginWireCall(grpc::ServerContext* ctx, grpc::ServerSplitStreamer<Request, WireMessage>* stream,
+                                             const char* rpc, Request* request, std::shared_ptr<SceneSession>* scene,
+                                             std::optional<StreamSlot>* slot) {
+  if (!stream->Read(request))
+    return grpcError(grpc::StatusCode::INVALID_ARGUMENT, fmt::format("{}: no request message", rpc));
+  return beginResultCall(ctx, request->scene(), request->spec(), scene, slot);
+}
+
 Clock::time_point LightlinkService::waitDeadline(grpc::ServerContext* ctx) const {
   // The call's own deadline, mapped onto the steady clock; none: kDefaultWait.
   const auto now_sys = std::chrono::system_clock::now();
@@ -285,51 +294,45 @@ grpc::Status LightlinkService::UpdateLights(grpc::ServerContext* ctx, const v1::
 }
 
 grpc::Status LightlinkService::RelightWire(grpc::ServerContext* ctx, RelightStreamer* stream) {
-  v1::RelightRequest request_message;
-  if (!stream->Read(&request_message))
-    return grpcError(grpc::StatusCode::INVALID_ARGUMENT, "Relight: no request message");
-  const v1::RelightRequest* request = &request_message;
+  v1::RelightRequest request;
   std::shared_ptr<SceneSession> s;
   std::optional<StreamSlot> slot;
-  if (auto st = beginResultCall(ctx, request->scene(), request->spec(), &s, &slot); !st.ok()) return st;
+  if (auto st = beginWireCall(ctx, stream, "Relight", &request, &s, &slot); !st.ok()) return st;
   const std::uint64_t newest = s->version();
-  if (request->version() > newest)
+  if (request.version() > newest)
     return grpcError(grpc::StatusCode::OUT_OF_RANGE, fmt::format("version: {} is newer than the scene's newest version {}",
-                                                                 request->version(), newest));
-  auto snap = s->waitForVersion(request->version(), waitDeadline(ctx), [&] { return ctx->IsCancelled() || draining_; });
+                                                                 request.version(), newest));
+  auto snap = s->waitForVersion(request.version(), waitDeadline(ctx), [&] { return ctx->IsCancelled() || draining_; });
   if (!snap) {
     if (ctx->IsCancelled()) return grpcError(grpc::StatusCode::CANCELLED, "cancelled");
     if (s->closed()) return grpcError(grpc::StatusCode::NOT_FOUND, "scene_id: the scene was closed");
     if (draining_) return grpcError(grpc::StatusCode::UNAVAILABLE, "daemon: draining");
     return grpcError(grpc::StatusCode::DEADLINE_EXCEEDED,
-                     fmt::format("version: no result >= {} within the deadline", request->version()));
+                     fmt::format("version: no result >= {} within the deadline", request.version()));
   }
-  return sendWire(*snap, SpecKey::from(request->spec(), snap->bands), config_.chunk_bytes, stream);
+  return sendWire(*snap, SpecKey::from(request.spec(), snap->bands), config_.chunk_bytes, stream);
 }
 
 grpc::Status LightlinkService::GetTexturesWire(grpc::ServerContext* ctx, GetTexturesStreamer* stream) {
-  v1::GetTexturesRequest request_message;
-  if (!stream->Read(&request_message))
-    return grpcError(grpc::StatusCode::INVALID_ARGUMENT, "GetTextures: no request message");
-  const v1::GetTexturesRequest* request = &request_message;
+  v1::GetTexturesRequest request;
   std::shared_ptr<SceneSession> s;
   std::optional<StreamSlot> slot;
-  if (auto st = beginResultCall(ctx, request->scene(), request->spec(), &s, &slot); !st.ok()) return st;
-  if (request->wait_ms() > kMaxWaitMs)
+  if (auto st = beginWireCall(ctx, stream, "GetTextures", &request, &s, &slot); !st.ok()) return st;
+  if (request.wait_ms() > kMaxWaitMs)
     return grpcError(grpc::StatusCode::INVALID_ARGUMENT,
-                     fmt::format("wait_ms: {} is above the limit of {}", request->wait_ms(), kMaxWaitMs));
+                     fmt::format("wait_ms: {} is above the limit of {}", request.wait_ms(), kMaxWaitMs));
   const auto stop = [&] { return ctx->IsCancelled() || draining_.load(); };
   auto snap = s->latest();
   // Right after OpenScene the first result may still be computing: wait for it.
   if (!snap) snap = s->waitForVersion(0, waitDeadline(ctx), stop);
   if (!snap) return grpcError(grpc::StatusCode::UNAVAILABLE, "scene: no result computed yet");
-  if (snap->version == request->last_seen_version() && request->wait_ms() > 0) {
+  if (snap->version == request.last_seen_version() && request.wait_ms() > 0) {
     // Long poll: hold the call until a newer result is published. Results are published
     // in increasing version order, so "newer" is "version > the one the client has". The
     // answer leaves a little before the call's deadline, so a client whose deadline is
     // shorter than wait_ms gets not_modified rather than DEADLINE_EXCEEDED.
     const auto by_call = waitDeadline(ctx) - kAnswerMargin;
-    const auto deadline = std::min(by_call, Clock::now() + std::chrono::milliseconds(request->wait_ms()));
+    const auto deadline = std::min(by_call, Clock::now() + std::chrono::milliseconds(request.wait_ms()));
     if (auto newer = s->waitForVersion(snap->version + 1, deadline, stop)) {
       snap = std::move(newer);
     } else {
@@ -338,18 +341,15 @@ grpc::Status LightlinkService::GetTexturesWire(grpc::ServerContext* ctx, GetText
       // Deadline or drain: the plain answer, not modified.
     }
   }
-  if (snap->version == request->last_seen_version()) return sendNotModified(*s, *snap, stream);
-  return sendWire(*snap, SpecKey::from(request->spec(), snap->bands), config_.chunk_bytes, stream);
+  if (snap->version == request.last_seen_version()) return sendNotModified(*s, *snap, stream);
+  return sendWire(*snap, SpecKey::from(request.spec(), snap->bands), config_.chunk_bytes, stream);
 }
 
 grpc::Status LightlinkService::SubscribeWire(grpc::ServerContext* ctx, SubscribeStreamer* stream) {
-  v1::SubscribeRequest request_message;
-  if (!stream->Read(&request_message))
-    return grpcError(grpc::StatusCode::INVALID_ARGUMENT, "Subscribe: no request message");
-  const v1::SubscribeRequest* request = &request_message;
+  v1::SubscribeRequest request;
   std::shared_ptr<SceneSession> s;
   std::optional<StreamSlot> slot;
-  if (auto st = beginResultCall(ctx, request->scene(), request->spec(), &s, &slot); !st.ok()) return st;
+  if (auto st = beginWireCall(ctx, stream, "Subscribe", &request, &s, &slot); !st.ok()) return st;
   s->addSubscriber(1);
   struct Unsubscribe {
     SceneSession& s;
@@ -367,16 +367,16 @@ grpc::Status LightlinkService::SubscribeWire(grpc::ServerContext* ctx, Subscribe
       if (draining_ || s->closed()) return grpc::Status::OK;
       continue;
     }
-    if (snap->version <= request->after_version()) {
+    if (snap->version <= request.after_version()) {
       last_sequence = snap->sequence;
       continue;
     }
     // Streams that saw the same previous result ask for the same bytes: the wire form is
     // shared by all of them (Snapshot::wire), full or delta.
-    const SpecKey spec = SpecKey::from(request->spec(), snap->bands);
+    const SpecKey spec = SpecKey::from(request.spec(), snap->bands);
     WireRequest wr;
     wr.skipped_versions = last_sequence == 0 || previous == nullptr ? 0 : snap->sequence - last_sequence - 1;
-    if (request->deltas() && previous) {
+    if (request.deltas() && previous) {
       wr.delta_base = previous.get();
       wr.delta_base_sequence = last_sequence;
     }

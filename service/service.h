@@ -81,6 +81,11 @@ class LightlinkService final : public v1::Lightlink::Service {
   // slot of the client (released when `slot` is destroyed).
   grpc::Status beginResultCall(grpc::ServerContext* ctx, const v1::SceneRef& ref, const v1::ResultSpec& spec,
                                std::shared_ptr<SceneSession>* scene, std::optional<StreamSlot>* slot);
+  // The same for the split-streaming handlers, which first read their one request message.
+  template <typename Request>
+  grpc::Status beginWireCall(grpc::ServerContext* ctx, grpc::ServerSplitStreamer<Request, WireMessage>* stream,
+                             const char* rpc, Request* request, std::shared_ptr<SceneSession>* scene,
+                             std::optional<StreamSlot>* slot);
   std::chrono::steady_clock::time_point waitDeadline(grpc::ServerContext* ctx) const;
   // Registers `handler` for the method `name` of lightlink.v1.Lightlink in place of the
   // generated one.
