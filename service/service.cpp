@@ -119,13 +119,15 @@ grpc::Status sendNotModified(const SceneSession& s, const Snapshot& snap, Stream
   return grpc::Status::OK;
 }
 
-// Sends a whole result from the snapshot's shared wire form; stops when the client is gone.
+// Sends a result from the snapshot's shared wire form (Snapshot::wire: `previous` and
+// `delta` for a Subscribe stream). CANCELLED when a write fails: the client is gone.
 template <typename Stream>
-grpc::Status sendWire(const Snapshot& snap, const SpecKey& spec, std::size_t chunk_bytes, Stream* stream) {
-  const auto wire = snap.wire(spec, chunk_bytes);
+grpc::Status sendWire(const Snapshot& snap, const SpecKey& spec, std::size_t chunk_bytes, Stream* stream,
+                      const Snapshot* previous = nullptr, bool delta = false) {
+  const auto wire = snap.wire(spec, chunk_bytes, previous, delta);
   if (!wire) return grpcError(grpc::StatusCode::INTERNAL, "result: could not serialize the result messages");
   for (const grpc::ByteBuffer& m : wire->messages)
-    if (!stream->Write(WireMessage{&m})) break;
+    if (!stream->Write(WireMessage{&m})) return grpcError(grpc::StatusCode::CANCELLED, "the client went away");
   return grpc::Status::OK;
 }
 
@@ -357,7 +359,7 @@ grpc::Status LightlinkService::SubscribeWire(grpc::ServerContext* ctx, Subscribe
   } unsubscribe{*s};
 
   std::uint64_t last_sequence = 0;
-  std::shared_ptr<const EncodedResult> previous;
+  std::shared_ptr<const Snapshot> previous;  // the result this stream sent last
   const auto stop = [&] { return ctx->IsCancelled() || draining_.load(); };
   while (true) {
     auto snap = s->waitForNewer(last_sequence, Clock::now() + std::chrono::seconds(1), stop);
@@ -367,25 +369,14 @@ grpc::Status LightlinkService::SubscribeWire(grpc::ServerContext* ctx, Subscribe
       if (draining_ || s->closed()) return grpc::Status::OK;
       continue;
     }
-    if (snap->version <= request.after_version()) {
-      last_sequence = snap->sequence;
-      continue;
-    }
-    // Streams that saw the same previous result ask for the same bytes: the wire form is
-    // shared by all of them (Snapshot::wire), full or delta.
-    const SpecKey spec = SpecKey::from(request.spec(), snap->bands);
-    WireRequest wr;
-    wr.skipped_versions = last_sequence == 0 || previous == nullptr ? 0 : snap->sequence - last_sequence - 1;
-    if (request.deltas() && previous) {
-      wr.delta_base = previous.get();
-      wr.delta_base_sequence = last_sequence;
-    }
-    const auto wire = snap->wire(spec, config_.chunk_bytes, wr);
-    if (!wire) return grpcError(grpc::StatusCode::INTERNAL, "result: could not serialize the result messages");
-    for (const grpc::ByteBuffer& m : wire->messages)
-      if (!stream->Write(WireMessage{&m})) return grpc::Status::OK;  // the client went away
     last_sequence = snap->sequence;
-    previous = snap->encoded(spec);
+    if (snap->version <= request.after_version()) continue;
+    // Streams that sent the same previous result send the same bytes: one wire form for
+    // all of them (Snapshot::wire), full or delta.
+    const SpecKey spec = SpecKey::from(request.spec(), snap->bands);
+    if (auto st = sendWire(*snap, spec, config_.chunk_bytes, stream, previous.get(), request.deltas()); !st.ok())
+      return st;
+    previous = std::move(snap);
   }
 }
 

@@ -59,15 +59,6 @@ struct WireResult {
   std::uint64_t bytes = 0;  // serialized size of all messages
 };
 
-// What a stream sends besides the result itself (Subscribe): the versions it skipped, and
-// for a tile delta the encoding it is relative to. Streams that ask the same (they saw the
-// same previous result) share one wire form.
-struct WireRequest {
-  std::uint64_t skipped_versions = 0;
-  const EncodedResult* delta_base = nullptr;  // null: the full result
-  std::uint64_t delta_base_sequence = 0;      // Snapshot::sequence of the result delta_base encodes
-};
-
 struct GridGeometry {
   bool present = false;
   glm::vec3 origin{0.0f};
@@ -99,18 +90,20 @@ class Snapshot {
   std::shared_ptr<const EncodedResult> encoded(const SpecKey& spec) const;
   // The result for `spec` in chunks of at most `chunk_bytes`, serialized once and cached
   // (thread-safe): what Relight, GetTextures and Subscribe send to every client asking for
-  // it. Full by default; `request` asks for skipped versions in the header or a tile delta
-  // against an earlier result (result_stream.h). Null when protobuf could not serialize a
-  // message (nothing is cached then).
-  std::shared_ptr<const WireResult> wire(const SpecKey& spec, std::size_t chunk_bytes,
-                                         const WireRequest& request = {}) const;
+  // it. A Subscribe stream passes `previous`, the result it sent last (same scene, same
+  // spec): the header then counts the versions skipped since, and with `delta` only the
+  // tiles changed since are sent (result_stream.h). Streams that sent the same previous
+  // result share one wire form. Null when protobuf could not serialize a message (nothing
+  // is cached then).
+  std::shared_ptr<const WireResult> wire(const SpecKey& spec, std::size_t chunk_bytes, const Snapshot* previous = nullptr,
+                                         bool delta = false) const;
 
  private:
   mutable std::mutex cache_mutex_;
   mutable std::map<SpecKey, std::shared_ptr<const EncodedResult>> cache_;
   mutable std::mutex wire_mutex_;
-  // Key: spec, chunk bytes, skipped versions, delta base sequence (0: full).
-  using WireKey = std::tuple<SpecKey, std::size_t, std::uint64_t, std::uint64_t>;
+  // Key: spec, chunk bytes, the previous result's sequence (0: none), delta.
+  using WireKey = std::tuple<SpecKey, std::size_t, std::uint64_t, bool>;
   mutable std::map<WireKey, std::shared_ptr<const WireResult>> wire_cache_;
 };
 

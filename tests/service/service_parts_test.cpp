@@ -265,14 +265,13 @@ TEST(ServicePayload, WireFormIsSerializedOnceAndIsWhatSendFullSends) {
   next.version = 2;
   next.sequence = 2;
   next.lightmap_sh[(35 * 70 + 66) * 12 + 3] = 9.0f;
-  const auto previous = s.encoded(key);
+  s.sequence = 1;
   std::vector<std::string> delta;
-  ASSERT_TRUE(sendDelta(next, *next.encoded(key), *previous, {"scene-a", 0}, 4096, [&](const v1::ResultMessage& m) {
+  ASSERT_TRUE(sendDelta(next, *next.encoded(key), *s.encoded(key), {"scene-a", 0}, 4096, [&](const v1::ResultMessage& m) {
     delta.push_back(m.SerializeAsString());
     return true;
   }));
-  const WireRequest after_one{.skipped_versions = 0, .delta_base = previous.get(), .delta_base_sequence = 1};
-  const auto d = next.wire(key, 4096, after_one);
+  const auto d = next.wire(key, 4096, &s, /*delta=*/true);
   ASSERT_TRUE(d);
   ASSERT_EQ(d->messages.size(), delta.size());
   for (std::size_t i = 0; i < delta.size(); ++i) {
@@ -281,10 +280,17 @@ TEST(ServicePayload, WireFormIsSerializedOnceAndIsWhatSendFullSends) {
     EXPECT_EQ(std::string(reinterpret_cast<const char*>(one.begin()), one.size()), delta[i]) << "message " << i;
   }
   EXPECT_LT(d->bytes, next.wire(key, 4096)->bytes / 4) << "one changed tile of 6";
-  EXPECT_EQ(next.wire(key, 4096, after_one), d);
-  WireRequest skipped = after_one;
-  skipped.skipped_versions = 3;
-  EXPECT_NE(next.wire(key, 4096, skipped), d);
+  EXPECT_EQ(next.wire(key, 4096, &s, true), d);
+  // A stream whose last result was older skipped versions: its header says so.
+  next.sequence = 4;
+  const auto behind = next.wire(key, 4096, &s, false);
+  ASSERT_TRUE(behind);
+  v1::ResultMessage header;
+  grpc::Slice first;
+  ASSERT_TRUE(behind->messages.front().DumpToSingleSlice(&first).ok());
+  ASSERT_TRUE(header.ParseFromArray(first.begin(), static_cast<int>(first.size())));
+  EXPECT_EQ(header.header().skipped_versions(), 2u);
+  EXPECT_FALSE(header.header().delta());
 }
 
 }  // namespace
