@@ -1,13 +1,13 @@
 // WireMessage: a lightlink.v1.ResultMessage that is already serialized, sent as it is.
 //
-// A result goes to every client that polls or asks for it. Built as a protobuf message per
-// client, each send copied the payload twice (into the message, then into gRPC's slices),
-// and with 50 clients polling a 1 MB lightmap those copies and the page faults of the fresh
-// buffers were the daemon's largest cost (perf, bench/service). Instead the messages of a
-// full result are serialized once per (snapshot, spec) into grpc::ByteBuffers
-// (Snapshot::wire) and every send passes a reference to the same slices: no copy and no
-// serialization per client. The bytes on the wire are exactly the serialized
-// ResultMessage, so clients read them with the generated types as before.
+// A result goes to every client that polls, asks or streams. Built as a protobuf message
+// per client, each send copied the payload twice (into the message, then into gRPC's
+// slices): with 50 clients polling a 1 MB lightmap, 14 % of all cycles in a perf profile of
+// bench/service (docs/results.md, issue 7 third pass). Instead a result's messages are
+// serialized once per (snapshot, spec) into grpc::ByteBuffers (Snapshot::wire) and every
+// send passes a reference to the same slices: no copy and no serialization per client. The
+// bytes on the wire are exactly the serialized ResultMessage, so any client parses them as
+// before.
 //
 // gRPC picks a message type's (de)serialization through grpc::SerializationTraits; the
 // handlers that send WireMessages are registered with that type (LightlinkService, split

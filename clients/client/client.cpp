@@ -48,8 +48,9 @@ Expected<std::string> readFile(const std::string& path, const char* what) {
   return ss.str();
 }
 
-// The calls read raw, described as the generated stub describes them (by full name); a call
-// keeps pointers into its description, so these live as long as the program.
+// Relight, GetTextures and Subscribe are read as RawResultMessages, so they are called by
+// their full method names, as the generated stub calls them. A call keeps a pointer into
+// its method description: the descriptions live as long as the program.
 const grpc::internal::RpcMethod kRelightMethod("/lightlink.v1.Lightlink/Relight",
                                                grpc::internal::RpcMethod::SERVER_STREAMING);
 const grpc::internal::RpcMethod kGetTexturesMethod("/lightlink.v1.Lightlink/GetTextures",

@@ -5,7 +5,8 @@
 namespace lightlink::client {
 namespace {
 
-// Reads protobuf wire data spread over slices. `end` bounds the current (sub)message.
+// Reads protobuf wire data spread over slices; callers bound each (sub)message by comparing
+// position() with its end.
 class SliceReader {
  public:
   explicit SliceReader(const std::vector<grpc::Slice>& slices) : slices_(slices) {

@@ -1,10 +1,11 @@
 // RawResult: a lightlink.v1.ResultMessage read straight from gRPC's receive buffer.
 //
 // Parsed by protobuf, a chunk's `data` (up to 1 MiB) is copied out of gRPC's slices into a
-// std::string, then again by the ResultAssembler into the payload: with 50 clients polling a
-// 1 MB lightmap on one machine, that copy, the fresh string and its page faults were a fifth
-// of the clients' CPU (perf, bench/service). Relight and GetTextures therefore read each
-// message as a RawResultMessage (gRPC's ByteBuffer, kept without a copy) and decodeRawResult
+// std::string, then again by the ResultAssembler into the payload. With 50 clients polling a
+// 1 MB lightmap on one machine, those copies were the clients' largest user-space cost in a
+// perf profile of bench/service (docs/results.md, issue 7 third pass). Relight, GetTextures
+// and Subscribe therefore read each message as a RawResultMessage (gRPC's ByteBuffer, kept
+// without a copy) and decodeRawResult
 // reads the chunk's small fields from the protobuf wire format itself, leaving `data` as
 // pieces of the received slices that the assembler copies once, into place. Headers (small)
 // are handed to protobuf. The decoder follows the protobuf encoding rules a parser must:
