@@ -138,8 +138,8 @@ int main(int argc, char** argv) {
                                                      "all TBB threads"},
                                         {"raw_passes", raw.passes},
                                         {"locator_build_seconds", locator_s},
-                                        {"owner_fine_lists", locator.fineListCount()},
-                                        {"owner_mean_candidates", locator.meanFineListLength()}};
+                                        {"owner_raster_cells", locator.rasterCellCount()},
+                                        {"owner_raster_factor", locator.rasterFactor()}};
   j["tree_build_seconds"] = {{"kd", kd_s}, {"hac", hac_s}, {"hac_over_kd", kd_s > 0 ? hac_s / kd_s : 0.0},
                              {"ok", bool(kd) && bool(hac)}};
   const auto& t = report["seconds"];
@@ -152,8 +152,8 @@ int main(int argc, char** argv) {
   for (const auto& [stage, s] : t.items()) fmt::print("  {:<10} {:8.3f} s\n", stage, s.get<double>());
   fmt::print("link rays/s {:.3g}, raw Embree on the same rays {:.3g}: ratio {:.2f}\n", link_rps, raw_rps,
              raw_rps > 0 ? link_rps / raw_rps : 0.0);
-  fmt::print("owner lookup: {} pruned lists, {:.1f} candidates each, built in {:.3f} s (inside the link time)\n",
-             locator.fineListCount(), locator.meanFineListLength(), locator_s);
+  fmt::print("owner lookup: {} raster cells ({} per cell side), built in {:.3f} s (inside the link time)\n",
+             locator.rasterCellCount(), locator.rasterFactor(), locator_s);
   fmt::print("tree build: kd {:.3f} s, hac {:.3f} s ({:.1f}x)\n", kd_s, hac_s, kd_s > 0 ? hac_s / kd_s : 0.0);
   for (const auto& [what, b] : report["memory_bytes"].items())
     fmt::print("  mem {:<26} {:10.2f} MiB\n", what, b.get<double>() / (1024.0 * 1024.0));

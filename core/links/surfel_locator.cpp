@@ -14,7 +14,8 @@ namespace {
 constexpr std::size_t kMaxCells = std::size_t(1) << 22;
 }
 
-SurfelLocator::SurfelLocator(const surfels::Surfels& surfels, const scene::Scene& scene) {
+SurfelLocator::SurfelLocator(const surfels::Surfels& surfels, const scene::Scene& scene, std::size_t raster_budget)
+    : raster_budget_(raster_budget) {
   const std::size_t n = surfels.size();
   Aabb box;
   double area = 0.0;
@@ -137,7 +138,7 @@ void SurfelLocator::buildTriangleLists(const surfels::Surfels& surfels, const sc
     big_surfel_[k] = static_cast<std::uint32_t>(i);
     big_position_[k] = surfels.position[i];
   }
-  buildFineLists(scene, big_mesh, big_triangle);
+  buildRasters(scene, big_mesh, big_triangle);
 
   // Triangles too small to hold a surfel of their own (their area went into a neighbour's
   // slice) are represented by the surfel nearest to their centroid.
@@ -215,192 +216,107 @@ std::uint32_t SurfelLocator::scanBigTriangle(const BigTriangle& big, float u, fl
   return best;
 }
 
-std::uint32_t SurfelLocator::ownerOnBigTriangle(const BigTriangle& big, float u, float v, const glm::vec3& p) const {
-  // The fine lists were proven for (u, v) in [-kBaryCheck, 1 + kBaryCheck]^2 and hit points
-  // within max_offset of P(u, v); NaN fails the test too and takes the full scan.
-  const glm::vec3 off = p - (big.v0 + u * big.e1 + v * big.e2);
-  const float off_max = std::max(std::abs(off.x), std::max(std::abs(off.y), std::abs(off.z)));
-  if (u >= -kBaryCheck && v >= -kBaryCheck && u <= 1.0f + kBaryCheck && v <= 1.0f + kBaryCheck &&
-      off_max <= big.max_offset) {
-    const auto gf = static_cast<int>(big.g * kFine);
-    const int fu = std::clamp(static_cast<int>(u * float(gf)), 0, gf - 1);
-    const int fv = std::clamp(static_cast<int>(v * float(gf)), 0, gf - 1);
-    const std::uint32_t cell = big.first_fine + static_cast<std::uint32_t>(fv * gf + fu);
-    const std::uint32_t begin = fine_begin_[cell], end = fine_begin_[cell + 1];
-    if (begin != end) {
-      // Same arithmetic and order as scanBigTriangle over the surviving candidates.
-      std::uint32_t best = fine_candidate_[begin];
-      glm::vec3 d = big_position_[best] - p;
-      float best_d2 = glm::dot(d, d);
-      for (std::uint32_t k = begin + 1; k < end; ++k) {
-        const std::uint32_t c = fine_candidate_[k];
-        d = big_position_[c] - p;
-        const float d2 = glm::dot(d, d);
-        if (d2 < best_d2) {
-          best_d2 = d2;
-          best = c;
-        }
-      }
-      return big_surfel_[best];
-    }
+void SurfelLocator::buildRasters(const scene::Scene& scene, const std::vector<std::uint32_t>& big_mesh,
+                                 const std::vector<std::uint32_t>& big_triangle) {
+  std::size_t cells = 0;
+  for (const BigTriangle& big : big_) cells += std::size_t(big.g) * big.g;
+  raster_factor_ = kRaster;
+  while (raster_factor_ > 1 && cells * raster_factor_ * raster_factor_ > raster_budget_) raster_factor_ /= 2;
+  const std::uint32_t r = raster_factor_;
+  // Work items: one row of big cells of one big triangle each (a box wall is two triangles of
+  // thousands of surfels, so whole triangles would balance badly). Every raster cell is
+  // written by exactly one item: the result does not depend on the thread count.
+  std::vector<std::pair<std::uint32_t, std::uint32_t>> rows;
+  std::size_t first = 0;
+  for (std::size_t b = 0; b < big_.size(); ++b) {
+    BigTriangle& big = big_[b];
+    const scene::MeshInstance& mesh = scene.meshes[big_mesh[b]];
+    const std::uint32_t tri = big_triangle[b];
+    const glm::vec3 p0 = mesh.positions[mesh.indices[3 * tri]], p1 = mesh.positions[mesh.indices[3 * tri + 1]],
+                    p2 = mesh.positions[mesh.indices[3 * tri + 2]];
+    big.v0 = p0;
+    big.e1 = p1 - p0;
+    big.e2 = p2 - p0;
+    big.gr = big.g * r;
+    big.gr_max = static_cast<float>(big.gr - 1);
+    big.first_raster = static_cast<std::uint32_t>(first);
+    first += std::size_t(big.gr) * big.gr;
+    for (std::uint32_t iv = 0; iv < big.g; ++iv) rows.emplace_back(static_cast<std::uint32_t>(b), iv);
   }
-  return scanBigTriangle(big, u, v, p);
-}
-
-void SurfelLocator::buildFineLists(const scene::Scene& scene, const std::vector<std::uint32_t>& big_mesh,
-                                   const std::vector<std::uint32_t>& big_triangle) {
-  // Per big triangle, its fine cells' candidate lists; built in parallel, concatenated in
-  // triangle order (the result does not depend on the thread count).
-  struct Lists {
-    std::vector<std::uint32_t> count;  // per fine cell
-    std::vector<std::uint32_t> candidate;  // indices into big_position_ / big_surfel_
-  };
-  std::vector<Lists> lists(big_.size());
-  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, big_.size(), 1), [&](const tbb::blocked_range<std::size_t>& r) {
+  raster_.assign(first, kNoSurfel);
+  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, rows.size(), 1), [&](const tbb::blocked_range<std::size_t>& range) {
     std::vector<std::uint32_t> cand;
-    std::vector<glm::dvec4> corner_d2;  // per candidate: squared distance to the 4 corners
-    std::vector<double> reach;          // per candidate: largest distance to a corner
-    for (std::size_t b = r.begin(); b < r.end(); ++b) {
-      BigTriangle& big = big_[b];
-      const scene::MeshInstance& mesh = scene.meshes[big_mesh[b]];
-      const std::uint32_t tri = big_triangle[b];
-      const glm::vec3 p0 = mesh.positions[mesh.indices[3 * tri]], p1 = mesh.positions[mesh.indices[3 * tri + 1]],
-                      p2 = mesh.positions[mesh.indices[3 * tri + 2]];
-      big.v0 = p0;
-      big.e1 = p1 - p0;
-      big.e2 = p2 - p0;
+    for (std::size_t item = range.begin(); item < range.end(); ++item) {
+      const BigTriangle& big = big_[rows[item].first];
       const auto g = static_cast<int>(big.g);
-      const int gf = g * static_cast<int>(kFine);
-      auto maxAbs = [](const glm::vec3& x) { return std::max(std::abs(x.x), std::max(std::abs(x.y), std::abs(x.z))); };
-      // Hits may lie off P(u, v) by float error of the hit point (relative to the
-      // coordinates) and of Embree's (u, v) and t; 1 % of a fine cell covers it with room.
-      // A hit further off takes the full scan, so this is a speed choice, not a correctness one.
-      const float fine_size = std::max(maxAbs(big.e1), maxAbs(big.e2)) / float(gf);
-      const float coord = std::max(maxAbs(p0), std::max(maxAbs(p1), maxAbs(p2)));
-      big.max_offset = 0.01f * fine_size + 1e-6f * coord;
-      // Lists are proven for points within eps of the exact P(u, v): the query's offset test
-      // (with its own rounding) plus the float evaluation of v0 + u e1 + v e2.
-      const double eps = 1.001 * double(big.max_offset) +
-                         1e-6 * (double(maxAbs(big.v0)) + double(maxAbs(big.e1)) + double(maxAbs(big.e2)));
-      const glm::dvec3 d0(p0), d1(p1), d2(p2);
-      auto at = [&](double u, double v) { return (1.0 - u - v) * d0 + u * d1 + v * d2; };
-      const double margin = double(kBaryCheck) * 2.0 + 1e-3 / double(gf);  // > kBaryCheck and (u, v) rounding
-
-      Lists& out = lists[b];
-      out.count.assign(std::size_t(gf) * std::size_t(gf), 0);
-      for (int fv = 0; fv < gf; ++fv) {
-        for (int fu = 0; fu < gf; ++fu) {
-          const double ulo = double(fu) / gf - margin, uhi = double(fu + 1) / gf + margin;
-          const double vlo = double(fv) / gf - margin, vhi = double(fv + 1) / gf + margin;
-          // Wholly beyond the hypotenuse: no hit lands here; left empty (full scan).
-          if (ulo + vlo > 1.0 + margin) continue;
-          // The cell's candidates, exactly as scanBigTriangle collects them (ascending index).
-          const int iu = fu / static_cast<int>(kFine), iv = fv / static_cast<int>(kFine);
-          cand.clear();
-          for (int radius : {1, g}) {
-            for (int cv = std::max(0, iv - radius); cv <= std::min(g - 1, iv + radius); ++cv) {
-              const std::uint32_t row = big.first_cell + static_cast<std::uint32_t>(cv * g);
-              const std::uint32_t begin = big_cell_begin_[row + static_cast<std::uint32_t>(std::max(0, iu - radius))];
-              const std::uint32_t end =
-                  big_cell_begin_[row + static_cast<std::uint32_t>(std::min(g - 1, iu + radius)) + 1];
-              for (std::uint32_t k = begin; k < end; ++k) cand.push_back(k);
-            }
-            if (!cand.empty()) break;
+      const int iv = static_cast<int>(rows[item].second);
+      const float inv_gr = 1.0f / static_cast<float>(big.gr);
+      for (int iu = 0; iu < g; ++iu) {
+        // Cells wholly beyond the hypotenuse (u + v > 1 at their nearest corner) see no hit;
+        // they stay kNoSurfel (the grid search answers a stray one) and cost nothing to build,
+        // where their empty 3 x 3 neighbourhoods would scan the whole triangle.
+        if (static_cast<double>(iu + iv) / static_cast<double>(g) > 1.0 + 1e-4) continue;
+        // The cell's candidates, exactly as scanBigTriangle collects them (ascending index).
+        cand.clear();
+        for (int radius : {1, g}) {
+          for (int cv = std::max(0, iv - radius); cv <= std::min(g - 1, iv + radius); ++cv) {
+            const std::uint32_t row = big.first_cell + static_cast<std::uint32_t>(cv * g);
+            const std::uint32_t begin = big_cell_begin_[row + static_cast<std::uint32_t>(std::max(0, iu - radius))];
+            const std::uint32_t end = big_cell_begin_[row + static_cast<std::uint32_t>(std::min(g - 1, iu + radius)) + 1];
+            for (std::uint32_t k = begin; k < end; ++k) cand.push_back(k);
           }
-          const std::array<glm::dvec3, 4> corner = {at(ulo, vlo), at(uhi, vlo), at(ulo, vhi), at(uhi, vhi)};
-          const glm::dvec3 centre = at(0.5 * (ulo + uhi), 0.5 * (vlo + vhi));
-          corner_d2.resize(cand.size());
-          reach.resize(cand.size());
-          // Dominator candidates: the nearest at the centre and at each corner.
-          std::array<std::size_t, 5> best{};
-          std::array<double, 5> best_d2;
-          best_d2.fill(std::numeric_limits<double>::infinity());
-          for (std::size_t k = 0; k < cand.size(); ++k) {
-            const glm::dvec3 q(big_position_[cand[k]]);
-            double far_d2 = 0.0;
-            for (int c = 0; c < 4; ++c) {
-              const glm::dvec3 d = corner[std::size_t(c)] - q;
-              corner_d2[k][c] = glm::dot(d, d);
-              far_d2 = std::max(far_d2, corner_d2[k][c]);
-              if (corner_d2[k][c] < best_d2[std::size_t(c)]) {
-                best_d2[std::size_t(c)] = corner_d2[k][c];
-                best[std::size_t(c)] = k;
+          if (!cand.empty()) break;
+        }
+        if (cand.empty()) continue;
+        for (std::uint32_t sv = 0; sv < r; ++sv) {
+          const std::uint32_t fv = static_cast<std::uint32_t>(iv) * r + sv;
+          for (std::uint32_t su = 0; su < r; ++su) {
+            const std::uint32_t fu = static_cast<std::uint32_t>(iu) * r + su;
+            if (static_cast<double>(fu + fv) / static_cast<double>(big.gr) > 1.0 + 1e-4) continue;
+            // The raster cell's centre, evaluated as a hit there would be (rasterCentre).
+            const float uc = (static_cast<float>(fu) + 0.5f) * inv_gr, vc = (static_cast<float>(fv) + 0.5f) * inv_gr;
+            const glm::vec3 c = big.v0 + uc * big.e1 + vc * big.e2;
+            // Same arithmetic and order as scanBigTriangle: first of equally near wins.
+            std::uint32_t best = cand[0];
+            glm::vec3 d = big_position_[best] - c;
+            float best_d2 = glm::dot(d, d);
+            for (std::size_t k = 1; k < cand.size(); ++k) {
+              d = big_position_[cand[k]] - c;
+              const float d2 = glm::dot(d, d);
+              if (d2 < best_d2) {
+                best_d2 = d2;
+                best = cand[k];
               }
             }
-            const glm::dvec3 dc = centre - q;
-            if (glm::dot(dc, dc) < best_d2[4]) {
-              best_d2[4] = glm::dot(dc, dc);
-              best[4] = k;
-            }
-            reach[k] = std::sqrt(far_d2) + std::sqrt(3.0) * eps;
+            raster_[big.first_raster + fv * big.gr + fu] = big_surfel_[best];
           }
-          std::uint32_t kept = 0;
-          for (std::size_t j = 0; j < cand.size(); ++j) {
-            bool dominated = false;
-            for (std::size_t i : best) {
-              if (i == j) continue;
-              // |x - q_j|^2 - |x - q_i|^2 is affine in x: its least value over the cell is at a
-              // corner, less at most 2 eps |q_i - q_j|_1 for a point eps off. It must exceed the
-              // float rounding of both squared distances (< 3e-7 each, relative) by a margin.
-              double least = std::numeric_limits<double>::infinity();
-              for (int c = 0; c < 4; ++c) least = std::min(least, corner_d2[j][c] - corner_d2[i][c]);
-              const glm::dvec3 qi(big_position_[cand[i]]), qj(big_position_[cand[j]]);
-              const double l1 = std::abs(qi.x - qj.x) + std::abs(qi.y - qj.y) + std::abs(qi.z - qj.z);
-              const double r = std::max(reach[i], reach[j]);
-              if (least - 2.0 * eps * l1 > 2e-6 * r * r) {
-                dominated = true;
-                break;
-              }
-            }
-            if (dominated) continue;
-            out.candidate.push_back(cand[j]);
-            ++kept;
-          }
-          out.count[std::size_t(fv) * std::size_t(gf) + std::size_t(fu)] = kept;
         }
       }
     }
   });
-  std::size_t cells = 0, total = 0;
-  for (const Lists& l : lists) {
-    cells += l.count.size();
-    total += l.candidate.size();
-  }
-  fine_begin_.assign(cells + 1, 0);
-  fine_candidate_.reserve(total);
-  std::size_t cell = 0;
-  for (std::size_t b = 0; b < big_.size(); ++b) {
-    big_[b].first_fine = static_cast<std::uint32_t>(cell);
-    for (std::uint32_t c : lists[b].count) {
-      fine_begin_[cell + 1] = fine_begin_[cell] + c;
-      ++cell;
-    }
-    fine_candidate_.insert(fine_candidate_.end(), lists[b].candidate.begin(), lists[b].candidate.end());
-    lists[b] = Lists();
-  }
 }
 
-std::size_t SurfelLocator::fineListCount() const {
-  std::size_t lists = 0;
-  for (std::size_t c = 0; c + 1 < fine_begin_.size(); ++c) lists += fine_begin_[c + 1] != fine_begin_[c] ? 1 : 0;
-  return lists;
+float SurfelLocator::rasterCellDiagonal(std::uint32_t mesh, std::uint32_t triangle) const {
+  if (mesh + 1 >= mesh_first_.size()) return 0.0f;
+  const std::uint32_t t = mesh_first_[mesh] + triangle;
+  if (t >= big_of_tri_.size() || big_of_tri_[t] == kNoSurfel) return 0.0f;
+  const BigTriangle& big = big_[big_of_tri_[t]];
+  const float inv = 1.0f / static_cast<float>(big.gr);
+  // A raster cell is the parallelogram spanned by e1 / gr and e2 / gr.
+  return std::max(glm::length(big.e1 + big.e2), glm::length(big.e1 - big.e2)) * inv;
 }
 
-double SurfelLocator::meanFineListLength() const {
-  const std::size_t lists = fineListCount();
-  return lists == 0 ? 0.0 : static_cast<double>(fine_candidate_.size()) / static_cast<double>(lists);
+std::uint32_t SurfelLocator::rasterSize(std::uint32_t mesh, std::uint32_t triangle) const {
+  if (mesh + 1 >= mesh_first_.size()) return 0;
+  const std::uint32_t t = mesh_first_[mesh] + triangle;
+  if (t >= big_of_tri_.size() || big_of_tri_[t] == kNoSurfel) return 0;
+  return big_[big_of_tri_[t]].gr;
 }
 
-template <bool kExhaustive>
-std::uint32_t SurfelLocator::ownerOfHitImpl(std::uint32_t mesh, std::uint32_t triangle, float u, float v,
-                                            const glm::vec3& p, const glm::vec3& n) const {
+std::uint32_t SurfelLocator::ownerOfHitSlow(std::uint32_t mesh, std::uint32_t triangle, const glm::vec3& p,
+                                            const glm::vec3& n) const {
   if (mesh + 1 < mesh_first_.size()) {
     const std::uint32_t t = mesh_first_[mesh] + triangle;
-    if (t < big_of_tri_.size() && big_of_tri_[t] != kNoSurfel) {
-      const BigTriangle& big = big_[big_of_tri_[t]];
-      const std::uint32_t s = kExhaustive ? scanBigTriangle(big, u, v, p) : ownerOnBigTriangle(big, u, v, p);
-      if (s != kNoSurfel) return s;
-    }
     if (t < tri_use_grid_.size() && !tri_use_grid_[t]) {
       std::uint32_t best = kNoSurfel;
       float best_d2 = std::numeric_limits<float>::infinity();
@@ -419,14 +335,16 @@ std::uint32_t SurfelLocator::ownerOfHitImpl(std::uint32_t mesh, std::uint32_t tr
   return owner(p, n);
 }
 
-std::uint32_t SurfelLocator::ownerOfHit(std::uint32_t mesh, std::uint32_t triangle, float u, float v,
-                                        const glm::vec3& p, const glm::vec3& n) const {
-  return ownerOfHitImpl<false>(mesh, triangle, u, v, p, n);
-}
-
-std::uint32_t SurfelLocator::ownerOfHitExhaustive(std::uint32_t mesh, std::uint32_t triangle, float u, float v,
-                                                  const glm::vec3& p, const glm::vec3& n) const {
-  return ownerOfHitImpl<true>(mesh, triangle, u, v, p, n);
+std::uint32_t SurfelLocator::ownerOfHitNearest(std::uint32_t mesh, std::uint32_t triangle, float u, float v,
+                                               const glm::vec3& p, const glm::vec3& n) const {
+  if (mesh + 1 < mesh_first_.size()) {
+    const std::uint32_t t = mesh_first_[mesh] + triangle;
+    if (t < big_of_tri_.size() && big_of_tri_[t] != kNoSurfel) {
+      const std::uint32_t s = scanBigTriangle(big_[big_of_tri_[t]], u, v, p);
+      if (s != kNoSurfel) return s;
+    }
+  }
+  return ownerOfHitSlow(mesh, triangle, p, n);
 }
 
 std::uint32_t SurfelLocator::owner(const glm::vec3& p, const glm::vec3& n) const {

@@ -14,24 +14,24 @@
 // at most kTriangleListMax of them answers from that list alone (the owner is then the
 // nearest surfel *on the hit triangle*, a partition of the surface as good as the nearest
 // overall for lighting). A triangle with more surfels (walls of a box, floors of a level)
-// bins them in a g x g grid over its barycentric square (g = ceil(sqrt(surfels))), and the
-// owner of a hit is the nearest surfel among the 3 x 3 cells around the hit's own (u, v) cell
-// (the whole triangle when those are empty), ties to the first in cell order: ~20 candidates.
+// bins them in a g x g grid over its barycentric square (g = ceil(sqrt(surfels)), so a cell
+// is about one surfel spacing), and answers from an owner raster: each cell is split
+// r x r (r = kRaster, less when the raster would not fit its memory budget), and each raster
+// cell holds the surfel nearest to its centre among the 3 x 3 cells around it (the whole
+// triangle when those are empty). A hit costs one table load instead of a scan of ~8-20
+// candidates, which was the largest cost of link generation after the tracing itself
+// (docs/results.md, issue 4).
 //
-// That definition is answered faster than by scanning the ~20 candidates, with the same
-// answer for every hit: each cell is split kFine x kFine, and each fine cell keeps only the
-// candidates that can be nearest somewhere in it. A candidate j is dropped when one other
-// candidate i is closer than j at every point of the fine cell, with a margin that covers
-// float rounding of the query's squared distances and hit points up to a stated distance off
-// the triangle (the difference of two squared distances is affine in the point, so checking
-// the cell's corners suffices). Removing candidates that are never the nearest changes
-// neither the nearest nor the first of equally near ones. A hit outside what the lists were
-// proven for (off the triangle by more than the margin, barycentrics out of range) takes the
-// full scan. ~8 candidates per hit instead of ~20 on the Cornell box (6 on zdm2); the whole
-// locator builds in 8-16 ms for the Cornell box (bench/precompute prints it).
+// The raster is a partition of each big triangle into patches of ~1/r^2 of a surfel's area,
+// each given to the surfel nearest its centre: it differs from the nearest surfel to the hit
+// point itself only in a band of half a raster cell along the Voronoi edges, and there by at
+// most one raster cell diagonal in distance (triangle inequality; tests/links checks that
+// bound and how rarely the two differ). Links sum hits over tree nodes of many surfels, so
+// that band moves visibility between neighbouring surfels of the same node almost always.
 // The 3D grid remains for hits without a triangle answer.
 #pragma once
 
+#include <cstddef>
 #include <cstdint>
 #include <limits>
 #include <vector>
@@ -48,34 +48,53 @@ inline constexpr std::uint32_t kNoSurfel = std::numeric_limits<std::uint32_t>::m
 class SurfelLocator {
  public:
   static constexpr std::uint32_t kTriangleListMax = 8;
-  // Fine cells per big-triangle cell and side (a power of two: the fine cell of a hit then
-  // lies inside its cell for every float (u, v)). 1 and 2 measured the same on the Cornell
-  // box (links 0.75 vs 0.78 s); 1 builds 4x fewer lists.
-  static constexpr std::uint32_t kFine = 1;
-  static_assert(kFine > 0 && (kFine & (kFine - 1)) == 0, "kFine must be a power of two");
+  // Raster cells per big-triangle cell and side, and the most raster cells all big triangles
+  // may hold together (4 bytes each); past that budget r halves (down to 1).
+  static constexpr std::uint32_t kRaster = 4;
+  static constexpr std::size_t kRasterBudget = std::size_t(1) << 24;
 
   // `scene` is the scene the surfels were placed on (hits report its mesh/triangle ids).
-  SurfelLocator(const surfels::Surfels& surfels, const scene::Scene& scene);
+  // `raster_budget`: the most raster cells in all (tests lower it to see r shrink).
+  SurfelLocator(const surfels::Surfels& surfels, const scene::Scene& scene,
+                std::size_t raster_budget = kRasterBudget);
 
   // The owner of a hit on triangle `triangle` of mesh `mesh` at p with visible-side normal n.
   // (u, v): the hit's barycentrics on that triangle (Embree's convention, as Hit::u/v).
+  // Inline: it runs once per link ray, and a big triangle's answer is one load.
   std::uint32_t ownerOfHit(std::uint32_t mesh, std::uint32_t triangle, float u, float v, const glm::vec3& p,
-                           const glm::vec3& n) const;
+                           const glm::vec3& n) const {
+    if (mesh + 1 < mesh_first_.size()) {
+      const std::uint32_t t = mesh_first_[mesh] + triangle;
+      if (t < big_of_tri_.size() && big_of_tri_[t] != kNoSurfel) {
+        const std::uint32_t s = rasterOwner(big_[big_of_tri_[t]], u, v);
+        if (s != kNoSurfel) return s;
+      }
+    }
+    return ownerOfHitSlow(mesh, triangle, p, n);
+  }
 
   // Nearest surfel to p whose normal is within ~60 degrees of n (unit); falls back to a
   // wider search, then to the nearest surfel regardless of normal, then kNoSurfel.
   std::uint32_t owner(const glm::vec3& p, const glm::vec3& n) const;
 
-  // ownerOfHit by the definition alone, scanning every candidate of a big triangle's cells:
-  // the reference the pruned fine lists reproduce exactly (tests/links).
-  std::uint32_t ownerOfHitExhaustive(std::uint32_t mesh, std::uint32_t triangle, float u, float v,
-                                     const glm::vec3& p, const glm::vec3& n) const;
+  // ownerOfHit with a big triangle's raster replaced by the scan it samples: the nearest
+  // candidate of the 3 x 3 cells around (u, v) to p itself. What tests/links compares the
+  // raster with.
+  std::uint32_t ownerOfHitNearest(std::uint32_t mesh, std::uint32_t triangle, float u, float v,
+                                  const glm::vec3& p, const glm::vec3& n) const;
+  // The largest diagonal (metres) of a raster cell of that triangle, 0 when it has no raster:
+  // the raster owner is at most this much farther from a hit on it than the nearest.
+  float rasterCellDiagonal(std::uint32_t mesh, std::uint32_t triangle) const;
+  // Raster cells per side of that triangle's raster (g r), 0 when it has none. Cell (fu, fv)
+  // has its centre at ((fu + 0.5) / size, (fv + 0.5) / size), computed as
+  // (float(f) + 0.5f) * (1.0f / float(size)).
+  std::uint32_t rasterSize(std::uint32_t mesh, std::uint32_t triangle) const;
 
   float cellSize() const { return cell_; }
-  // Fine cells of big triangles that hold a pruned list, and their mean length (what a hit on
-  // a big triangle scans): for tests and the benchmark's report.
-  std::size_t fineListCount() const;
-  double meanFineListLength() const;
+  // Raster cells over all big triangles, and r (raster cells per big-triangle cell and side):
+  // for tests and the benchmark's report.
+  std::size_t rasterCellCount() const { return raster_.size(); }
+  std::uint32_t rasterFactor() const { return raster_factor_; }
 
  private:
   glm::ivec3 cellOf(const glm::vec3& p) const;
@@ -99,33 +118,38 @@ class SurfelLocator {
   std::vector<std::uint32_t> tri_surfel_;
   std::vector<glm::vec3> tri_position_;
   std::vector<std::uint8_t> tri_use_grid_;
-  // Triangles with more than kTriangleListMax surfels: a g x g grid over (u, v) each.
+  // Triangles with more than kTriangleListMax surfels: a g x g grid over (u, v) each, and
+  // its (g r) x (g r) owner raster.
   struct BigTriangle {
     glm::vec3 v0{0.0f}, e1{0.0f}, e2{0.0f};  // as traced: P(u, v) = v0 + u e1 + v e2
-    float max_offset = 0.0f;   // fine lists hold for hits within this (per axis) of P(u, v)
-    std::uint32_t g = 0;           // cells per side
-    std::uint32_t first_cell = 0;  // into big_cell_begin_
-    std::uint32_t first_fine = 0;  // into fine_begin_; (g * kFine)^2 fine cells
+    std::uint32_t g = 0;            // cells per side
+    std::uint32_t gr = 0;           // raster cells per side (g r)
+    float gr_max = 0.0f;            // gr - 1, as float: the clamp of a raster coordinate
+    std::uint32_t first_cell = 0;   // into big_cell_begin_
+    std::uint32_t first_raster = 0; // into raster_
   };
+  // Raster cell of (u, v), clamped to the raster (NaN lands on cell 0).
+  std::uint32_t rasterOwner(const BigTriangle& big, float u, float v) const {
+    auto axis = [&](float w) {
+      float x = w * static_cast<float>(big.gr);
+      x = x < big.gr_max ? x : big.gr_max;  // also NaN -> gr_max
+      return static_cast<std::uint32_t>(x > 0.0f ? x : 0.0f);
+    };
+    return raster_[big.first_raster + axis(v) * big.gr + axis(u)];
+  }
+  std::uint32_t ownerOfHitSlow(std::uint32_t mesh, std::uint32_t triangle, const glm::vec3& p,
+                               const glm::vec3& n) const;
   std::vector<std::uint32_t> big_of_tri_;  // global triangle -> index into big_, or kNoSurfel
   std::vector<BigTriangle> big_;
   std::vector<std::uint32_t> big_cell_begin_;  // CSR over all big triangles' cells
   std::vector<std::uint32_t> big_surfel_;
   std::vector<glm::vec3> big_position_;
-  std::vector<std::uint32_t> fine_begin_;  // CSR over all big triangles' fine cells; empty: full scan
-  // Indices into big_position_ / big_surfel_ (ascending per list): 4 bytes per candidate
-  // keep the lists small enough to stay in cache next to the 12-byte positions they point
-  // into (16-byte {position, id} entries measured slower: the lookups became cache misses).
-  std::vector<std::uint32_t> fine_candidate_;
-  void buildFineLists(const scene::Scene& scene, const std::vector<std::uint32_t>& big_mesh,
-                      const std::vector<std::uint32_t>& big_triangle);
-  std::uint32_t ownerOnBigTriangle(const BigTriangle& big, float u, float v, const glm::vec3& p) const;
+  std::vector<std::uint32_t> raster_;  // surfel ids, all big triangles' rasters in order
+  std::uint32_t raster_factor_ = kRaster;
+  std::size_t raster_budget_ = kRasterBudget;
+  void buildRasters(const scene::Scene& scene, const std::vector<std::uint32_t>& big_mesh,
+                    const std::vector<std::uint32_t>& big_triangle);
   std::uint32_t scanBigTriangle(const BigTriangle& big, float u, float v, const glm::vec3& p) const;
-  template <bool kExhaustive>
-  std::uint32_t ownerOfHitImpl(std::uint32_t mesh, std::uint32_t triangle, float u, float v, const glm::vec3& p,
-                               const glm::vec3& n) const;
-  // Fine lists hold for barycentrics in [-kBaryCheck, 1 + kBaryCheck].
-  static constexpr float kBaryCheck = 1e-5f;
 };
 
 }  // namespace lightlink::links

@@ -1,7 +1,9 @@
-// SurfelLocator: the pruned per-fine-cell candidate lists of big triangles must give the owner
-// the definition gives (nearest of the 3 x 3 cells' candidates, first of equals), for every
-// hit. ownerOfHitExhaustive() is that definition; these tests trace real rays (and place
-// points by hand on cell corners and edges, where pruning is tightest) and compare.
+// SurfelLocator: a big triangle answers from its owner raster, whose cells hold the surfel
+// nearest to the cell's centre among the 3 x 3 cells' candidates. These tests check that
+// definition exactly (the raster at every cell centre equals the scan it samples), its bound
+// on traced hits (the raster owner is never farther from the hit than the nearest candidate
+// plus one raster cell diagonal) and how rarely it differs from the nearest at all, also far
+// from the origin where the float spacing of coordinates is coarse.
 #include "core/links/surfel_locator.h"
 
 #include <cstdint>
@@ -19,21 +21,59 @@ namespace lightlink::links {
 namespace {
 
 using lightlink::testing::addBox;
-using lightlink::testing::addQuad;
 
-struct Counts {
+// Every raster cell centre of every big triangle: the raster's owner must be the scan's.
+// Returns the cells compared.
+std::size_t expectRasterIsTheScanAtCellCentres(const scene::Scene& scene, const SurfelLocator& locator) {
   std::size_t compared = 0, mismatched = 0;
+  for (std::uint32_t m = 0; m < scene.meshes.size(); ++m) {
+    const scene::MeshInstance& mesh = scene.meshes[m];
+    for (std::uint32_t t = 0; t < mesh.triangleCount(); ++t) {
+      const std::uint32_t size = locator.rasterSize(m, t);
+      if (size == 0) continue;
+      const glm::vec3 p0 = mesh.positions[mesh.indices[3 * t]], p1 = mesh.positions[mesh.indices[3 * t + 1]],
+                      p2 = mesh.positions[mesh.indices[3 * t + 2]];
+      const glm::vec3 e1 = p1 - p0, e2 = p2 - p0, n = glm::cross(e1, e2);
+      const float inv = 1.0f / static_cast<float>(size);
+      for (std::uint32_t fv = 0; fv < size; ++fv) {
+        for (std::uint32_t fu = 0; fu < size; ++fu) {
+          // Cells wholly beyond the hypotenuse hold no owner (no hit lands there).
+          if (static_cast<double>(fu + fv) / static_cast<double>(size) > 1.0 + 1e-4) continue;
+          const float u = (static_cast<float>(fu) + 0.5f) * inv, v = (static_cast<float>(fv) + 0.5f) * inv;
+          const glm::vec3 c = p0 + u * e1 + v * e2;
+          const std::uint32_t raster = locator.ownerOfHit(m, t, u, v, c, n);
+          const std::uint32_t scan = locator.ownerOfHitNearest(m, t, u, v, c, n);
+          ++compared;
+          if (raster != scan && ++mismatched <= 10)
+            ADD_FAILURE() << "mesh " << m << " triangle " << t << " cell (" << fu << ", " << fv << "): raster "
+                          << raster << ", scan " << scan;
+        }
+      }
+    }
+  }
+  EXPECT_EQ(mismatched, 0u);
+  return compared;
+}
+
+struct Traced {
+  std::size_t on_rasters = 0;  // hits on big triangles
+  std::size_t same = 0;        // of those, raster owner == nearest candidate
 };
 
-// Rays from random points inside `box` in random directions; every front or back hit is
-// looked up both ways.
-Counts compareOnTracedHits(const scene::Scene& scene, const SurfelLocator& locator, const Aabb& box, int rays,
-                           std::uint32_t seed) {
+// Rays from random points inside the scene bounds in random directions. On a big triangle
+// the raster owner may not be farther from the hit than the nearest candidate plus one
+// raster cell diagonal (plus float slack relative to the coordinates); elsewhere both
+// lookups are the same code and must agree.
+Traced expectRasterBoundOnTracedHits(const scene::Scene& scene, const surfels::Surfels& surfels,
+                                     const SurfelLocator& locator, int rays, std::uint32_t seed) {
   auto accel = rt::Accel::build(scene);
   EXPECT_TRUE(accel) << accel.status().toString();
   std::mt19937 rng(seed);
   std::uniform_real_distribution<float> u01(0.0f, 1.0f);
-  Counts counts;
+  const Aabb& box = scene.bounds;
+  const float slack = 1e-5f * glm::length(glm::max(glm::abs(box.min), glm::abs(box.max)));
+  Traced traced;
+  std::size_t failures = 0;
   for (int i = 0; i < rays; ++i) {
     const glm::vec3 o = box.min + glm::vec3(u01(rng), u01(rng), u01(rng)) * box.extent();
     glm::vec3 d(u01(rng) - 0.5f, u01(rng) - 0.5f, u01(rng) - 0.5f);
@@ -42,59 +82,31 @@ Counts compareOnTracedHits(const scene::Scene& scene, const SurfelLocator& locat
     if (!h.hit()) continue;
     const glm::vec3 p = o + h.t * d;
     const glm::vec3 n = h.backFacing(d) ? -h.ng : h.ng;
-    const std::uint32_t fast = locator.ownerOfHit(h.mesh, h.triangle, h.u, h.v, p, n);
-    const std::uint32_t exact = locator.ownerOfHitExhaustive(h.mesh, h.triangle, h.u, h.v, p, n);
-    ++counts.compared;
-    if (fast != exact) {
-      if (++counts.mismatched <= 10)
-        ADD_FAILURE() << "mesh " << h.mesh << " triangle " << h.triangle << " (u, v) = (" << h.u << ", " << h.v
-                    << "): pruned owner " << fast << ", exhaustive " << exact;
+    const std::uint32_t owner = locator.ownerOfHit(h.mesh, h.triangle, h.u, h.v, p, n);
+    const std::uint32_t nearest = locator.ownerOfHitNearest(h.mesh, h.triangle, h.u, h.v, p, n);
+    const float diagonal = locator.rasterCellDiagonal(h.mesh, h.triangle);
+    if ((owner >= surfels.size() || nearest >= surfels.size()) && ++failures <= 10) {
+      ADD_FAILURE() << "no owner for a hit on mesh " << h.mesh << " triangle " << h.triangle;
+      continue;
     }
-  }
-  return counts;
-}
-
-// Points at fine-cell corners, edge midpoints and on a dense lattice of every triangle (in
-// (u, v) and a hair off the plane), where a wrongly pruned candidate would show first.
-Counts compareOnLattice(const scene::Scene& scene, const SurfelLocator& locator, int per_side) {
-  Counts counts;
-  std::mt19937 rng(7);
-  std::uniform_real_distribution<float> jitter(-1e-6f, 1e-6f);
-  for (std::uint32_t m = 0; m < scene.meshes.size(); ++m) {
-    const scene::MeshInstance& mesh = scene.meshes[m];
-    for (std::uint32_t t = 0; t < mesh.triangleCount(); ++t) {
-      const glm::vec3 p0 = mesh.positions[mesh.indices[3 * t]], p1 = mesh.positions[mesh.indices[3 * t + 1]],
-                      p2 = mesh.positions[mesh.indices[3 * t + 2]];
-      const glm::vec3 n = glm::cross(p1 - p0, p2 - p0);
-      for (int a = 0; a <= per_side; ++a) {
-        for (int b = 0; a + b <= per_side; ++b) {
-          const float u = float(a) / float(per_side), v = float(b) / float(per_side);
-          const glm::vec3 p = (1.0f - u - v) * p0 + u * p1 + v * p2 + jitter(rng) * glm::normalize(n);
-          const std::uint32_t fast = locator.ownerOfHit(m, t, u, v, p, n);
-          const std::uint32_t exact = locator.ownerOfHitExhaustive(m, t, u, v, p, n);
-          ++counts.compared;
-          if (fast != exact) {
-            if (++counts.mismatched <= 10)
-              ADD_FAILURE() << "mesh " << m << " triangle " << t << " (u, v) = (" << u << ", " << v << "): pruned owner "
-                          << fast << ", exhaustive " << exact;
-          }
-        }
-      }
+    if (diagonal == 0.0f) {
+      if (owner != nearest && ++failures <= 10) ADD_FAILURE() << "off the rasters: " << owner << " vs " << nearest;
+      continue;
     }
+    ++traced.on_rasters;
+    traced.same += owner == nearest ? 1 : 0;
+    const float d_owner = glm::length(surfels.position[owner] - p);
+    const float d_nearest = glm::length(surfels.position[nearest] - p);
+    if (d_owner > d_nearest + diagonal + slack && ++failures <= 10)
+      ADD_FAILURE() << "mesh " << h.mesh << " triangle " << h.triangle << " (u, v) = (" << h.u << ", " << h.v
+                    << "): raster owner " << d_owner << " m away, nearest " << d_nearest << " m, cell diagonal "
+                    << diagonal;
   }
-  return counts;
+  EXPECT_EQ(failures, 0u);
+  return traced;
 }
 
-// The pruned lookup against the exhaustive scan on `rays` hits traced from `seed`: no owner
-// may differ, and at least `min_compared` hits must land on a surface to compare.
-void expectExhaustiveOwnersOnTracedHits(const scene::Scene& s, const SurfelLocator& locator, int rays,
-                                        std::uint32_t seed, std::size_t min_compared) {
-  const Counts traced = compareOnTracedHits(s, locator, s.bounds, rays, seed);
-  EXPECT_GT(traced.compared, min_compared);
-  EXPECT_EQ(traced.mismatched, 0u);
-}
-
-TEST(SurfelLocator, PrunedListsGiveTheExhaustiveOwnerInABoxRoom) {
+TEST(SurfelLocator, RasterHoldsTheNearestCandidateInABoxRoom) {
   scene::Scene s;
   addBox(s, {0, 0, 0}, {4, 3, 5}, /*inward=*/true);
   addBox(s, {1, 0, 1}, {2, 1.3f, 2.2f}, /*inward=*/false);
@@ -103,16 +115,18 @@ TEST(SurfelLocator, PrunedListsGiveTheExhaustiveOwnerInABoxRoom) {
   auto placed = surfels::placeSurfels(s, {.count = 8192});
   ASSERT_TRUE(placed) << placed.status().toString();
   const SurfelLocator locator(*placed, s);
-  expectExhaustiveOwnersOnTracedHits(s, locator, 200000, 1, 150000);
-  // (u, v) on multiples of 1/360 hit every fine-cell corner of triangles with g up to 45.
-  const Counts lattice = compareOnLattice(s, locator, 360);
-  EXPECT_GT(lattice.compared, 1000000u);
-  EXPECT_EQ(lattice.mismatched, 0u);
+  EXPECT_EQ(locator.rasterFactor(), SurfelLocator::kRaster);
+  EXPECT_GT(expectRasterIsTheScanAtCellCentres(s, locator), 8192u * 16u / 3u);
+  const Traced traced = expectRasterBoundOnTracedHits(s, *placed, locator, 200000, 1);
+  EXPECT_GT(traced.on_rasters, 150000u);
+  // Only a band along the Voronoi edges differs (half a raster cell either side): ~18 % of
+  // the hits at r = 4.
+  EXPECT_GT(double(traced.same), 0.7 * double(traced.on_rasters));
 }
 
-TEST(SurfelLocator, PrunedListsGiveTheExhaustiveOwnerFarFromTheOrigin) {
+TEST(SurfelLocator, RasterHoldsTheNearestCandidateFarFromTheOrigin) {
   // A 2 m room 10 km away: float spacing of the coordinates (~1 mm) is no longer small
-  // against a fine cell (~3 cm), the case the lists' margins are there for.
+  // against a raster cell (~1 cm).
   scene::Scene s;
   const glm::vec3 far(1.0e4f, -2.0e3f, 5.0e3f);
   addBox(s, far, far + glm::vec3(2.0f, 2.0f, 2.0f), /*inward=*/true);
@@ -120,21 +134,45 @@ TEST(SurfelLocator, PrunedListsGiveTheExhaustiveOwnerFarFromTheOrigin) {
   auto placed = surfels::placeSurfels(s, {.count = 4096});
   ASSERT_TRUE(placed) << placed.status().toString();
   const SurfelLocator locator(*placed, s);
-  expectExhaustiveOwnersOnTracedHits(s, locator, 100000, 2, 90000);
-  EXPECT_EQ(compareOnLattice(s, locator, 200).mismatched, 0u);
+  expectRasterIsTheScanAtCellCentres(s, locator);
+  const Traced traced = expectRasterBoundOnTracedHits(s, *placed, locator, 100000, 2);
+  EXPECT_GT(traced.on_rasters, 90000u);
+  EXPECT_GT(double(traced.same), 0.7 * double(traced.on_rasters));
 }
 
-TEST(SurfelLocator, PrunedListsGiveTheExhaustiveOwnerInTheDemoScene) {
+TEST(SurfelLocator, RasterHoldsTheNearestCandidateInTheDemoScene) {
   auto loaded = scene::loadGltf((lightlink::testing::sourceDir() / "clients/demo/cornell_box.gltf").string());
   ASSERT_TRUE(loaded) << loaded.status().toString();
   // The "medium" preset's surfel count: the configuration the benchmark times.
   auto placed = surfels::placeSurfels(*loaded, {.count = 32768});
   ASSERT_TRUE(placed) << placed.status().toString();
   const SurfelLocator locator(*placed, *loaded);
-  // The lists are in use and short (~8 here; the exhaustive scan sees ~20 candidates).
-  EXPECT_GT(locator.fineListCount(), 10000u);
-  EXPECT_LT(locator.meanFineListLength(), 12.0);
-  expectExhaustiveOwnersOnTracedHits(*loaded, locator, 300000, 3, 200000);
+  EXPECT_GT(locator.rasterCellCount(), 200000u);
+  expectRasterIsTheScanAtCellCentres(*loaded, locator);
+  const Traced traced = expectRasterBoundOnTracedHits(*loaded, *placed, locator, 300000, 3);
+  EXPECT_GT(traced.on_rasters, 200000u);
+  EXPECT_GT(double(traced.same), 0.7 * double(traced.on_rasters));
+}
+
+TEST(SurfelLocator, RasterShrinksToItsMemoryBudget) {
+  scene::Scene s;
+  addBox(s, {0, 0, 0}, {1, 1, 1}, /*inward=*/true);
+  lightlink::testing::finishScene(s);
+  auto placed = surfels::placeSurfels(s, {.count = 2048});
+  ASSERT_TRUE(placed) << placed.status().toString();
+  const SurfelLocator full(*placed, s);
+  ASSERT_EQ(full.rasterFactor(), 4u);
+  // A budget below the 4 x 4 raster but above 2 x 2 gives r = 2 (a quarter of the cells);
+  // below even 1 x 1 it stays at r = 1. The definition and its bound hold either way.
+  const SurfelLocator half(*placed, s, full.rasterCellCount() / 2);
+  EXPECT_EQ(half.rasterFactor(), 2u);
+  EXPECT_EQ(half.rasterCellCount() * 4, full.rasterCellCount());
+  const SurfelLocator one(*placed, s, 1);
+  EXPECT_EQ(one.rasterFactor(), 1u);
+  for (const SurfelLocator* locator : {&half, &one}) {
+    expectRasterIsTheScanAtCellCentres(s, *locator);
+    expectRasterBoundOnTracedHits(s, *placed, *locator, 20000, 4);
+  }
 }
 
 }  // namespace
