@@ -34,8 +34,66 @@ inline std::uint32_t rayOf(Sample s) { return static_cast<std::uint32_t>(s); }
 // Per-thread scratch, reused across caches so the hot loop never allocates.
 struct CutEntry {
   std::uint32_t count, node, first;  // visible samples, tree node, index of its first sample
-  // Largest count first; ties to the lower node index, for determinism.
-  bool operator<(const CutEntry& o) const { return count != o.count ? count < o.count : node > o.node; }
+};
+
+// The cut's open nodes as a binary max-heap keyed by one integer: visible samples in the high
+// half, the complement of the node in the low half (so ties go to the lower node index, for
+// determinism). Keys are unique, so the order of pops does not depend on the heap's layout.
+struct OpenEntry {
+  std::uint64_t key;
+  std::uint32_t first;
+};
+inline std::uint64_t openKey(std::uint32_t count, std::uint32_t node) {
+  return (std::uint64_t(count) << 32) | std::uint32_t(~node);
+}
+
+class OpenHeap {
+ public:
+  explicit OpenHeap(std::vector<OpenEntry>& storage) : h_(storage) { h_.clear(); }
+  bool empty() const { return h_.empty(); }
+  std::size_t size() const { return h_.size(); }
+  const OpenEntry& top() const { return h_[0]; }
+  void push(OpenEntry e) {
+    h_.push_back(e);
+    siftUp(h_.size() - 1);
+  }
+  // Replaces the top (with a key no larger than it had: a child of the popped node).
+  void replaceTop(OpenEntry e) {
+    h_[0] = e;
+    siftDown(0);
+  }
+  void popTop() {
+    h_[0] = h_.back();
+    h_.pop_back();
+    if (!h_.empty()) siftDown(0);
+  }
+  const std::vector<OpenEntry>& entries() const { return h_; }
+
+ private:
+  void siftUp(std::size_t i) {
+    const OpenEntry e = h_[i];
+    while (i > 0) {
+      const std::size_t parent = (i - 1) / 2;
+      if (h_[parent].key >= e.key) break;
+      h_[i] = h_[parent];
+      i = parent;
+    }
+    h_[i] = e;
+  }
+  void siftDown(std::size_t i) {
+    const OpenEntry e = h_[i];
+    const std::size_t n = h_.size();
+    for (;;) {
+      std::size_t c = 2 * i + 1;
+      if (c >= n) break;
+      c += (c + 1 < n && h_[c + 1].key > h_[c].key) ? 1 : 0;
+      if (h_[c].key <= e.key) break;
+      h_[i] = h_[c];
+      i = c;
+    }
+    h_[i] = e;
+  }
+  std::vector<OpenEntry>& h_;
 };
 
 struct Scratch {
@@ -44,9 +102,24 @@ struct Scratch {
   std::vector<Sample> samples;
   std::vector<Sample> sort_buffer;
   std::vector<CutEntry> cut;
-  std::vector<CutEntry> open;          // the cut's priority queue, as a heap
+  std::vector<CutEntry> ordered;
+  std::vector<OpenEntry> open;          // the cut's priority queue (OpenHeap)
   std::vector<std::uint32_t> at_first;  // per sample: the cut entry starting there
 };
+
+// First position in sorted [first, first + n) whose key is >= key. Branch-free: the loop runs
+// ceil(log2 n) times whatever the data, and the select compiles to a conditional move (the
+// searches' mispredictions were most of the cut's time).
+inline std::uint32_t lowerBound(const Sample* first, std::uint32_t n, Sample key) {
+  if (n == 0) return 0;
+  const Sample* base = first;
+  while (n > 1) {
+    const std::uint32_t half = n / 2;
+    base = base[half] < key ? base + half : base;
+    n -= half;
+  }
+  return static_cast<std::uint32_t>(base - first) + (*base < key ? 1u : 0u);
+}
 
 // Stable LSD radix sort of the samples by surfel: they are appended in ray order, so the
 // result equals a sort by (surfel, ray). Two or three passes over ~1k keys beat a
@@ -84,49 +157,47 @@ struct ChunkResult {
 
 // Chooses the cut: `cut` receives its nodes with their sample ranges, ordered by first sample
 // (= by surfel range, the order links are stored in). Nodes nobody sees never enter it.
-void chooseCut(const hierarchy::Tree& tree, const std::vector<Sample>& samples, int max_links,
-               std::vector<CutEntry>& cut, std::vector<CutEntry>& open, std::vector<std::uint32_t>& at_first) {
+void chooseCut(const hierarchy::Tree& tree, const std::vector<Sample>& samples, int max_links, Scratch& s) {
+  std::vector<CutEntry>& cut = s.cut;
   cut.clear();
-  open.clear();
   if (samples.empty() || tree.nodeCount() == 0) return;
-  open.push_back({static_cast<std::uint32_t>(samples.size()), 0, 0});
+  OpenHeap open(s.open);
+  open.push({openKey(static_cast<std::uint32_t>(samples.size()), 0), 0});
   const auto limit = static_cast<std::size_t>(max_links);
   while (!open.empty()) {
-    const CutEntry top = open.front();
-    if (tree.isLeaf(top.node)) {
-      std::pop_heap(open.begin(), open.end());
-      open.pop_back();
-      cut.push_back(top);
+    const OpenEntry top = open.top();
+    const auto node = static_cast<std::uint32_t>(~static_cast<std::uint32_t>(top.key));
+    const auto count = static_cast<std::uint32_t>(top.key >> 32);
+    if (tree.isLeaf(node)) {
+      open.popTop();
+      cut.push_back({count, node, top.first});
       continue;
     }
     // The left child's surfels come first in the parent's range, so its samples are a
     // prefix of the parent's: one binary search inside the parent's samples.
-    const auto l = static_cast<std::uint32_t>(tree.left[top.node]);
-    const auto r = static_cast<std::uint32_t>(tree.right[top.node]);
-    const auto first = samples.begin() + top.first;
-    const auto split = std::lower_bound(first, first + top.count, makeSample(tree.end[l], 0));
-    const auto cl = static_cast<std::uint32_t>(split - first);
-    const std::uint32_t cr = top.count - cl;
+    const auto l = static_cast<std::uint32_t>(tree.left[node]);
+    const auto r = static_cast<std::uint32_t>(tree.right[node]);
+    const std::uint32_t cl = lowerBound(samples.data() + top.first, count, makeSample(tree.end[l], 0));
+    const std::uint32_t cr = count - cl;
     const std::size_t grow = (cl > 0 && cr > 0) ? 1 : 0;
     if (open.size() + cut.size() + grow > limit) break;
-    std::pop_heap(open.begin(), open.end());
-    open.pop_back();
-    if (cl > 0) {
-      open.push_back({cl, l, top.first});
-      std::push_heap(open.begin(), open.end());
-    }
-    if (cr > 0) {
-      open.push_back({cr, r, top.first + cl});
-      std::push_heap(open.begin(), open.end());
+    if (cl > 0 && cr > 0) {
+      open.replaceTop({openKey(cl, l), top.first});
+      open.push({openKey(cr, r), top.first + cl});
+    } else if (cl > 0) {
+      open.replaceTop({openKey(cl, l), top.first});
+    } else {
+      open.replaceTop({openKey(cr, r), top.first + cl});
     }
   }
-  cut.insert(cut.end(), open.begin(), open.end());
+  for (const OpenEntry& e : open.entries())
+    cut.push_back({static_cast<std::uint32_t>(e.key >> 32), ~static_cast<std::uint32_t>(e.key), e.first});
   // The entries' sample ranges partition [0, samples): ordering them by first sample is a
   // walk over the ranges through a first-sample -> entry table (no comparison sort).
-  for (std::uint32_t e = 0; e < cut.size(); ++e) at_first[cut[e].first] = e;
-  open.clear();
-  for (std::uint32_t k = 0; k < samples.size(); k += open.back().count) open.push_back(cut[at_first[k]]);
-  cut.swap(open);
+  for (std::uint32_t e = 0; e < cut.size(); ++e) s.at_first[cut[e].first] = e;
+  s.ordered.clear();
+  for (std::uint32_t k = 0; k < samples.size(); k += s.ordered.back().count) s.ordered.push_back(cut[s.at_first[k]]);
+  cut.swap(s.ordered);
 }
 
 template <int Bands>
@@ -174,7 +245,7 @@ void linkCache(std::size_t cache, const glm::vec3& p, const glm::vec3& normal, c
   }
   out.stats.rays += count;
   sortSamples(s.samples, s.sort_buffer, surfel_bits);
-  chooseCut(tree, s.samples, options.max_links, s.cut, s.open, s.at_first);
+  chooseCut(tree, s.samples, options.max_links, s);
 
   for (const CutEntry& e : s.cut) {
     float c[kCoeffs] = {};
