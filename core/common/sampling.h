@@ -35,6 +35,21 @@ inline std::uint64_t mixBits(std::uint64_t v) {
 }
 inline float unitFloat(std::uint64_t bits) { return static_cast<float>(bits >> 40) * 0x1.0p-24f; }
 
+// A 32-bit mix (Wellons' "lowbias32", bias ~0.17) for per-sample jitter in vectorised loops:
+// 32-bit multiplies run 8 wide with AVX2, where mixBits's 64-bit ones stay scalar.
+inline std::uint32_t mixBits32(std::uint32_t x) {
+  x ^= x >> 16;
+  x *= 0x7feb352dU;
+  x ^= x >> 15;
+  x *= 0x846ca68bU;
+  x ^= x >> 16;
+  return x;
+}
+// The top 24 bits as a float in [0, 1) (via int32, which vectorises; the same value).
+inline float unitFloat32(std::uint32_t bits) {
+  return static_cast<float>(static_cast<std::int32_t>(bits >> 8)) * 0x1.0p-24f;
+}
+
 // Orthonormal basis with n as +z (Duff et al. 2017, branchless and robust at n.z = -1).
 inline void orthonormalBasis(const glm::vec3& n, glm::vec3& t, glm::vec3& b) {
   const float sign = std::copysign(1.0f, n.z);
@@ -58,6 +73,15 @@ inline glm::vec3 uniformHemisphere(float u1, float u2) {
   const float r = std::sqrt(std::max(0.0f, 1.0f - z * z));
   const float phi = 2.0f * std::numbers::pi_v<float> * u2;
   return {r * std::cos(phi), r * std::sin(phi), z};
+}
+
+// stratifiedSample with 32-bit hashing (mixBits32): what link rays use, 1024 per cache.
+inline glm::vec2 stratifiedSample32(std::uint32_t i, std::uint32_t n, std::uint32_t seed) {
+  const std::uint32_t sx = i % n, sy = (i / n) % n;
+  const std::uint32_t bits = mixBits32(seed ^ (i * 0x9e3779b9U));
+  const float jx = unitFloat32(bits), jy = unitFloat32(mixBits32(bits));
+  return {(static_cast<float>(sx) + jx) / static_cast<float>(n),
+          (static_cast<float>(sy) + jy) / static_cast<float>(n)};
 }
 
 // Sample `i` of an n x n stratified grid with jitter from `seed`: stratum (i / n, i % n),

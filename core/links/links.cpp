@@ -301,7 +301,7 @@ namespace {
 
 // Inputs of one row (fixed azimuth stratum sy) of the stratified pattern.
 struct RowSetup {
-  std::uint64_t seed;    // per-cache seed
+  std::uint32_t seed;    // per-cache seed
   std::uint32_t first;   // ray index of the row's first ray (sy * strata)
   std::uint32_t strata;  // rays in the row
   float inv, dphi;       // 1 / strata, 2 pi / strata
@@ -310,29 +310,38 @@ struct RowSetup {
   glm::vec3 t, b, n;     // frame: directions are l.x t + l.y b + l.z n
 };
 
-// Directions of one row into dx/dy/dz[0 .. strata). Three passes so each vectorises: the
-// 64-bit hashing (unitFloat via int32: bits >> 40 has 24 bits, so the same float), the
-// float maths, and (in the caller) the array-of-structs store.
+// Directions of one row into dx/dy/dz[0 .. strata). Passes so each vectorises: the
+// 32-bit hashing of stratifiedSample32 (8 lanes with AVX2; the 64-bit mixBits it replaced
+// stayed scalar and was most of the generator's time), the jitter angle's cosine and sine,
+// the directions (sqrt vectorises: the module builds with -fno-math-errno), and (in the
+// caller) the array-of-structs store.
 LL_MULTIVERSION void rowDirections(const RowSetup& r, float* __restrict ju, float* __restrict jd,
-                                   float* __restrict dx, float* __restrict dy, float* __restrict dz) {
+                                   float* __restrict cd, float* __restrict sd, float* __restrict dx,
+                                   float* __restrict dy, float* __restrict dz) {
   for (std::uint32_t sx = 0; sx < r.strata; ++sx) {
-    const std::uint64_t bits = mixBits(r.seed ^ (std::uint64_t(r.first + sx) * 0x9e3779b97f4a7c15ULL));
-    ju[sx] = static_cast<float>(static_cast<std::int32_t>(bits >> 40)) * 0x1.0p-24f;
-    jd[sx] = static_cast<float>(static_cast<std::int32_t>(mixBits(bits) >> 40)) * 0x1.0p-24f;
+    const std::uint32_t bits = mixBits32(r.seed ^ ((r.first + sx) * 0x9e3779b9U));
+    ju[sx] = unitFloat32(bits);
+    jd[sx] = unitFloat32(mixBits32(bits));
+  }
+  // The jitter angle's cosine and sine: a Taylor series for strata >= 16 (a loop that
+  // vectorises), the library functions below that (few rays).
+  if (r.taylor) {
+    for (std::uint32_t sx = 0; sx < r.strata; ++sx) {
+      const float d = r.dphi * jd[sx];
+      const float d2 = d * d;
+      cd[sx] = 1.0f - d2 * (0.5f - d2 * (1.0f / 24.0f - d2 * (1.0f / 720.0f)));
+      sd[sx] = d * (1.0f - d2 * (1.0f / 6.0f - d2 * (1.0f / 120.0f - d2 * (1.0f / 5040.0f))));
+    }
+  } else {
+    for (std::uint32_t sx = 0; sx < r.strata; ++sx) {
+      const float d = r.dphi * jd[sx];
+      cd[sx] = std::cos(d);
+      sd[sx] = std::sin(d);
+    }
   }
   for (std::uint32_t sx = 0; sx < r.strata; ++sx) {
     const float u1 = (static_cast<float>(sx) + ju[sx]) * r.inv;
-    const float d = r.dphi * jd[sx];
-    float cd, sd;
-    if (r.taylor) {
-      const float d2 = d * d;
-      cd = 1.0f - d2 * (0.5f - d2 * (1.0f / 24.0f - d2 * (1.0f / 720.0f)));
-      sd = d * (1.0f - d2 * (1.0f / 6.0f - d2 * (1.0f / 120.0f - d2 * (1.0f / 5040.0f))));
-    } else {
-      cd = std::cos(d);
-      sd = std::sin(d);
-    }
-    const float cos_phi = r.col.x * cd - r.col.y * sd, sin_phi = r.col.y * cd + r.col.x * sd;
+    const float cos_phi = r.col.x * cd[sx] - r.col.y * sd[sx], sin_phi = r.col.y * cd[sx] + r.col.x * sd[sx];
     const float z = r.hemisphere ? 1.0f - u1 : 1.0f - 2.0f * u1;
     const float q = 1.0f - z * z;
     const float rad = std::sqrt(q > 0.0f ? q : 0.0f);
@@ -357,10 +366,10 @@ void LinkRays::generate(const rt::Accel& accel, std::size_t cache, const glm::ve
   // independent of its neighbours'. (A shared pattern rotated per cache was 20 % faster, but
   // its error is common to all caches: the mean sky irradiance over a plane came out 0.3 %
   // off in tests/relight, a bias that independent jitter averages away.) The samples are
-  // exactly those of stratifiedSample(i, strata, seed); only the azimuth's trigonometry is
+  // exactly those of stratifiedSample32(i, strata, seed); only the azimuth's trigonometry is
   // cheaper: the stratum's start angle comes from a table and the jitter angle (< 2 pi /
   // strata) from its Taylor series, exact to float precision for strata >= 16.
-  const std::uint64_t seed = mixBits(seed_ ^ (std::uint64_t(cache) * 0xd1b54a32d192ed03ULL));
+  const auto seed = static_cast<std::uint32_t>(mixBits(seed_ ^ (std::uint64_t(cache) * 0xd1b54a32d192ed03ULL)) >> 32);
   // Every hemisphere direction leaves on the normal's side, so one offset origin serves all.
   const glm::vec3 origin = hemisphere ? accel.offsetOrigin(p, n, n) : p;
   RowSetup row{.seed = seed,
@@ -376,11 +385,11 @@ void LinkRays::generate(const rt::Accel& accel, std::size_t cache, const glm::ve
                .n = n};
   row.dphi = 2.0f * kPi * row.inv;
   // Rows are at most 1024 rays (rays <= 2^20).
-  float ju[1024], jd[1024], dx[1024], dy[1024], dz[1024];
+  float ju[1024], jd[1024], cd[1024], sd[1024], dx[1024], dy[1024], dz[1024];
   for (std::uint32_t sy = 0; sy < strata_; ++sy) {
     row.first = sy * strata_;
     row.col = column_cos_sin_[sy];
-    rowDirections(row, ju, jd, dx, dy, dz);
+    rowDirections(row, ju, jd, cd, sd, dx, dy, dz);
     rt::Ray* out = rays.data() + row.first;
     for (std::uint32_t sx = 0; sx < strata_; ++sx) {
       out[sx].origin = origin;

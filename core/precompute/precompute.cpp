@@ -151,11 +151,12 @@ Expected<PrecomputeOptions> preset(std::string_view name) {
 std::string PrecomputeOptions::canonical() const {
   return fmt::format(
       "surfels={};links={};bands={};rays={};builder={};grid={};grid_spacing={:a};grid_resolution={};"
-      "texel_size={};lightmap_resolution={};target_resolution={};validity_rays={};seed={}",
+      "texel_size={};lightmap_resolution={};target_resolution={};validity_rays={};seed={};generator={}",
       surfels, links, bands, rays, builder == hierarchy::Builder::kAgglomerative ? "hac" : "kd",
       static_cast<int>(grid), grid_spacing_m, grid_resolution,
       texel_size_m ? fmt::format("{:a}", *texel_size_m) : "auto",
-      lightmap_resolution ? std::to_string(*lightmap_resolution) : "auto", target_resolution, validity_rays, seed);
+      lightmap_resolution ? std::to_string(*lightmap_resolution) : "auto", target_resolution, validity_rays, seed,
+      kGeneratorRevision);
 }
 
 Expected<charts::UnwrapResult> unwrapFor(scene::Scene& scene, const PrecomputeOptions& options) {

@@ -50,9 +50,16 @@ struct PrecomputeOptions {
   std::uint64_t seed = 1;
 
   Status validate() const;
-  // Every option that changes the result, in a fixed order: part of the cache key.
+  // Every option that changes the result, in a fixed order, and kGeneratorRevision: part of
+  // the cache key.
   std::string canonical() const;
 };
+
+// Bumped whenever the same scene and options give different artifact contents (not a format
+// change: readers accept both). Part of the cache key, so a daemon's cache directory never
+// reuses an artifact an older generator made. 2: owner rasters on big triangles and 32-bit
+// ray jitter in link generation.
+inline constexpr int kGeneratorRevision = 2;
 
 // Named quality presets for `lightlink bake` and the daemon: "draft", "medium" (seed 000
 // Table 2 setting 2: nS 32k, nL 128, 3 bands) and "high", chosen on the accuracy study's
