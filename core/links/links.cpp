@@ -105,7 +105,31 @@ struct Scratch {
   std::vector<CutEntry> ordered;
   std::vector<OpenEntry> open;          // the cut's priority queue (OpenHeap)
   std::vector<std::uint32_t> at_first;  // per sample: the cut entry starting there
+  std::vector<std::uint32_t> slots;     // per ray: owner raster slot or ray class
 };
+
+// What the cut reads of a tree node, packed so that a refinement touches one cache line
+// instead of three arrays (left, right, end of left) of 65k+ nodes each: those misses were
+// most of the cut's time.
+struct CutNode {
+  std::uint32_t left;   // kLeaf for a leaf
+  std::uint32_t right;
+  std::uint32_t split;  // first surfel of the right child (= end of the left child's range)
+};
+constexpr std::uint32_t kLeaf = 0xffffffffu;
+
+std::vector<CutNode> cutNodes(const hierarchy::Tree& tree) {
+  std::vector<CutNode> nodes(tree.nodeCount());
+  for (std::size_t i = 0; i < nodes.size(); ++i) {
+    if (tree.isLeaf(i)) {
+      nodes[i] = {kLeaf, kLeaf, 0};
+    } else {
+      const auto l = static_cast<std::uint32_t>(tree.left[i]);
+      nodes[i] = {l, static_cast<std::uint32_t>(tree.right[i]), tree.end[l]};
+    }
+  }
+  return nodes;
+}
 
 // First position in sorted [first, first + n) whose key is >= key. Branch-free: the loop runs
 // ceil(log2 n) times whatever the data, and the select compiles to a conditional move (the
@@ -157,10 +181,10 @@ struct ChunkResult {
 
 // Chooses the cut: `cut` receives its nodes with their sample ranges, ordered by first sample
 // (= by surfel range, the order links are stored in). Nodes nobody sees never enter it.
-void chooseCut(const hierarchy::Tree& tree, const std::vector<Sample>& samples, int max_links, Scratch& s) {
+void chooseCut(std::span<const CutNode> nodes, const std::vector<Sample>& samples, int max_links, Scratch& s) {
   std::vector<CutEntry>& cut = s.cut;
   cut.clear();
-  if (samples.empty() || tree.nodeCount() == 0) return;
+  if (samples.empty() || nodes.empty()) return;
   OpenHeap open(s.open);
   open.push({openKey(static_cast<std::uint32_t>(samples.size()), 0), 0});
   const auto limit = static_cast<std::size_t>(max_links);
@@ -168,16 +192,16 @@ void chooseCut(const hierarchy::Tree& tree, const std::vector<Sample>& samples, 
     const OpenEntry top = open.top();
     const auto node = static_cast<std::uint32_t>(~static_cast<std::uint32_t>(top.key));
     const auto count = static_cast<std::uint32_t>(top.key >> 32);
-    if (tree.isLeaf(node)) {
+    const CutNode& tn = nodes[node];
+    if (tn.left == kLeaf) {
       open.popTop();
       cut.push_back({count, node, top.first});
       continue;
     }
     // The left child's surfels come first in the parent's range, so its samples are a
     // prefix of the parent's: one binary search inside the parent's samples.
-    const auto l = static_cast<std::uint32_t>(tree.left[node]);
-    const auto r = static_cast<std::uint32_t>(tree.right[node]);
-    const std::uint32_t cl = lowerBound(samples.data() + top.first, count, makeSample(tree.end[l], 0));
+    const std::uint32_t l = tn.left, r = tn.right;
+    const std::uint32_t cl = lowerBound(samples.data() + top.first, count, makeSample(tn.split, 0));
     const std::uint32_t cr = count - cl;
     const std::size_t grow = (cl > 0 && cr > 0) ? 1 : 0;
     if (open.size() + cut.size() + grow > limit) break;
@@ -202,7 +226,7 @@ void chooseCut(const hierarchy::Tree& tree, const std::vector<Sample>& samples, 
 
 template <int Bands>
 void linkCache(std::size_t cache, const glm::vec3& p, const glm::vec3& normal, const std::uint8_t* double_sided,
-               const rt::Accel& accel, const hierarchy::Tree& tree, const SurfelLocator& locator,
+               const rt::Accel& accel, std::span<const CutNode> cut_nodes, const SurfelLocator& locator,
                const LinkOptions& options, const LinkRays& pattern, std::uint32_t surfel_bits, Scratch& s,
                ChunkResult& out) {
   constexpr int kCoeffs = Bands * Bands;
@@ -218,24 +242,46 @@ void linkCache(std::size_t cache, const glm::vec3& p, const glm::vec3& normal, c
   float basis[kCoeffs];
   float sky[kCoeffs] = {};
   s.samples.clear();
+  // Classify every ray first and start the raster loads of hits on big triangles (the
+  // owner raster is MiBs and every hit lands on another line); then read the owners.
+  // Slots hold a raster slot, or one of these for rays that need no raster load.
+  constexpr std::uint32_t kEscaped = 0xffffffffu, kBlocked = 0xfffffffeu, kAskLocator = 0xfffffffdu;
+  std::uint32_t* slot = s.slots.data();
   for (std::uint32_t i = 0; i < count; ++i) {
     const rt::Hit& h = s.hits[i];
-    const glm::vec3& dir = s.rays[i].dir;
     if (!h.hit()) {
+      slot[i] = kEscaped;
+      continue;
+    }
+    if (h.backFacing(s.rays[i].dir) && !double_sided[h.mesh]) {
+      slot[i] = kBlocked;
+      continue;
+    }
+    const std::uint32_t k = locator.rasterSlot(h.mesh, h.triangle, h.u, h.v);
+    slot[i] = k == kNoSurfel ? kAskLocator : k;
+    if (k != kNoSurfel) __builtin_prefetch(locator.slotAddress(k));
+  }
+  for (std::uint32_t i = 0; i < count; ++i) {
+    const glm::vec3& dir = s.rays[i].dir;
+    if (slot[i] == kEscaped) {
       ++out.stats.escaped;
       sh::evalBasis<Bands>(dir, basis);
       for (int k = 0; k < kCoeffs; ++k) sky[k] += w * basis[k];
       continue;
     }
-    const bool back = h.backFacing(dir);
-    if (back && !double_sided[h.mesh]) {
+    if (slot[i] == kBlocked) {
       ++out.stats.back_hits;
       continue;
     }
-    // The visible side's normal faces the cache (left unnormalised: the locator only
-    // needs it when it falls back to its grid).
-    const std::uint32_t owner =
-        locator.ownerOfHit(h.mesh, h.triangle, h.u, h.v, s.rays[i].origin + h.t * dir, back ? -h.ng : h.ng);
+    std::uint32_t owner = slot[i] == kAskLocator ? kNoSurfel : locator.slotOwner(slot[i]);
+    if (owner == kNoSurfel) {
+      // Small triangles (their own lists) and stray hits: the full lookup. The visible side's
+      // normal faces the cache (left unnormalised: the locator only needs it when it falls
+      // back to its grid).
+      const rt::Hit& h = s.hits[i];
+      owner = locator.ownerOfHit(h.mesh, h.triangle, h.u, h.v, s.rays[i].origin + h.t * dir,
+                                 h.backFacing(dir) ? -h.ng : h.ng);
+    }
     if (owner == kNoSurfel) {
       ++out.stats.unowned;
       continue;
@@ -245,7 +291,7 @@ void linkCache(std::size_t cache, const glm::vec3& p, const glm::vec3& normal, c
   }
   out.stats.rays += count;
   sortSamples(s.samples, s.sort_buffer, surfel_bits);
-  chooseCut(tree, s.samples, options.max_links, s);
+  chooseCut(cut_nodes, s.samples, options.max_links, s);
 
   for (const CutEntry& e : s.cut) {
     float c[kCoeffs] = {};
@@ -459,6 +505,7 @@ Expected<Links> generateLinks(const scene::Scene& scene, const rt::Accel& accel,
   const SurfelLocator locator(surfels, scene);
   const LinkCacheFn link_cache = linkCacheFor(options.bands);
   const LinkRays pattern(options);
+  const std::vector<CutNode> cut_nodes = cutNodes(tree);
   // Per mesh: are back faces visible (double-sided material)? One byte per hit instead of
   // a walk through the mesh and material records.
   std::vector<std::uint8_t> double_sided(scene.meshes.size());
@@ -478,6 +525,7 @@ Expected<Links> generateLinks(const scene::Scene& scene, const rt::Accel& accel,
     scratch.rays.resize(pattern.count());
     scratch.hits.resize(pattern.count());
     scratch.at_first.resize(pattern.count());
+    scratch.slots.resize(pattern.count());
     ChunkResult& out = results[chunk];
     const std::size_t end = std::min(n, (chunk + 1) * kChunk);
     if (sink.cancelled()) return;
@@ -488,7 +536,7 @@ Expected<Links> generateLinks(const scene::Scene& scene, const rt::Accel& accel,
     out.direction.reserve(most);
     out.solid_angle.reserve(most);
     for (std::size_t c = chunk * kChunk; c < end; ++c)
-      link_cache(c, caches.position[c], caches.normal[c], double_sided.data(), accel, tree, locator, options, pattern,
+      link_cache(c, caches.position[c], caches.normal[c], double_sided.data(), accel, cut_nodes, locator, options, pattern,
                  surfel_bits, scratch, out);
     counter.add(end - chunk * kChunk);
   });

@@ -73,6 +73,19 @@ class SurfelLocator {
     return ownerOfHitSlow(mesh, triangle, p, n);
   }
 
+  // ownerOfHit in two steps, for a caller that looks up many hits at once and wants the
+  // raster loads (cache misses, most of the lookup's time) in flight together: the raster
+  // slot of a hit on a big triangle (kNoSurfel for other triangles: ask ownerOfHit), then
+  // the surfel in a slot (kNoSurfel for a slot beyond a hypotenuse: ask ownerOfHit).
+  std::uint32_t rasterSlot(std::uint32_t mesh, std::uint32_t triangle, float u, float v) const {
+    if (mesh + 1 >= mesh_first_.size()) return kNoSurfel;
+    const std::uint32_t t = mesh_first_[mesh] + triangle;
+    if (t >= big_of_tri_.size() || big_of_tri_[t] == kNoSurfel) return kNoSurfel;
+    return rasterIndex(big_[big_of_tri_[t]], u, v);
+  }
+  std::uint32_t slotOwner(std::uint32_t slot) const { return raster_[slot]; }
+  const void* slotAddress(std::uint32_t slot) const { return raster_.data() + slot; }
+
   // Nearest surfel to p whose normal is within ~60 degrees of n (unit); falls back to a
   // wider search, then to the nearest surfel regardless of normal, then kNoSurfel.
   std::uint32_t owner(const glm::vec3& p, const glm::vec3& n) const;
@@ -128,15 +141,16 @@ class SurfelLocator {
     std::uint32_t first_cell = 0;   // into big_cell_begin_
     std::uint32_t first_raster = 0; // into raster_
   };
-  // Raster cell of (u, v), clamped to the raster (NaN lands on cell 0).
-  std::uint32_t rasterOwner(const BigTriangle& big, float u, float v) const {
+  // Raster cell of (u, v), clamped to the raster (NaN lands on an edge cell).
+  static std::uint32_t rasterIndex(const BigTriangle& big, float u, float v) {
     auto axis = [&](float w) {
       float x = w * static_cast<float>(big.gr);
       x = x < big.gr_max ? x : big.gr_max;  // also NaN -> gr_max
       return static_cast<std::uint32_t>(x > 0.0f ? x : 0.0f);
     };
-    return raster_[big.first_raster + axis(v) * big.gr + axis(u)];
+    return big.first_raster + axis(v) * big.gr + axis(u);
   }
+  std::uint32_t rasterOwner(const BigTriangle& big, float u, float v) const { return raster_[rasterIndex(big, u, v)]; }
   std::uint32_t ownerOfHitSlow(std::uint32_t mesh, std::uint32_t triangle, const glm::vec3& p,
                                const glm::vec3& n) const;
   std::vector<std::uint32_t> big_of_tri_;  // global triangle -> index into big_, or kNoSurfel
