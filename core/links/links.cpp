@@ -106,6 +106,8 @@ struct Scratch {
   std::vector<OpenEntry> open;          // the cut's priority queue (OpenHeap)
   std::vector<std::uint32_t> at_first;  // per sample: the cut entry starting there
   std::vector<std::uint32_t> slots;     // per ray: owner raster slot or ray class
+  std::vector<float> coeff_values;      // per link of the cache: its SH in float, then fp16
+  std::vector<float> solid_values;
 };
 
 // What the cut reads of a tree node, packed so that a refinement touches one cache line
@@ -239,8 +241,8 @@ void linkCache(std::size_t cache, const glm::vec3& p, const glm::vec3& normal, c
 
   const float omega = hemisphere ? 2.0f * kPi : 4.0f * kPi;
   const float w = omega / static_cast<float>(count) / kPi;  // per-ray weight of V/pi
-  float basis[kCoeffs];
-  float sky[kCoeffs] = {};
+  float sky_poly[kCoeffs] = {};  // sums of the basis polynomials over the escaped rays
+  std::uint32_t escaped = 0;
   s.samples.clear();
   // Classify every ray first and start the raster loads of hits on big triangles (the
   // owner raster is MiBs and every hit lands on another line); then read the owners.
@@ -264,9 +266,10 @@ void linkCache(std::size_t cache, const glm::vec3& p, const glm::vec3& normal, c
   for (std::uint32_t i = 0; i < count; ++i) {
     const glm::vec3& dir = s.rays[i].dir;
     if (slot[i] == kEscaped) {
-      ++out.stats.escaped;
-      sh::evalBasis<Bands>(dir, basis);
-      for (int k = 0; k < kCoeffs; ++k) sky[k] += w * basis[k];
+      ++escaped;
+      float poly[kCoeffs];
+      sh::evalBasisPolynomial<Bands>(dir, poly);
+      for (int k = 1; k < kCoeffs; ++k) sky_poly[k] += poly[k];
       continue;
     }
     if (slot[i] == kBlocked) {
@@ -290,25 +293,44 @@ void linkCache(std::size_t cache, const glm::vec3& p, const glm::vec3& normal, c
     s.samples.push_back(makeSample(owner, i));
   }
   out.stats.rays += count;
+  out.stats.escaped += escaped;
+  sky_poly[0] = static_cast<float>(escaped);
+  float sky[kCoeffs];
+  for (int q = 0; q < kCoeffs; ++q) sky[q] = w * sh::kBasisScale[q] * sky_poly[q];
   sortSamples(s.samples, s.sort_buffer, surfel_bits);
   chooseCut(cut_nodes, s.samples, options.max_links, s);
 
+  // Each link's SH is w * sum over its hits of Y_q(dir) = w * kBasisScale[q] * (sum of the
+  // basis polynomials): a few multiplies per hit instead of one per coefficient. Values go
+  // to scratch first and to fp16 in two batches (8 per instruction with F16C).
+  float* coeff_values = s.coeff_values.data();
+  float* solid_values = s.solid_values.data();
+  std::size_t links = 0;
   for (const CutEntry& e : s.cut) {
-    float c[kCoeffs] = {};
-    glm::vec3 mean_dir(0.0f);
-    const std::uint32_t hits = e.count;
+    float m[kCoeffs] = {};
+    glm::vec3 sum_dir(0.0f);
     for (std::uint32_t k = e.first; k < e.first + e.count; ++k) {
       const glm::vec3& dir = s.rays[rayOf(s.samples[k])].dir;
-      sh::evalBasis<Bands>(dir, basis);
-      for (int q = 0; q < kCoeffs; ++q) c[q] += w * basis[q];
-      mean_dir += dir;
+      float poly[kCoeffs];
+      sh::evalBasisPolynomial<Bands>(dir, poly);
+      for (int q = 1; q < kCoeffs; ++q) m[q] += poly[q];
+      if constexpr (Bands < 2) sum_dir += dir;
     }
+    m[0] = static_cast<float>(e.count);
+    if constexpr (Bands >= 2) sum_dir = glm::vec3(m[3], m[1], m[2]);  // the band-1 polynomials are y, z, x
+    for (int q = 0; q < kCoeffs; ++q) coeff_values[links * kCoeffs + q] = w * sh::kBasisScale[q] * m[q];
+    solid_values[links] = w * static_cast<float>(e.count);
+    ++links;
     out.node.push_back(e.node);
-    for (int q = 0; q < kCoeffs; ++q) out.coeffs.push_back(toHalf(c[q]));
-    const float len = glm::length(mean_dir);
-    out.direction.push_back(encodeOctahedral(len > 0.0f ? mean_dir / len : n));
-    out.solid_angle.push_back(toHalf(w * static_cast<float>(hits)));
+    const float len = glm::length(sum_dir);
+    out.direction.push_back(encodeOctahedral(len > 0.0f ? sum_dir / len : n));
   }
+  // |coefficient| <= w * count * max |Y| < 2: nothing saturates.
+  const std::size_t coeffs_at = out.coeffs.size(), solid_at = out.solid_angle.size();
+  out.coeffs.resize(coeffs_at + links * kCoeffs);
+  out.solid_angle.resize(solid_at + links);
+  toHalfSaturating(std::span<const float>(coeff_values, links * kCoeffs), out.coeffs.data() + coeffs_at);
+  toHalfSaturating(std::span<const float>(solid_values, links), out.solid_angle.data() + solid_at);
   out.count.push_back(static_cast<std::uint32_t>(s.cut.size()));
   out.sky.insert(out.sky.end(), sky, sky + kCoeffs);
 }
@@ -469,9 +491,11 @@ std::uint32_t encodeOctahedral(const glm::vec3& d) {
     o = glm::vec2((1.0f - std::abs(o.y)) * (o.x >= 0.0f ? 1.0f : -1.0f),
                   (1.0f - std::abs(o.x)) * (o.y >= 0.0f ? 1.0f : -1.0f));
   }
+  // Round to nearest (even on ties: lrint is one instruction, where lround was a libm call
+  // per link).
   auto q = [](float v) {
     return static_cast<std::uint32_t>(static_cast<std::uint16_t>(
-        static_cast<std::int16_t>(std::lround(std::clamp(v, -1.0f, 1.0f) * 32767.0f))));
+        static_cast<std::int16_t>(std::lrint(std::clamp(v, -1.0f, 1.0f) * 32767.0f))));
   };
   return q(o.x) | (q(o.y) << 16);
 }
@@ -526,6 +550,8 @@ Expected<Links> generateLinks(const scene::Scene& scene, const rt::Accel& accel,
     scratch.hits.resize(pattern.count());
     scratch.at_first.resize(pattern.count());
     scratch.slots.resize(pattern.count());
+    scratch.coeff_values.resize(std::size_t(options.max_links) * std::size_t(options.bands * options.bands));
+    scratch.solid_values.resize(std::size_t(options.max_links));
     ChunkResult& out = results[chunk];
     const std::size_t end = std::min(n, (chunk + 1) * kChunk);
     if (sink.cancelled()) return;

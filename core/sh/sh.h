@@ -83,6 +83,44 @@ inline void evalBasis(const glm::vec3& dir, float* out) {
   }
 }
 
+// The basis as polynomial times constant: Y_i(dir) = kBasisScale[i] * basisPolynomial_i(dir).
+// A sum of Y_i over many directions is then the constant times a sum of polynomials, which
+// costs a few multiplies per direction instead of one per coefficient (link generation
+// projects ~1000 hit directions per cache this way). Band 0's polynomial is 1: the sum is
+// the direction count, which callers usually know.
+inline constexpr std::array<float, kMaxCoeffs> kBasisScale = {
+    kY00, kY1, kY1, kY1, kY2Cross, kY2Cross, kY20, kY2Cross, kY22,
+    kY33, kY3Xyz, kY31, kY30, kY31, kY32, kY33};
+
+template <int Bands>
+inline void evalBasisPolynomial(const glm::vec3& dir, float* out) {
+  static_assert(Bands >= 1 && Bands <= kMaxBands);
+  const float x = dir.x, y = dir.y, z = dir.z;
+  out[0] = 1.0f;
+  if constexpr (Bands >= 2) {
+    out[1] = y;
+    out[2] = z;
+    out[3] = x;
+  }
+  if constexpr (Bands >= 3) {
+    const float xx = x * x, yy = y * y, zz = z * z;
+    out[4] = x * y;
+    out[5] = y * z;
+    out[6] = 3.0f * zz - 1.0f;
+    out[7] = x * z;
+    out[8] = xx - yy;
+    if constexpr (Bands >= 4) {
+      out[9] = y * (3.0f * xx - yy);
+      out[10] = x * y * z;
+      out[11] = y * (5.0f * zz - 1.0f);
+      out[12] = z * (5.0f * zz - 3.0f);
+      out[13] = x * (5.0f * zz - 1.0f);
+      out[14] = z * (xx - yy);
+      out[15] = x * (xx - 3.0f * yy);
+    }
+  }
+}
+
 // ---- value types ---------------------------------------------------------------------
 
 // One scalar SH function, coefficients contiguous.

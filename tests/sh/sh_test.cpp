@@ -99,6 +99,22 @@ TEST(Sh, IndexConvention) {
   EXPECT_GT(y[3], 0.0f);
 }
 
+TEST(Sh, BasisIsScaleTimesPolynomial) {
+  // What link generation sums instead of the basis itself, for every band count.
+  std::mt19937 rng(11);
+  std::normal_distribution<float> g(0.0f, 1.0f);
+  for (int k = 0; k < 2000; ++k) {
+    const glm::vec3 d = glm::normalize(glm::vec3(g(rng), g(rng), g(rng)));
+    float y[kMaxCoeffs], p[kMaxCoeffs];
+    evalBasis<4>(d, y);
+    evalBasisPolynomial<4>(d, p);
+    for (int i = 0; i < kMaxCoeffs; ++i) EXPECT_NEAR(kBasisScale[std::size_t(i)] * p[i], y[i], 2e-6f) << i;
+    float p3[9];
+    evalBasisPolynomial<3>(d, p3);
+    for (int i = 0; i < 9; ++i) EXPECT_EQ(p3[i], p[i]) << i;
+  }
+}
+
 // The products Y_i Y_j have degree <= 6: 8 Gauss-Legendre nodes in z and 16 azimuths
 // integrate them exactly, so the only error is float evaluation of the basis (~1e-7).
 TEST(Sh, OrthonormalByExactQuadrature) {
