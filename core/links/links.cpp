@@ -322,8 +322,9 @@ void linkCache(std::size_t cache, const glm::vec3& p, const glm::vec3& normal, c
     solid_values[links] = w * static_cast<float>(e.count);
     ++links;
     out.node.push_back(e.node);
-    const float len = glm::length(sum_dir);
-    out.direction.push_back(encodeOctahedral(len > 0.0f ? sum_dir / len : n));
+    // The octahedral map divides by the L1 norm, so the sum needs no normalising.
+    const float l1 = std::abs(sum_dir.x) + std::abs(sum_dir.y) + std::abs(sum_dir.z);
+    out.direction.push_back(encodeOctahedral(l1 > 0.0f ? sum_dir : n));
   }
   // |coefficient| <= w * count * max |Y| < 2: nothing saturates.
   const std::size_t coeffs_at = out.coeffs.size(), solid_at = out.solid_angle.size();

@@ -129,8 +129,9 @@ void capZonal(float omega, int bands, float* z);
 // Projects one runtime-form link (direction, omega/pi) into `bands`^2 SH coefficients.
 void projectRuntimeLink(const glm::vec3& direction, float omega_over_pi, int bands, float* coeffs);
 
-// Octahedral direction encoding, 2 x snorm16 (max angular error ~0.003 degrees).
-std::uint32_t encodeOctahedral(const glm::vec3& unit_dir);
+// Octahedral direction encoding, 2 x snorm16 (max angular error ~0.003 degrees). The map
+// divides by the L1 norm, so `dir` may have any non-zero length.
+std::uint32_t encodeOctahedral(const glm::vec3& dir);
 glm::vec3 decodeOctahedral(std::uint32_t packed);
 
 }  // namespace lightlink::links

@@ -309,6 +309,9 @@ TEST(Octahedral, RoundTripIsAccurate) {
     const glm::vec3 d(r * std::cos(phi), r * std::sin(phi), z);
     const glm::vec3 back = decodeOctahedral(encodeOctahedral(d));
     EXPECT_GT(glm::dot(d, back), std::cos(1e-3f)) << i;
+    // Link generation encodes unnormalised sums of hit directions.
+    for (float scale : {1e-3f, 37.0f, 900.0f})
+      EXPECT_GT(glm::dot(d, decodeOctahedral(encodeOctahedral(scale * d))), std::cos(1e-3f)) << i << " x" << scale;
   }
 }
 
