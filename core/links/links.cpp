@@ -408,16 +408,23 @@ LL_MULTIVERSION void rowDirections(const RowSetup& r, float* __restrict ju, floa
       sd[sx] = std::sin(d);
     }
   }
-  for (std::uint32_t sx = 0; sx < r.strata; ++sx) {
-    const float u1 = (static_cast<float>(sx) + ju[sx]) * r.inv;
-    const float cos_phi = r.col.x * cd[sx] - r.col.y * sd[sx], sin_phi = r.col.y * cd[sx] + r.col.x * sd[sx];
-    const float z = r.hemisphere ? 1.0f - u1 : 1.0f - 2.0f * u1;
+  // Everything the loop reads of `r` in locals: the stores through dx/dy/dz could alias it
+  // otherwise, and the reloads kept the loop from vectorising. 1 * u1 and 2 * u1 are exact,
+  // so z is the same float as `hemisphere ? 1 - u1 : 1 - 2 u1`.
+  const float inv = r.inv, z_scale = r.hemisphere ? 1.0f : 2.0f;
+  const float cx = r.col.x, cy = r.col.y;
+  const glm::vec3 t = r.t, b = r.b, n = r.n;
+  const std::uint32_t strata = r.strata;
+  for (std::uint32_t sx = 0; sx < strata; ++sx) {
+    const float u1 = (static_cast<float>(sx) + ju[sx]) * inv;
+    const float cos_phi = cx * cd[sx] - cy * sd[sx], sin_phi = cy * cd[sx] + cx * sd[sx];
+    const float z = 1.0f - z_scale * u1;
     const float q = 1.0f - z * z;
     const float rad = std::sqrt(q > 0.0f ? q : 0.0f);
     const float a = rad * cos_phi, c = rad * sin_phi;
-    dx[sx] = a * r.t.x + c * r.b.x + z * r.n.x;
-    dy[sx] = a * r.t.y + c * r.b.y + z * r.n.y;
-    dz[sx] = a * r.t.z + c * r.b.z + z * r.n.z;
+    dx[sx] = a * t.x + c * b.x + z * n.x;
+    dy[sx] = a * t.y + c * b.y + z * n.y;
+    dz[sx] = a * t.z + c * b.z + z * n.z;
   }
 }
 
