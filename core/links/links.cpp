@@ -208,8 +208,13 @@ void chooseCut(std::span<const CutNode> nodes, const std::vector<Sample>& sample
     const std::size_t grow = (cl > 0 && cr > 0) ? 1 : 0;
     if (open.size() + cut.size() + grow > limit) break;
     if (cl > 0 && cr > 0) {
-      open.replaceTop({openKey(cl, l), top.first});
-      open.push({openKey(cr, r), top.first + cl});
+      // The larger child takes the top (it often stays there: a short sift down), the
+      // smaller one enters at the bottom (a short sift up). Keys are unique, so the heap's
+      // layout does not change which node is refined next.
+      const OpenEntry left{openKey(cl, l), top.first}, right{openKey(cr, r), top.first + cl};
+      const bool left_larger = left.key > right.key;
+      open.replaceTop(left_larger ? left : right);
+      open.push(left_larger ? right : left);
     } else if (cl > 0) {
       open.replaceTop({openKey(cl, l), top.first});
     } else {
