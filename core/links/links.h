@@ -112,9 +112,15 @@ class LinkRays {
  public:
   explicit LinkRays(const LinkOptions& options);
   std::uint32_t count() const { return strata_ * strata_; }
-  // Fills rays[0 .. count()).
+  // Fills rays[0 .. count()), and when given, the directions again as three arrays of
+  // count() floats each (what vectorised loops over a cache's rays read).
+  struct Directions {
+    float* x;
+    float* y;
+    float* z;
+  };
   void generate(const rt::Accel& accel, std::size_t cache, const glm::vec3& position, const glm::vec3& normal,
-                std::span<rt::Ray> rays) const;
+                std::span<rt::Ray> rays, const Directions* directions = nullptr) const;
 
  private:
   std::uint32_t strata_;
