@@ -8,6 +8,7 @@
 #include <tbb/parallel_for.h>
 
 #include "core/common/check.h"
+#include "core/common/sampling.h"
 #include "core/scene/material_eval.h"
 #include "core/surfels/surface.h"
 
@@ -22,16 +23,6 @@ constexpr float kCosCoplanar = 0.990f;
 // wall and surfaces stacked closely in parallel).
 constexpr float kCosSameSurface = 0.5f;
 constexpr float kMaxPlaneOffset = 0.5f;
-
-std::uint32_t hash32(std::uint32_t x) {
-  // lowbias32 (Wellons): a cheap full-avalanche integer hash.
-  x ^= x >> 16;
-  x *= 0x7feb352dU;
-  x ^= x >> 15;
-  x *= 0x846ca68bU;
-  x ^= x >> 16;
-  return x;
-}
 
 float radicalInverse2(std::uint32_t i) {
   i = (i << 16) | (i >> 16);
@@ -218,7 +209,7 @@ Expected<Surfels> placeSurfels(const scene::Scene& scene, const SurfelOptions& o
     for (std::uint32_t j = r.begin(); j < r.end(); ++j) {
       // Random start per triangle (20 bits) keeps the sequence low-discrepancy within the
       // triangle while decorrelating neighbouring triangles; +1 skips the (0, 0) point.
-      const std::uint32_t start = hash32(options.seed * 0x9e3779b9U ^ hash32(tri[j])) >> 12;
+      const std::uint32_t start = mixBits32(options.seed * 0x9e3779b9U ^ mixBits32(tri[j])) >> 12;
       const float a = radicalInverse2(start + local[j] + 1);
       const float b = radicalInverse3(start + local[j] + 1);
       // Area-preserving square -> triangle warp.
