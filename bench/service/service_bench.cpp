@@ -56,6 +56,7 @@ struct Args {
   int bounces = -1;  // >= 0: the started daemon's --bounces (its default is 8)
   bool progressive = false;  // the started daemon's --progressive: preview, then converged
   bool subscribe = false;    // also measure clients holding a Subscribe stream (tile deltas)
+  int bands = 0;             // SH bands the clients ask for (0 = all): the payload size
   std::vector<std::string> daemon_flags;  // more flags for the started daemon (--daemon-flag, repeated)
   std::string scene = std::string(LIGHTLINK_SOURCE_DIR) + "/clients/demo/cornell_box.gltf";
   std::string preset = "medium";
@@ -142,6 +143,7 @@ nlohmann::ordered_json latencyScenario(const Args& a, const ConnectOptions& co, 
   }
   ResultSpec spec;
   spec.grid = false;  // the lightmap: what the latency target is about
+  spec.bands = a.bands;
   std::atomic<bool> stop{false};
   const auto poll_period = std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double, std::milli>(a.poll_ms));
   std::vector<std::thread> threads;
@@ -203,6 +205,7 @@ nlohmann::ordered_json latencyScenario(const Args& a, const ConnectOptions& co, 
   auto current = must(driver.getTextures(scene, 0, spec));
   if (!current) die(internalError("GetTextures with last_seen 0 answered not modified"));
   if (!allAt(current ? current->info.version : 0, std::chrono::seconds(10))) die(ioError("clients never caught up"));
+  const std::size_t result_bytes = current->totalBytes();
 
   std::vector<std::pair<std::uint64_t, Clock::time_point>> sent;  // version, send time
   std::size_t late = 0;
@@ -247,6 +250,7 @@ nlohmann::ordered_json latencyScenario(const Args& a, const ConnectOptions& co, 
   j["wait_ms"] = subscribe ? 0 : wait_ms;
   j["poll_ms"] = wait_ms > 0 || subscribe ? 0.0 : a.poll_ms;
   j["updates"] = a.updates;
+  j["result_bytes"] = result_bytes;  // payload bytes of one result, per client
   j["latency_ms"] = summary(latency);
   j["latency_minus_relight_ms"] = summary(overhead);
   // Progressive: to the converged (bounced) result; else the same samples as latency_ms.
@@ -319,6 +323,7 @@ Args parseArgs(int argc, char** argv) {
       else if (k == "--bounces") a.bounces = std::stoi(val());
       else if (k == "--progressive") a.progressive = true;
       else if (k == "--subscribe") a.subscribe = true;
+      else if (k == "--bands") a.bands = std::stoi(val());
       else if (k == "--daemon-flag") a.daemon_flags.push_back(val());
       else if (k == "--scene") a.scene = val();
       else if (k == "--preset") a.preset = val();
@@ -337,12 +342,13 @@ Args parseArgs(int argc, char** argv) {
             "              [--scene F] [--preset P]\n"
             "              [--clients 1,50] [--wait-ms 0,2000] [--updates N] [--poll-ms MS] [--gap-ms MS]\n"
             "              [--burst-s S] [--daemon-cpus LIST] [--client-cpus LIST] [--daemon-flag F ...] [--json F]\n"
-            "              [--subscribe]\n"
+            "              [--subscribe] [--bands B]\n"
             "  --wait-ms    one latency scenario per value and client count: 0 = poll every --poll-ms,\n"
             "               > 0 = long poll (GetTextures wait_ms)\n"
             "  --daemon-cpus, --client-cpus  taskset-style CPU lists (0-1, 2-15, 0,2,4-7): where the started\n"
             "               daemon and this process (driver, clients) may run\n"
             "  --subscribe  also one scenario per client count with Subscribe streams (tile deltas)\n"
+            "  --bands      SH bands the clients fetch (default 0: all): how latency scales with the payload\n"
             "  --daemon-flag  one more flag for the started daemon (repeat: --daemon-flag --log-level\n"
             "               --daemon-flag debug --daemon-flag --log-file --daemon-flag d.log)\n");
         std::exit(0);
@@ -421,6 +427,7 @@ int main(int argc, char** argv) {
                      {"bands", scene.info.bands()}};
   out["daemon_bounces"] = a.bounces >= 0 ? std::to_string(a.bounces) : std::string("daemon default");
   out["progressive"] = a.progressive;
+  out["fetched_bands"] = a.bands;
   out["poll_ms"] = a.poll_ms;
   out["gap_ms"] = a.gap_ms;
   out["daemon_cpus"] = a.daemon_cpus.empty() ? "any" : a.daemon_cpus;
@@ -458,13 +465,15 @@ int main(int argc, char** argv) {
                                  scene.info.backend(), open_s, scene.info.artifact_reused() ? ", artifact reused" : "");
   for (const auto& s : out["latency"]) {
     text += fmt::format("latency      {:<9} {:>3} client(s): p50 {:6.2f} ms  p99 {:6.2f} ms  max {:6.2f} ms  (minus relight: p50 "
-                        "{:.2f} ms, p99 {:.2f} ms; {} samples, {} missing); not-modified poll p50 {:.3f} ms\n",
+                        "{:.2f} ms, p99 {:.2f} ms; {} samples, {} missing); not-modified poll p50 {:.3f} ms; "
+                        "{:.0f} KiB per result\n",
                         s["mode"].get<std::string>(), s["clients"].get<int>(), s["latency_ms"]["p50"].get<double>(),
                         s["latency_ms"]["p99"].get<double>(), s["latency_ms"]["max"].get<double>(),
                         s["latency_minus_relight_ms"]["p50"].get<double>(),
                         s["latency_minus_relight_ms"]["p99"].get<double>(),
                         s["latency_ms"]["count"].get<std::size_t>(), s["missing"].get<std::size_t>(),
-                        s["poll_not_modified_ms"]["p50"].get<double>());
+                        s["poll_not_modified_ms"]["p50"].get<double>(),
+                        double(s["result_bytes"].get<std::size_t>()) / 1024.0);
     if (a.progressive)
       text += fmt::format("             converged (bounced) result: p50 {:6.2f} ms  p99 {:6.2f} ms\n",
                           s["latency_converged_ms"]["p50"].get<double>(), s["latency_converged_ms"]["p99"].get<double>());
