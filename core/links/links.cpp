@@ -340,9 +340,9 @@ void linkCache(std::size_t cache, const glm::vec3& p, const glm::vec3& normal, c
     }
     std::uint32_t owner = slot[i] == kAskLocator ? kNoSurfel : locator.slotOwner(slot[i]);
     if (owner == kNoSurfel) {
-      // Small triangles (their own lists) and stray hits: the full lookup. The visible side's
-      // normal faces the cache (left unnormalised: the locator only needs it when it falls
-      // back to its grid).
+      // Stray hits (a raster cell beyond a hypotenuse, a triangle without a surfel to stand
+      // for it): the full lookup. The visible side's normal faces the cache (left
+      // unnormalised: the locator only needs it when it falls back to its grid).
       const rt::Hit& h = s.hits[i];
       const glm::vec3& dir = s.rays[i].dir;
       owner = locator.ownerOfHit(h.mesh, h.triangle, h.u, h.v, s.rays[i].origin + h.t * dir,

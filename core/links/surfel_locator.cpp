@@ -158,6 +158,22 @@ void SurfelLocator::buildTriangleLists(const surfels::Surfels& surfels, const sc
       tri_position_[tri_begin_[t]] = s == kNoSurfel ? c : surfels.position[s];
     }
   }
+
+  raster_of_tri_.assign(tris, kNoSurfel);
+  raster_ref_.reserve(tris);
+  for (std::uint32_t t = 0; t < tris; ++t) {
+    RasterRef ref;
+    if (big_of_tri_[t] != kNoSurfel) {
+      const BigTriangle& big = big_[big_of_tri_[t]];
+      ref = {big.first_raster, big.gr, static_cast<float>(big.gr), static_cast<float>(big.gr - 1)};
+    } else {
+      if (tri_begin_[t + 1] - tri_begin_[t] != 1 || tri_surfel_[tri_begin_[t]] == kNoSurfel) continue;
+      ref.first = static_cast<std::uint32_t>(raster_.size());
+      raster_.push_back(tri_surfel_[tri_begin_[t]]);
+    }
+    raster_of_tri_[t] = static_cast<std::uint32_t>(raster_ref_.size());
+    raster_ref_.push_back(ref);
+  }
 }
 
 glm::ivec3 SurfelLocator::cellOf(const glm::vec3& p) const {
@@ -238,7 +254,6 @@ void SurfelLocator::buildRasters(const scene::Scene& scene, const std::vector<st
     big.e1 = p1 - p0;
     big.e2 = p2 - p0;
     big.gr = big.g * r;
-    big.gr_max = static_cast<float>(big.gr - 1);
     big.first_raster = static_cast<std::uint32_t>(first);
     first += std::size_t(big.gr) * big.gr;
     for (std::uint32_t iv = 0; iv < big.g; ++iv) rows.emplace_back(static_cast<std::uint32_t>(b), iv);

@@ -9,18 +9,17 @@
 // locator copies what it needs; the Surfels may go away after construction.
 //
 // Most hits are cheaper than that: the ray tracer already says which triangle was hit, and
-// detailed geometry has only a few surfels per triangle. Each triangle keeps the list of
-// surfels lying on it (or, when none does, the one nearest its centroid); a triangle with
-// at most kTriangleListMax of them answers from that list alone (the owner is then the
-// nearest surfel *on the hit triangle*, a partition of the surface as good as the nearest
-// overall for lighting). A triangle with more surfels (walls of a box, floors of a level)
-// bins them in a g x g grid over its barycentric square (g = ceil(sqrt(surfels)), so a cell
-// is about one surfel spacing), and answers from an owner raster: each cell is split
-// r x r (r = kRaster, less when the raster would not fit its memory budget), and each raster
+// every triangle answers from a table of its own, an owner raster. A triangle holding one
+// surfel, or none (its area went into a neighbour's slice; it is then represented by the
+// surfel nearest its centroid), has a 1 x 1 raster: that surfel. A triangle with more
+// (walls of a box, floors of a level) bins them in a g x g grid over its barycentric square
+// (g = ceil(sqrt(surfels)), so a cell is about one surfel spacing), and each cell is split
+// r x r (r = kRaster, less when the rasters would not fit their memory budget): each raster
 // cell holds the surfel nearest to its centre among the 3 x 3 cells around it (the whole
-// triangle when those are empty). A hit costs one table load instead of a scan of ~8-20
-// candidates, which was the largest cost of link generation after the tracing itself
-// (docs/results.md, issue 4).
+// triangle when those are empty). A hit costs one 16-byte record and one table load, where a
+// scan of ~8-20 candidates was the largest cost of link generation after the tracing itself
+// (docs/results.md, issue 4); on zdm2, whose hits land mostly on small triangles, the 1 x 1
+// rasters took a third off the hit classification.
 //
 // The raster is a partition of each big triangle into patches of ~1/r^2 of a surfel's area,
 // each given to the surfel nearest its centre: it differs from the nearest surfel to the hit
@@ -47,7 +46,8 @@ inline constexpr std::uint32_t kNoSurfel = std::numeric_limits<std::uint32_t>::m
 
 class SurfelLocator {
  public:
-  static constexpr std::uint32_t kTriangleListMax = 8;
+  // Triangles with more surfels than this get a g x g grid and an r x r raster per cell.
+  static constexpr std::uint32_t kTriangleListMax = 1;
   // Raster cells per big-triangle cell and side, and the most raster cells all big triangles
   // may hold together (4 bytes each); past that budget r halves (down to 1).
   static constexpr std::uint32_t kRaster = 4;
@@ -63,13 +63,8 @@ class SurfelLocator {
   // Inline: it runs once per link ray, and a big triangle's answer is one load.
   std::uint32_t ownerOfHit(std::uint32_t mesh, std::uint32_t triangle, float u, float v, const glm::vec3& p,
                            const glm::vec3& n) const {
-    if (mesh + 1 < mesh_first_.size()) {
-      const std::uint32_t t = mesh_first_[mesh] + triangle;
-      if (t < big_of_tri_.size() && big_of_tri_[t] != kNoSurfel) {
-        const std::uint32_t s = rasterOwner(big_[big_of_tri_[t]], u, v);
-        if (s != kNoSurfel) return s;
-      }
-    }
+    const std::uint32_t k = rasterSlot(mesh, triangle, u, v);
+    if (k != kNoSurfel && raster_[k] != kNoSurfel) return raster_[k];
     return ownerOfHitSlow(mesh, triangle, p, n);
   }
 
@@ -80,8 +75,8 @@ class SurfelLocator {
   std::uint32_t rasterSlot(std::uint32_t mesh, std::uint32_t triangle, float u, float v) const {
     if (mesh + 1 >= mesh_first_.size()) return kNoSurfel;
     const std::uint32_t t = mesh_first_[mesh] + triangle;
-    if (t >= big_of_tri_.size() || big_of_tri_[t] == kNoSurfel) return kNoSurfel;
-    return rasterIndex(big_[big_of_tri_[t]], u, v);
+    if (t >= raster_of_tri_.size() || raster_of_tri_[t] == kNoSurfel) return kNoSurfel;
+    return rasterIndex(raster_ref_[raster_of_tri_[t]], u, v);
   }
   std::uint32_t slotOwner(std::uint32_t slot) const { return raster_[slot]; }
   const void* slotAddress(std::uint32_t slot) const { return raster_.data() + slot; }
@@ -124,33 +119,39 @@ class SurfelLocator {
   // of gathering from the surfel arrays (the owner lookup runs once per link ray).
   std::vector<glm::vec3> cell_position_;
   std::vector<glm::vec3> cell_normal_;
-  // Per-triangle surfel lists (CSR over global triangle ids = mesh_first_[mesh] + triangle);
-  // lists longer than kTriangleListMax are left empty and answered by the grid.
+  // Per-triangle surfel lists (CSR over global triangle ids = mesh_first_[mesh] + triangle)
+  // of the triangles with at most kTriangleListMax surfels: one entry, its surfel or the one
+  // nearest its centroid, which its 1 x 1 raster holds too; empty for big triangles.
   std::vector<std::uint32_t> mesh_first_;
   std::vector<std::uint32_t> tri_begin_;
   std::vector<std::uint32_t> tri_surfel_;
   std::vector<glm::vec3> tri_position_;
   std::vector<std::uint8_t> tri_use_grid_;
-  // Triangles with more than kTriangleListMax surfels: a g x g grid over (u, v) each, and
-  // its (g r) x (g r) owner raster.
+  // Triangles with more than kTriangleListMax surfels ("big"): a g x g grid over (u, v)
+  // each, and its (g r) x (g r) owner raster.
   struct BigTriangle {
     glm::vec3 v0{0.0f}, e1{0.0f}, e2{0.0f};  // as traced: P(u, v) = v0 + u e1 + v e2
     std::uint32_t g = 0;            // cells per side
     std::uint32_t gr = 0;           // raster cells per side (g r)
-    float gr_max = 0.0f;            // gr - 1, as float: the clamp of a raster coordinate
     std::uint32_t first_cell = 0;   // into big_cell_begin_
     std::uint32_t first_raster = 0; // into raster_
   };
+  // What a hit reads to find its raster cell: 16 bytes per triangle.
+  struct RasterRef {
+    std::uint32_t first = 0;  // into raster_
+    std::uint32_t size = 1;   // cells per side (g r; 1 for a one-entry triangle)
+    float size_f = 1.0f;
+    float max_f = 0.0f;       // size - 1, as float: the clamp of a raster coordinate
+  };
   // Raster cell of (u, v), clamped to the raster (NaN lands on an edge cell).
-  static std::uint32_t rasterIndex(const BigTriangle& big, float u, float v) {
+  static std::uint32_t rasterIndex(const RasterRef& ref, float u, float v) {
     auto axis = [&](float w) {
-      float x = w * static_cast<float>(big.gr);
-      x = x < big.gr_max ? x : big.gr_max;  // also NaN -> gr_max
+      float x = w * ref.size_f;
+      x = x < ref.max_f ? x : ref.max_f;  // also NaN -> max_f
       return static_cast<std::uint32_t>(x > 0.0f ? x : 0.0f);
     };
-    return big.first_raster + axis(v) * big.gr + axis(u);
+    return ref.first + axis(v) * ref.size + axis(u);
   }
-  std::uint32_t rasterOwner(const BigTriangle& big, float u, float v) const { return raster_[rasterIndex(big, u, v)]; }
   std::uint32_t ownerOfHitSlow(std::uint32_t mesh, std::uint32_t triangle, const glm::vec3& p,
                                const glm::vec3& n) const;
   std::vector<std::uint32_t> big_of_tri_;  // global triangle -> index into big_, or kNoSurfel
@@ -158,7 +159,9 @@ class SurfelLocator {
   std::vector<std::uint32_t> big_cell_begin_;  // CSR over all big triangles' cells
   std::vector<std::uint32_t> big_surfel_;
   std::vector<glm::vec3> big_position_;
-  std::vector<std::uint32_t> raster_;  // surfel ids, all big triangles' rasters in order
+  std::vector<std::uint32_t> raster_;  // surfel ids, all triangles' rasters in order
+  std::vector<std::uint32_t> raster_of_tri_;  // global triangle -> index into raster_ref_, or kNoSurfel
+  std::vector<RasterRef> raster_ref_;
   std::uint32_t raster_factor_ = kRaster;
   std::size_t raster_budget_ = kRasterBudget;
   void buildRasters(const scene::Scene& scene, const std::vector<std::uint32_t>& big_mesh,

@@ -13,6 +13,7 @@
 
 #include "core/rt/accel.h"
 #include "core/scene/load.h"
+#include "core/scene/subdivide.h"
 #include "core/surfels/surfels.h"
 #include "tests/common/scene_builders.h"
 #include "tests/common/testing.h"
@@ -58,6 +59,7 @@ std::size_t expectRasterIsTheScanAtCellCentres(const scene::Scene& scene, const 
 struct Traced {
   std::size_t on_rasters = 0;  // hits on big triangles
   std::size_t same = 0;        // of those, raster owner == nearest candidate
+  std::size_t small = 0;       // hits on triangles of one surfel or none (1 x 1 rasters)
 };
 
 // Rays from random points inside the scene bounds in random directions. On a big triangle
@@ -90,7 +92,9 @@ Traced expectRasterBoundOnTracedHits(const scene::Scene& scene, const surfels::S
       continue;
     }
     if (diagonal == 0.0f) {
-      if (owner != nearest && ++failures <= 10) ADD_FAILURE() << "off the rasters: " << owner << " vs " << nearest;
+      // A small triangle's 1 x 1 raster against its list, read by the other code path.
+      ++traced.small;
+      if (owner != nearest && ++failures <= 10) ADD_FAILURE() << "small triangle: " << owner << " vs " << nearest;
       continue;
     }
     ++traced.on_rasters;
@@ -152,6 +156,34 @@ TEST(SurfelLocator, RasterHoldsTheNearestCandidateInTheDemoScene) {
   const Traced traced = expectRasterBoundOnTracedHits(*loaded, *placed, locator, 300000, 3);
   EXPECT_GT(traced.on_rasters, 200000u);
   EXPECT_GT(double(traced.same), 0.7 * double(traced.on_rasters));
+}
+
+TEST(SurfelLocator, SmallTrianglesAnswerFromTheirOneCellRasters) {
+  // A room split into 6144 triangles with 2048 surfels: most triangles hold one surfel or
+  // none (then the surfel nearest their centroid stands for them).
+  scene::Scene s;
+  addBox(s, {0, 0, 0}, {4, 3, 5}, /*inward=*/true);
+  scene::subdivide(s, 4);
+  lightlink::testing::finishScene(s);
+  auto placed = surfels::placeSurfels(s, {.count = 2048});
+  ASSERT_TRUE(placed) << placed.status().toString();
+  const SurfelLocator locator(*placed, s);
+  const Traced traced = expectRasterBoundOnTracedHits(s, *placed, locator, 100000, 5);
+  EXPECT_GT(traced.small, 50000u);
+  EXPECT_GT(traced.on_rasters, 1000u);
+  // Every hit on a small triangle goes to a surfel on it, or to the one nearest its centroid.
+  std::size_t own = 0, total = 0;
+  for (std::uint32_t m = 0; m < s.meshes.size(); ++m) {
+    for (std::uint32_t t = 0; t < s.meshes[m].triangleCount(); ++t) {
+      if (locator.rasterSize(m, t) != 0) continue;
+      const std::uint32_t o = locator.ownerOfHit(m, t, 0.3f, 0.3f, glm::vec3(0.0f), glm::vec3(0, 1, 0));
+      ASSERT_LT(o, placed->size());
+      ++total;
+      own += (placed->mesh[o] == m && placed->triangle[o] == t) ? 1 : 0;
+    }
+  }
+  EXPECT_GT(total, 2000u);  // 2945 of the 6144
+  EXPECT_GT(own, 1000u);  // the triangles that hold their own surfel
 }
 
 TEST(SurfelLocator, RasterShrinksToItsMemoryBudget) {
