@@ -248,7 +248,8 @@ void chooseCut(std::span<const CutNode> nodes, const std::vector<Sample>& sample
 // in kSkyLanes interleaved partial sums added in a fixed order at the end. Every lane adds in
 // ray order, so the AVX2 and SSE2 builds of this loop (and the scalar one) give the same
 // bits; a plain reduction would not vectorise without reassociating. Most rays of an open
-// scene escape, and this loop makes them ~8x cheaper than projecting each one alone.
+// scene escape (ShadowsDirectional: 82 %), and projecting them one by one, scalar, was the
+// largest part of its link generation after the tracing.
 constexpr std::uint32_t kSkyLanes = 8;
 
 template <int Bands>
@@ -392,7 +393,7 @@ void linkCache(std::size_t cache, const glm::vec3& p, const glm::vec3& normal, c
     const float l1 = std::abs(sum_dir.x) + std::abs(sum_dir.y) + std::abs(sum_dir.z);
     out.direction.push_back(encodeOctahedral(l1 > 0.0f ? sum_dir : n));
   }
-  // |coefficient| <= w * count * max |Y| < 2: nothing saturates.
+  // |coefficient| <= (omega / pi) * max |Y_q| < 4: nothing comes near half's 65504.
   const std::size_t coeffs_at = out.coeffs.size(), solid_at = out.solid_angle.size();
   out.coeffs.resize(coeffs_at + links * kCoeffs);
   out.solid_angle.resize(solid_at + links);
