@@ -60,7 +60,7 @@ class SurfelLocator {
 
   // The owner of a hit on triangle `triangle` of mesh `mesh` at p with visible-side normal n.
   // (u, v): the hit's barycentrics on that triangle (Embree's convention, as Hit::u/v).
-  // Inline: it runs once per link ray, and a big triangle's answer is one load.
+  // Inline: it runs once per link ray, and a triangle's answer is one record and one load.
   std::uint32_t ownerOfHit(std::uint32_t mesh, std::uint32_t triangle, float u, float v, const glm::vec3& p,
                            const glm::vec3& n) const {
     const std::uint32_t k = rasterSlot(mesh, triangle, u, v);
@@ -70,8 +70,8 @@ class SurfelLocator {
 
   // ownerOfHit in two steps, for a caller that looks up many hits at once and wants the
   // raster loads (cache misses, most of the lookup's time) in flight together: the raster
-  // slot of a hit on a big triangle (kNoSurfel for other triangles: ask ownerOfHit), then
-  // the surfel in a slot (kNoSurfel for a slot beyond a hypotenuse: ask ownerOfHit).
+  // slot of a hit (kNoSurfel for a triangle without a raster: ask ownerOfHit), then the
+  // surfel in a slot (kNoSurfel for a slot beyond a hypotenuse: ask ownerOfHit).
   std::uint32_t rasterSlot(std::uint32_t mesh, std::uint32_t triangle, float u, float v) const {
     if (mesh + 1 >= mesh_first_.size()) return kNoSurfel;
     const std::uint32_t t = mesh_first_[mesh] + triangle;
@@ -90,17 +90,17 @@ class SurfelLocator {
   // raster with.
   std::uint32_t ownerOfHitNearest(std::uint32_t mesh, std::uint32_t triangle, float u, float v,
                                   const glm::vec3& p, const glm::vec3& n) const;
-  // The largest diagonal (metres) of a raster cell of that triangle, 0 when it has no raster:
+  // The largest diagonal (metres) of a raster cell of that big triangle, 0 for a small one:
   // the raster owner is at most this much farther from a hit on it than the nearest.
   float rasterCellDiagonal(std::uint32_t mesh, std::uint32_t triangle) const;
-  // Raster cells per side of that triangle's raster (g r), 0 when it has none. Cell (fu, fv)
+  // Raster cells per side of that big triangle's raster (g r), 0 for a small one. Cell (fu, fv)
   // has its centre at ((fu + 0.5) / size, (fv + 0.5) / size), computed as
   // (float(f) + 0.5f) * (1.0f / float(size)).
   std::uint32_t rasterSize(std::uint32_t mesh, std::uint32_t triangle) const;
 
   float cellSize() const { return cell_; }
-  // Raster cells over all big triangles, and r (raster cells per big-triangle cell and side):
-  // for tests and the benchmark's report.
+  // Raster cells over all triangles (1 for each small one), and r (raster cells per
+  // big-triangle cell and side): for tests and the benchmark's report.
   std::size_t rasterCellCount() const { return raster_.size(); }
   std::uint32_t rasterFactor() const { return raster_factor_; }
 
