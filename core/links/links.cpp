@@ -248,8 +248,8 @@ void chooseCut(std::span<const CutNode> nodes, const std::vector<Sample>& sample
 // in kSkyLanes interleaved partial sums added in a fixed order at the end. Every lane adds in
 // ray order, so the AVX2 and SSE2 builds of this loop (and the scalar one) give the same
 // bits; a plain reduction would not vectorise without reassociating. Most rays of an open
-// scene escape (ShadowsDirectional: 82 %), and projecting them one by one, scalar, was the
-// largest part of its link generation after the tracing.
+// scene escape (ShadowsDirectional: 82 %); there the hit loop with the sky projected ray by
+// ray took 0.23 Gcycles, this pass and the owner rasters 0.10 (docs/results.md).
 constexpr std::uint32_t kSkyLanes = 8;
 
 template <int Bands>
