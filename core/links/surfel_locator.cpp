@@ -58,51 +58,32 @@ SurfelLocator::SurfelLocator(const surfels::Surfels& surfels, const scene::Scene
     cell_position_[k] = surfels.position[ids_[k]];
     cell_normal_[k] = surfels.normal[ids_[k]];
   }
-  buildTriangleLists(surfels, scene);
+  buildTriangleTables(surfels, scene);
 }
 
-void SurfelLocator::buildTriangleLists(const surfels::Surfels& surfels, const scene::Scene& scene) {
+void SurfelLocator::buildTriangleTables(const surfels::Surfels& surfels, const scene::Scene& scene) {
   const std::size_t meshes = scene.meshes.size();
   mesh_first_.assign(meshes + 1, 0);
   for (std::size_t m = 0; m < meshes; ++m)
     mesh_first_[m + 1] = mesh_first_[m] + static_cast<std::uint32_t>(scene.meshes[m].triangleCount());
   const std::uint32_t tris = mesh_first_.back();
-  std::vector<std::uint32_t> count(tris, 0);
+  // Per triangle: how many surfels lie on it, and (for one) which.
+  std::vector<std::uint32_t> count(tris, 0), only(tris, kNoSurfel);
   const std::size_t n = surfels.size();
   for (std::size_t i = 0; i < n; ++i) {
     if (surfels.mesh[i] >= meshes) continue;
-    ++count[mesh_first_[surfels.mesh[i]] + surfels.triangle[i]];
-  }
-  tri_use_grid_.assign(tris, 0);
-  tri_begin_.assign(tris + 1, 0);
-  for (std::uint32_t t = 0; t < tris; ++t) {
-    std::uint32_t c = count[t];
-    if (c > kTriangleListMax) {
-      tri_use_grid_[t] = 1;
-      c = 0;
-    }
-    // An empty triangle gets one entry (its nearest surfel), filled below.
-    tri_begin_[t + 1] = tri_begin_[t] + (c == 0 && !tri_use_grid_[t] ? 1 : c);
-  }
-  tri_surfel_.assign(tri_begin_.back(), kNoSurfel);
-  tri_position_.assign(tri_begin_.back(), glm::vec3(0.0f));
-  std::vector<std::uint32_t> fill(tri_begin_.begin(), tri_begin_.end() - 1);
-  for (std::size_t i = 0; i < n; ++i) {
-    if (surfels.mesh[i] >= meshes) continue;
     const std::uint32_t t = mesh_first_[surfels.mesh[i]] + surfels.triangle[i];
-    if (tri_use_grid_[t]) continue;
-    tri_surfel_[fill[t]] = static_cast<std::uint32_t>(i);
-    tri_position_[fill[t]] = surfels.position[i];
-    ++fill[t];
+    ++count[t];
+    only[t] = static_cast<std::uint32_t>(i);
   }
-  // Big triangles: bin their surfels by barycentric cell.
+  // Big triangles (more than one surfel): bin their surfels by barycentric cell.
   big_of_tri_.assign(tris, kNoSurfel);
   std::vector<std::uint32_t> cell_count;
   std::vector<std::uint32_t> big_mesh, big_triangle;
   for (std::size_t m = 0; m < meshes; ++m) {
     for (std::uint32_t tri = 0; tri < scene.meshes[m].triangleCount(); ++tri) {
       const std::uint32_t t = mesh_first_[m] + tri;
-      if (!tri_use_grid_[t]) continue;
+      if (count[t] <= 1) continue;
       BigTriangle big;
       big.g = static_cast<std::uint32_t>(std::ceil(std::sqrt(double(count[t]))));
       big.first_cell = static_cast<std::uint32_t>(cell_count.size());
@@ -140,39 +121,36 @@ void SurfelLocator::buildTriangleLists(const surfels::Surfels& surfels, const sc
   }
   buildRasters(scene, big_mesh, big_triangle);
 
-  // Triangles too small to hold a surfel of their own (their area went into a neighbour's
-  // slice) are represented by the surfel nearest to their centroid.
+  // Every triangle's raster reference: a big triangle's raster, or a 1 x 1 raster holding a
+  // small triangle's surfel. A triangle too small to hold one of its own (its area went into
+  // a neighbour's slice) is represented by the surfel nearest to its centroid.
+  raster_of_tri_.assign(tris, kNoSurfel);
+  raster_ref_.reserve(tris);
   for (std::size_t m = 0; m < meshes; ++m) {
     const auto& mesh = scene.meshes[m];
     for (std::uint32_t tri = 0; tri < mesh.triangleCount(); ++tri) {
       const std::uint32_t t = mesh_first_[m] + tri;
-      if (tri_use_grid_[t] || count[t] != 0) continue;
-      const glm::vec3 p0 = mesh.positions[mesh.indices[3 * tri]], p1 = mesh.positions[mesh.indices[3 * tri + 1]],
-                      p2 = mesh.positions[mesh.indices[3 * tri + 2]];
-      const glm::vec3 c = (p0 + p1 + p2) / 3.0f;
-      glm::vec3 nrm = glm::cross(p1 - p0, p2 - p0);
-      const float len = glm::length(nrm);
-      nrm = len > 0.0f ? nrm / len : glm::vec3(0.0f, 0.0f, 1.0f);
-      const std::uint32_t s = owner(c, nrm);
-      tri_surfel_[tri_begin_[t]] = s;
-      tri_position_[tri_begin_[t]] = s == kNoSurfel ? c : surfels.position[s];
+      RasterRef ref;
+      if (big_of_tri_[t] != kNoSurfel) {
+        const BigTriangle& big = big_[big_of_tri_[t]];
+        ref = {big.first_raster, big.gr, static_cast<float>(big.gr), static_cast<float>(big.gr - 1)};
+      } else {
+        std::uint32_t s = only[t];
+        if (count[t] == 0) {
+          const glm::vec3 p0 = mesh.positions[mesh.indices[3 * tri]], p1 = mesh.positions[mesh.indices[3 * tri + 1]],
+                          p2 = mesh.positions[mesh.indices[3 * tri + 2]];
+          glm::vec3 nrm = glm::cross(p1 - p0, p2 - p0);
+          const float len = glm::length(nrm);
+          nrm = len > 0.0f ? nrm / len : glm::vec3(0.0f, 0.0f, 1.0f);
+          s = owner((p0 + p1 + p2) / 3.0f, nrm);
+        }
+        if (s == kNoSurfel) continue;
+        ref.first = static_cast<std::uint32_t>(raster_.size());
+        raster_.push_back(s);
+      }
+      raster_of_tri_[t] = static_cast<std::uint32_t>(raster_ref_.size());
+      raster_ref_.push_back(ref);
     }
-  }
-
-  raster_of_tri_.assign(tris, kNoSurfel);
-  raster_ref_.reserve(tris);
-  for (std::uint32_t t = 0; t < tris; ++t) {
-    RasterRef ref;
-    if (big_of_tri_[t] != kNoSurfel) {
-      const BigTriangle& big = big_[big_of_tri_[t]];
-      ref = {big.first_raster, big.gr, static_cast<float>(big.gr), static_cast<float>(big.gr - 1)};
-    } else {
-      if (tri_begin_[t + 1] - tri_begin_[t] != 1 || tri_surfel_[tri_begin_[t]] == kNoSurfel) continue;
-      ref.first = static_cast<std::uint32_t>(raster_.size());
-      raster_.push_back(tri_surfel_[tri_begin_[t]]);
-    }
-    raster_of_tri_[t] = static_cast<std::uint32_t>(raster_ref_.size());
-    raster_ref_.push_back(ref);
   }
 }
 
@@ -206,30 +184,42 @@ std::uint32_t SurfelLocator::search(const glm::vec3& p, const glm::vec3& n, int 
   return best == kNoSurfel ? kNoSurfel : ids_[best];
 }
 
-std::uint32_t SurfelLocator::scanBigTriangle(const BigTriangle& big, float u, float v, const glm::vec3& p) const {
+void SurfelLocator::cellCandidates(const BigTriangle& big, int iu, int iv, std::vector<std::uint32_t>& out) const {
   const auto g = static_cast<int>(big.g);
-  const int iu = std::clamp(static_cast<int>(u * float(g)), 0, g - 1);
-  const int iv = std::clamp(static_cast<int>(v * float(g)), 0, g - 1);
-  std::uint32_t best = kNoSurfel;
-  float best_d2 = std::numeric_limits<float>::infinity();
+  out.clear();
   // 3 x 3 cells first; if they are all empty (a hole in the surfel cover), the whole triangle.
   for (int radius : {1, g}) {
     for (int cv = std::max(0, iv - radius); cv <= std::min(g - 1, iv + radius); ++cv) {
       const std::uint32_t row = big.first_cell + static_cast<std::uint32_t>(cv * g);
       const std::uint32_t begin = big_cell_begin_[row + static_cast<std::uint32_t>(std::max(0, iu - radius))];
       const std::uint32_t end = big_cell_begin_[row + static_cast<std::uint32_t>(std::min(g - 1, iu + radius)) + 1];
-      for (std::uint32_t k = begin; k < end; ++k) {
-        const glm::vec3 d = big_position_[k] - p;
-        const float d2 = glm::dot(d, d);
-        if (d2 < best_d2) {
-          best_d2 = d2;
-          best = big_surfel_[k];
-        }
-      }
+      for (std::uint32_t k = begin; k < end; ++k) out.push_back(k);
     }
-    if (best != kNoSurfel) break;
+    if (!out.empty()) break;
+  }
+}
+
+std::uint32_t SurfelLocator::nearestCandidate(const std::vector<std::uint32_t>& candidates, const glm::vec3& p) const {
+  std::uint32_t best = kNoSurfel;
+  float best_d2 = std::numeric_limits<float>::infinity();
+  for (std::uint32_t k : candidates) {
+    const glm::vec3 d = big_position_[k] - p;
+    const float d2 = glm::dot(d, d);
+    // Candidates come in a fixed order (cells, then surfels), so ties resolve the same way.
+    if (d2 < best_d2) {
+      best_d2 = d2;
+      best = big_surfel_[k];
+    }
   }
   return best;
+}
+
+std::uint32_t SurfelLocator::scanBigTriangle(const BigTriangle& big, float u, float v, const glm::vec3& p) const {
+  const auto g = static_cast<int>(big.g);
+  std::vector<std::uint32_t> candidates;
+  cellCandidates(big, std::clamp(static_cast<int>(u * float(g)), 0, g - 1),
+                 std::clamp(static_cast<int>(v * float(g)), 0, g - 1), candidates);
+  return nearestCandidate(candidates, p);
 }
 
 void SurfelLocator::buildRasters(const scene::Scene& scene, const std::vector<std::uint32_t>& big_mesh,
@@ -271,39 +261,17 @@ void SurfelLocator::buildRasters(const scene::Scene& scene, const std::vector<st
         // they stay kNoSurfel (the grid search answers a stray one) and cost nothing to build,
         // where their empty 3 x 3 neighbourhoods would scan the whole triangle.
         if (static_cast<double>(iu + iv) / static_cast<double>(g) > 1.0 + 1e-4) continue;
-        // The cell's candidates, exactly as scanBigTriangle collects them (ascending index).
-        cand.clear();
-        for (int radius : {1, g}) {
-          for (int cv = std::max(0, iv - radius); cv <= std::min(g - 1, iv + radius); ++cv) {
-            const std::uint32_t row = big.first_cell + static_cast<std::uint32_t>(cv * g);
-            const std::uint32_t begin = big_cell_begin_[row + static_cast<std::uint32_t>(std::max(0, iu - radius))];
-            const std::uint32_t end = big_cell_begin_[row + static_cast<std::uint32_t>(std::min(g - 1, iu + radius)) + 1];
-            for (std::uint32_t k = begin; k < end; ++k) cand.push_back(k);
-          }
-          if (!cand.empty()) break;
-        }
+        cellCandidates(big, iu, iv, cand);
         if (cand.empty()) continue;
         for (std::uint32_t sv = 0; sv < r; ++sv) {
           const std::uint32_t fv = static_cast<std::uint32_t>(iv) * r + sv;
           for (std::uint32_t su = 0; su < r; ++su) {
             const std::uint32_t fu = static_cast<std::uint32_t>(iu) * r + su;
             if (static_cast<double>(fu + fv) / static_cast<double>(big.gr) > 1.0 + 1e-4) continue;
-            // The raster cell's centre, evaluated as a hit there would be (rasterCentre).
+            // The raster cell's centre, evaluated as a hit there would be (rasterSize's rule):
+            // the owner the scan gives there.
             const float uc = (static_cast<float>(fu) + 0.5f) * inv_gr, vc = (static_cast<float>(fv) + 0.5f) * inv_gr;
-            const glm::vec3 c = big.v0 + uc * big.e1 + vc * big.e2;
-            // Same arithmetic and order as scanBigTriangle: first of equally near wins.
-            std::uint32_t best = cand[0];
-            glm::vec3 d = big_position_[best] - c;
-            float best_d2 = glm::dot(d, d);
-            for (std::size_t k = 1; k < cand.size(); ++k) {
-              d = big_position_[cand[k]] - c;
-              const float d2 = glm::dot(d, d);
-              if (d2 < best_d2) {
-                best_d2 = d2;
-                best = cand[k];
-              }
-            }
-            raster_[big.first_raster + fv * big.gr + fu] = big_surfel_[best];
+            raster_[big.first_raster + fv * big.gr + fu] = nearestCandidate(cand, big.v0 + uc * big.e1 + vc * big.e2);
           }
         }
       }
@@ -311,55 +279,30 @@ void SurfelLocator::buildRasters(const scene::Scene& scene, const std::vector<st
   });
 }
 
+const SurfelLocator::BigTriangle* SurfelLocator::bigTriangle(std::uint32_t mesh, std::uint32_t triangle) const {
+  const std::uint32_t t = globalTriangle(mesh, triangle);
+  return t == kNoSurfel || big_of_tri_[t] == kNoSurfel ? nullptr : &big_[big_of_tri_[t]];
+}
+
 float SurfelLocator::rasterCellDiagonal(std::uint32_t mesh, std::uint32_t triangle) const {
-  if (mesh + 1 >= mesh_first_.size()) return 0.0f;
-  const std::uint32_t t = mesh_first_[mesh] + triangle;
-  if (t >= big_of_tri_.size() || big_of_tri_[t] == kNoSurfel) return 0.0f;
-  const BigTriangle& big = big_[big_of_tri_[t]];
-  const float inv = 1.0f / static_cast<float>(big.gr);
+  const BigTriangle* big = bigTriangle(mesh, triangle);
+  if (!big) return 0.0f;
   // A raster cell is the parallelogram spanned by e1 / gr and e2 / gr.
-  return std::max(glm::length(big.e1 + big.e2), glm::length(big.e1 - big.e2)) * inv;
+  return std::max(glm::length(big->e1 + big->e2), glm::length(big->e1 - big->e2)) * (1.0f / static_cast<float>(big->gr));
 }
 
 std::uint32_t SurfelLocator::rasterSize(std::uint32_t mesh, std::uint32_t triangle) const {
-  if (mesh + 1 >= mesh_first_.size()) return 0;
-  const std::uint32_t t = mesh_first_[mesh] + triangle;
-  if (t >= big_of_tri_.size() || big_of_tri_[t] == kNoSurfel) return 0;
-  return big_[big_of_tri_[t]].gr;
-}
-
-std::uint32_t SurfelLocator::ownerOfHitSlow(std::uint32_t mesh, std::uint32_t triangle, const glm::vec3& p,
-                                            const glm::vec3& n) const {
-  if (mesh + 1 < mesh_first_.size()) {
-    const std::uint32_t t = mesh_first_[mesh] + triangle;
-    if (t < tri_use_grid_.size() && !tri_use_grid_[t]) {
-      std::uint32_t best = kNoSurfel;
-      float best_d2 = std::numeric_limits<float>::infinity();
-      for (std::uint32_t k = tri_begin_[t]; k < tri_begin_[t + 1]; ++k) {
-        if (tri_surfel_[k] == kNoSurfel) break;
-        const glm::vec3 d = tri_position_[k] - p;
-        const float d2 = glm::dot(d, d);
-        if (d2 < best_d2) {
-          best_d2 = d2;
-          best = tri_surfel_[k];
-        }
-      }
-      if (best != kNoSurfel) return best;
-    }
-  }
-  return owner(p, n);
+  const BigTriangle* big = bigTriangle(mesh, triangle);
+  return big ? big->gr : 0;
 }
 
 std::uint32_t SurfelLocator::ownerOfHitNearest(std::uint32_t mesh, std::uint32_t triangle, float u, float v,
                                                const glm::vec3& p, const glm::vec3& n) const {
-  if (mesh + 1 < mesh_first_.size()) {
-    const std::uint32_t t = mesh_first_[mesh] + triangle;
-    if (t < big_of_tri_.size() && big_of_tri_[t] != kNoSurfel) {
-      const std::uint32_t s = scanBigTriangle(big_[big_of_tri_[t]], u, v, p);
-      if (s != kNoSurfel) return s;
-    }
+  if (const BigTriangle* big = bigTriangle(mesh, triangle)) {
+    const std::uint32_t s = scanBigTriangle(*big, u, v, p);
+    if (s != kNoSurfel) return s;
   }
-  return ownerOfHitSlow(mesh, triangle, p, n);
+  return ownerOfHit(mesh, triangle, u, v, p, n);
 }
 
 std::uint32_t SurfelLocator::owner(const glm::vec3& p, const glm::vec3& n) const {

@@ -47,8 +47,6 @@ inline constexpr std::uint32_t kNoSurfel = std::numeric_limits<std::uint32_t>::m
 
 class SurfelLocator {
  public:
-  // Triangles with more surfels than this get a g x g grid and an r x r raster per cell.
-  static constexpr std::uint32_t kTriangleListMax = 1;
   // Raster cells per big-triangle cell and side, and the most raster cells all big triangles
   // may hold together (4 bytes each); past that budget r halves (down to 1).
   static constexpr std::uint32_t kRaster = 4;
@@ -66,7 +64,7 @@ class SurfelLocator {
                            const glm::vec3& n) const {
     const std::uint32_t k = rasterSlot(mesh, triangle, u, v);
     if (k != kNoSurfel && raster_[k] != kNoSurfel) return raster_[k];
-    return ownerOfHitSlow(mesh, triangle, p, n);
+    return owner(p, n);
   }
 
   // ownerOfHit in two steps, for a caller that looks up many hits at once and wants the
@@ -74,9 +72,8 @@ class SurfelLocator {
   // slot of a hit (kNoSurfel for a triangle without a raster: ask ownerOfHit), then the
   // surfel in a slot (kNoSurfel for a slot beyond a hypotenuse: ask ownerOfHit).
   std::uint32_t rasterSlot(std::uint32_t mesh, std::uint32_t triangle, float u, float v) const {
-    if (mesh + 1 >= mesh_first_.size()) return kNoSurfel;
-    const std::uint32_t t = mesh_first_[mesh] + triangle;
-    if (t >= raster_of_tri_.size() || raster_of_tri_[t] == kNoSurfel) return kNoSurfel;
+    const std::uint32_t t = globalTriangle(mesh, triangle);
+    if (t == kNoSurfel || raster_of_tri_[t] == kNoSurfel) return kNoSurfel;
     return rasterIndex(raster_ref_[raster_of_tri_[t]], u, v);
   }
   std::uint32_t slotOwner(std::uint32_t slot) const { return raster_[slot]; }
@@ -107,7 +104,7 @@ class SurfelLocator {
 
  private:
   glm::ivec3 cellOf(const glm::vec3& p) const;
-  void buildTriangleLists(const surfels::Surfels& surfels, const scene::Scene& scene);
+  void buildTriangleTables(const surfels::Surfels& surfels, const scene::Scene& scene);
   std::uint32_t search(const glm::vec3& p, const glm::vec3& n, int radius, float min_cos) const;
 
   glm::vec3 origin_{0.0f};
@@ -120,16 +117,16 @@ class SurfelLocator {
   // of gathering from the surfel arrays (the owner lookup runs once per link ray).
   std::vector<glm::vec3> cell_position_;
   std::vector<glm::vec3> cell_normal_;
-  // Per-triangle surfel lists (CSR over global triangle ids = mesh_first_[mesh] + triangle)
-  // of the triangles with at most kTriangleListMax surfels: one entry, its surfel or the one
-  // nearest its centroid, which its 1 x 1 raster holds too; empty for big triangles.
+  // Global triangle ids: mesh_first_[mesh] + triangle.
   std::vector<std::uint32_t> mesh_first_;
-  std::vector<std::uint32_t> tri_begin_;
-  std::vector<std::uint32_t> tri_surfel_;
-  std::vector<glm::vec3> tri_position_;
-  std::vector<std::uint8_t> tri_use_grid_;
-  // Triangles with more than kTriangleListMax surfels ("big"): a g x g grid over (u, v)
-  // each, and its (g r) x (g r) owner raster.
+  // (mesh, triangle) as a global id, kNoSurfel when either is out of range.
+  std::uint32_t globalTriangle(std::uint32_t mesh, std::uint32_t triangle) const {
+    if (mesh + 1 >= mesh_first_.size()) return kNoSurfel;
+    const std::uint32_t t = mesh_first_[mesh] + triangle;
+    return t < mesh_first_.back() ? t : kNoSurfel;
+  }
+  // Triangles with more than one surfel ("big"): a g x g grid over (u, v) each, and its
+  // (g r) x (g r) owner raster.
   struct BigTriangle {
     glm::vec3 v0{0.0f}, e1{0.0f}, e2{0.0f};  // as traced: P(u, v) = v0 + u e1 + v e2
     std::uint32_t g = 0;            // cells per side
@@ -153,8 +150,6 @@ class SurfelLocator {
     };
     return ref.first + axis(v) * ref.size + axis(u);
   }
-  std::uint32_t ownerOfHitSlow(std::uint32_t mesh, std::uint32_t triangle, const glm::vec3& p,
-                               const glm::vec3& n) const;
   std::vector<std::uint32_t> big_of_tri_;  // global triangle -> index into big_, or kNoSurfel
   std::vector<BigTriangle> big_;
   std::vector<std::uint32_t> big_cell_begin_;  // CSR over all big triangles' cells
@@ -167,6 +162,13 @@ class SurfelLocator {
   std::size_t raster_budget_ = kRasterBudget;
   void buildRasters(const scene::Scene& scene, const std::vector<std::uint32_t>& big_mesh,
                     const std::vector<std::uint32_t>& big_triangle);
+  const BigTriangle* bigTriangle(std::uint32_t mesh, std::uint32_t triangle) const;  // null for a small one
+  // The candidates of big-triangle cell (iu, iv): indices into big_position_ / big_surfel_ of
+  // the 3 x 3 cells around it (the whole triangle when those are empty), in a fixed order.
+  void cellCandidates(const BigTriangle& big, int iu, int iv, std::vector<std::uint32_t>& out) const;
+  // The surfel of the candidate nearest to p, the first of equally near ones.
+  std::uint32_t nearestCandidate(const std::vector<std::uint32_t>& candidates, const glm::vec3& p) const;
+  // nearestCandidate over the candidates of (u, v)'s cell: what the raster samples.
   std::uint32_t scanBigTriangle(const BigTriangle& big, float u, float v, const glm::vec3& p) const;
 };
 
