@@ -41,7 +41,6 @@ using Sample = std::uint64_t;
 inline Sample makeSample(std::uint32_t surfel, std::uint32_t ray) { return (Sample(surfel) << 32) | ray; }
 inline std::uint32_t rayOf(Sample s) { return static_cast<std::uint32_t>(s); }
 
-// Per-thread scratch, reused across caches so the hot loop never allocates.
 struct CutEntry {
   std::uint32_t count, node, first;  // visible samples, tree node, index of its first sample
 };
@@ -106,6 +105,7 @@ class OpenHeap {
   std::vector<OpenEntry>& h_;
 };
 
+// Per-thread scratch, reused across caches so the hot loop never allocates.
 struct Scratch {
   std::vector<rt::Ray> rays;
   std::vector<rt::Hit> hits;
@@ -116,16 +116,16 @@ struct Scratch {
   std::vector<OpenEntry> open;          // the cut's priority queue (OpenHeap)
   std::vector<std::uint32_t> at_first;  // per sample: the cut entry starting there
   std::vector<std::uint32_t> slots;     // per ray: owner raster slot or ray class
-  std::vector<float> dir_x, dir_y, dir_z;  // per ray, padded to `padded`
-  std::vector<float> escaped;           // per ray: 1 escaped, 0 not; padded with 0
-  std::uint32_t padded = 0;             // rays rounded up to kSkyLanes
+  std::vector<float> dir_x, dir_y, dir_z;  // per ray, padded to a multiple of kSkyLanes
+  std::vector<float> escaped;           // per ray: 1 escaped, 0 not (0 in the padding)
   std::vector<float> coeff_values;      // per link of the cache: its SH in float, then fp16
   std::vector<float> solid_values;
 };
 
-// What the cut reads of a tree node, packed so that a refinement touches one cache line
-// instead of three arrays (left, right, end of left) of 65k+ nodes each: those misses were
-// most of the cut's time.
+// What the cut reads of a tree node, packed so that a refinement touches one record instead
+// of three arrays (left, right, end of left) of 65k+ nodes each. With the keyed heap and the
+// branch-free search below, the cut went from 0.52-0.55 to 0.27 Gcycles on the Cornell box
+// (docs/results.md, phase table).
 struct CutNode {
   std::uint32_t left;   // kLeaf for a leaf
   std::uint32_t right;
@@ -147,8 +147,8 @@ std::vector<CutNode> cutNodes(const hierarchy::Tree& tree) {
 }
 
 // First position in sorted [first, first + n) whose key is >= key. Branch-free: the loop runs
-// ceil(log2 n) times whatever the data, and the select compiles to a conditional move (the
-// searches' mispredictions were most of the cut's time).
+// ceil(log2 n) times whatever the data, and the select compiles to a conditional move (a
+// profile of the old cut had its samples on std::lower_bound's branches and the heap's).
 inline std::uint32_t lowerBound(const Sample* first, std::uint32_t n, Sample key) {
   if (n == 0) return 0;
   const Sample* base = first;
@@ -251,6 +251,8 @@ void chooseCut(std::span<const CutNode> nodes, const std::vector<Sample>& sample
 // scene escape (ShadowsDirectional: 82 %); there the hit loop with the sky projected ray by
 // ray took 0.23 Gcycles, this pass and the owner rasters 0.10 (docs/results.md).
 constexpr std::uint32_t kSkyLanes = 8;
+// Rays rounded up to whole groups of lanes: the length of the sky pass's arrays.
+constexpr std::uint32_t skyPadded(std::uint32_t rays) { return (rays + kSkyLanes - 1) / kSkyLanes * kSkyLanes; }
 
 template <int Bands>
 __attribute__((always_inline)) inline void skyPolynomialsImpl(const float* __restrict escaped, const float* __restrict x,
@@ -308,10 +310,14 @@ void linkCache(std::size_t cache, const glm::vec3& p, const glm::vec3& normal, c
   const float omega = hemisphere ? 2.0f * kPi : 4.0f * kPi;
   const float w = omega / static_cast<float>(count) / kPi;  // per-ray weight of V/pi
   std::uint32_t escaped = 0;
-  float* escaped_mask = s.escaped.data();  // 1 for a ray that escaped, else 0; padded with 0
+  float* escaped_mask = s.escaped.data();  // 1 for a ray that escaped, else 0
+  // The sky pass reads whole groups of kSkyLanes: the padding counts nothing.
+  const std::uint32_t padded = skyPadded(count);
+  for (std::uint32_t i = count; i < padded; ++i) escaped_mask[i] = dirs.x[i] = dirs.y[i] = dirs.z[i] = 0.0f;
   s.samples.clear();
-  // Classify every ray first and start the raster loads of hits on big triangles (the
-  // owner raster is MiBs and every hit lands on another line); then read the owners.
+  // Classify every ray first and start the raster loads of its hits (the owner rasters are
+  // MiBs and every hit lands on another line: without the prefetch this classification was
+  // 12 % slower on the Cornell box and zdm2); then read the owners.
   // Slots hold a raster slot, or one of these for rays that need no raster load.
   constexpr std::uint32_t kEscaped = 0xffffffffu, kBlocked = 0xfffffffeu, kAskLocator = 0xfffffffdu;
   std::uint32_t* slot = s.slots.data();
@@ -359,7 +365,7 @@ void linkCache(std::size_t cache, const glm::vec3& p, const glm::vec3& normal, c
   out.stats.rays += count;
   out.stats.escaped += escaped;
   float sky_poly[kCoeffs];  // sums of the basis polynomials over the escaped rays
-  skyPolynomials<Bands>(escaped_mask, dirs.x, dirs.y, dirs.z, s.padded, sky_poly);
+  skyPolynomials<Bands>(escaped_mask, dirs.x, dirs.y, dirs.z, padded, sky_poly);
   sky_poly[0] = static_cast<float>(escaped);
   float sky[kCoeffs];
   for (int q = 0; q < kCoeffs; ++q) sky[q] = w * sh::kBasisScale[q] * sky_poly[q];
@@ -621,8 +627,7 @@ Expected<Links> generateLinks(const scene::Scene& scene, const rt::Accel& accel,
     scratch.hits.resize(pattern.count());
     scratch.at_first.resize(pattern.count());
     scratch.slots.resize(pattern.count());
-    scratch.padded = (pattern.count() + kSkyLanes - 1) / kSkyLanes * kSkyLanes;
-    for (auto* v : {&scratch.dir_x, &scratch.dir_y, &scratch.dir_z, &scratch.escaped}) v->assign(scratch.padded, 0.0f);
+    for (auto* v : {&scratch.dir_x, &scratch.dir_y, &scratch.dir_z, &scratch.escaped}) v->resize(skyPadded(pattern.count()));
     scratch.coeff_values.resize(std::size_t(options.max_links) * std::size_t(options.bands * options.bands));
     scratch.solid_values.resize(std::size_t(options.max_links));
     ChunkResult& out = results[chunk];
