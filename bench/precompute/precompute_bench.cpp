@@ -21,6 +21,7 @@
 #include <nlohmann/json.hpp>
 #include <tbb/info.h>
 
+#include "bench/common/bench_common.h"
 #include "bench/rt/throughput.h"
 #include "core/links/surfel_locator.h"
 #include "core/precompute/precompute.h"
@@ -143,9 +144,7 @@ int main(int argc, char** argv) {
     pair_ratios.push_back(rrps > 0 ? lrps / rrps : 0.0);
     pair_rows.push_back({{"link_rays_per_second", lrps}, {"raw_rays_per_second", rrps}, {"ratio", pair_ratios.back()}});
   }
-  std::vector<double> sorted_ratios = pair_ratios;
-  std::sort(sorted_ratios.begin(), sorted_ratios.end());
-  const double median_ratio = sorted_ratios.empty() ? 0.0 : sorted_ratios[sorted_ratios.size() / 2];
+  const double median_ratio = bench::median(pair_ratios);
 
   // The owner lookup's set-up, part of the link time above: built once per generateLinks
   // call (lightmap and grid caches each), timed here on its own.

@@ -57,8 +57,8 @@ struct PrecomputeOptions {
 
 // Bumped whenever the same scene and options give different artifact contents (not a format
 // change: readers accept both). Part of the cache key, so a daemon's cache directory never
-// reuses an artifact an older generator made. 2: owner rasters on big triangles and 32-bit
-// ray jitter in link generation.
+// reuses an artifact an older generator made. 2: owner rasters and 32-bit ray jitter in
+// link generation.
 inline constexpr int kGeneratorRevision = 2;
 
 // Named quality presets for `lightlink bake` and the daemon: "draft", "medium" (seed 000
