@@ -9,6 +9,7 @@
 #include <tbb/parallel_for.h>
 
 #include "core/common/sampling.h"
+#include "core/links/cut.h"
 #include "core/links/surfel_locator.h"
 #include "core/sh/sh.h"
 
@@ -35,76 +36,6 @@ std::uint32_t strataFor(const LinkOptions& options) {
   return static_cast<std::uint32_t>(std::max(1.0, std::floor(std::sqrt(double(options.rays)))));
 }
 
-// A credited hit as one sortable key: owner surfel in the high half, ray in the low half,
-// so sorting the keys groups hits by surfel (tree order) with a fixed order inside.
-using Sample = std::uint64_t;
-inline Sample makeSample(std::uint32_t surfel, std::uint32_t ray) { return (Sample(surfel) << 32) | ray; }
-inline std::uint32_t rayOf(Sample s) { return static_cast<std::uint32_t>(s); }
-
-struct CutEntry {
-  std::uint32_t count, node, first;  // visible samples, tree node, index of its first sample
-};
-
-// The cut's open nodes as a binary max-heap keyed by one integer: visible samples in the high
-// half, the complement of the node in the low half (so ties go to the lower node index, for
-// determinism). Keys are unique, so the order of pops does not depend on the heap's layout.
-struct OpenEntry {
-  std::uint64_t key;
-  std::uint32_t first;
-};
-inline std::uint64_t openKey(std::uint32_t count, std::uint32_t node) {
-  return (std::uint64_t(count) << 32) | std::uint32_t(~node);
-}
-
-class OpenHeap {
- public:
-  explicit OpenHeap(std::vector<OpenEntry>& storage) : h_(storage) { h_.clear(); }
-  bool empty() const { return h_.empty(); }
-  std::size_t size() const { return h_.size(); }
-  const OpenEntry& top() const { return h_[0]; }
-  void push(OpenEntry e) {
-    h_.push_back(e);
-    siftUp(h_.size() - 1);
-  }
-  // Replaces the top (with a key no larger than it had: a child of the popped node).
-  void replaceTop(OpenEntry e) {
-    h_[0] = e;
-    siftDown(0);
-  }
-  void popTop() {
-    h_[0] = h_.back();
-    h_.pop_back();
-    if (!h_.empty()) siftDown(0);
-  }
-  const std::vector<OpenEntry>& entries() const { return h_; }
-
- private:
-  void siftUp(std::size_t i) {
-    const OpenEntry e = h_[i];
-    while (i > 0) {
-      const std::size_t parent = (i - 1) / 2;
-      if (h_[parent].key >= e.key) break;
-      h_[i] = h_[parent];
-      i = parent;
-    }
-    h_[i] = e;
-  }
-  void siftDown(std::size_t i) {
-    const OpenEntry e = h_[i];
-    const std::size_t n = h_.size();
-    for (;;) {
-      std::size_t c = 2 * i + 1;
-      if (c >= n) break;
-      c += (c + 1 < n && h_[c + 1].key > h_[c].key) ? 1 : 0;
-      if (h_[c].key <= e.key) break;
-      h_[i] = h_[c];
-      i = c;
-    }
-    h_[i] = e;
-  }
-  std::vector<OpenEntry>& h_;
-};
-
 // Per-thread scratch, reused across caches so the hot loop never allocates.
 struct Scratch {
   std::vector<rt::Ray> rays;
@@ -112,53 +43,13 @@ struct Scratch {
   std::vector<Sample> samples;
   std::vector<Sample> sort_buffer;
   std::vector<CutEntry> cut;
-  std::vector<CutEntry> ordered;
-  std::vector<OpenEntry> open;          // the cut's priority queue (OpenHeap)
-  std::vector<std::uint32_t> at_first;  // per sample: the cut entry starting there
+  CutScratch cut_scratch;
   std::vector<std::uint32_t> slots;     // per ray: owner raster slot or ray class
   std::vector<float> dir_x, dir_y, dir_z;  // per ray, padded to a multiple of kSkyLanes
   std::vector<float> escaped;           // per ray: 1 escaped, 0 not (0 in the padding)
   std::vector<float> coeff_values;      // per link of the cache: its SH in float, then fp16
   std::vector<float> solid_values;
 };
-
-// What the cut reads of a tree node, packed so that a refinement touches one record instead
-// of three arrays (left, right, end of left) of 65k+ nodes each. With the keyed heap and the
-// branch-free search below, the cut went from 0.52-0.55 to 0.27 Gcycles on the Cornell box
-// (docs/results.md, phase table).
-struct CutNode {
-  std::uint32_t left;   // kLeaf for a leaf
-  std::uint32_t right;
-  std::uint32_t split;  // first surfel of the right child (= end of the left child's range)
-};
-constexpr std::uint32_t kLeaf = 0xffffffffu;
-
-std::vector<CutNode> cutNodes(const hierarchy::Tree& tree) {
-  std::vector<CutNode> nodes(tree.nodeCount());
-  for (std::size_t i = 0; i < nodes.size(); ++i) {
-    if (tree.isLeaf(i)) {
-      nodes[i] = {kLeaf, kLeaf, 0};
-    } else {
-      const auto l = static_cast<std::uint32_t>(tree.left[i]);
-      nodes[i] = {l, static_cast<std::uint32_t>(tree.right[i]), tree.end[l]};
-    }
-  }
-  return nodes;
-}
-
-// First position in sorted [first, first + n) whose key is >= key. Branch-free: the loop runs
-// ceil(log2 n) times whatever the data, and the select compiles to a conditional move (a
-// profile of the old cut had its samples on std::lower_bound's branches and the heap's).
-inline std::uint32_t lowerBound(const Sample* first, std::uint32_t n, Sample key) {
-  if (n == 0) return 0;
-  const Sample* base = first;
-  while (n > 1) {
-    const std::uint32_t half = n / 2;
-    base = base[half] < key ? base + half : base;
-    n -= half;
-  }
-  return static_cast<std::uint32_t>(base - first) + (*base < key ? 1u : 0u);
-}
 
 // Stable LSD radix sort of the samples by surfel: they are appended in ray order, so the
 // result equals a sort by (surfel, ray). Two or three passes over ~1k keys beat a
@@ -193,56 +84,6 @@ struct ChunkResult {
   std::vector<float> sky;
   LinkStats stats;
 };
-
-// Chooses the cut: `cut` receives its nodes with their sample ranges, ordered by first sample
-// (= by surfel range, the order links are stored in). Nodes nobody sees never enter it.
-void chooseCut(std::span<const CutNode> nodes, const std::vector<Sample>& samples, int max_links, Scratch& s) {
-  std::vector<CutEntry>& cut = s.cut;
-  cut.clear();
-  if (samples.empty() || nodes.empty()) return;
-  OpenHeap open(s.open);
-  open.push({openKey(static_cast<std::uint32_t>(samples.size()), 0), 0});
-  const auto limit = static_cast<std::size_t>(max_links);
-  while (!open.empty()) {
-    const OpenEntry top = open.top();
-    const auto node = static_cast<std::uint32_t>(~static_cast<std::uint32_t>(top.key));
-    const auto count = static_cast<std::uint32_t>(top.key >> 32);
-    const CutNode& tn = nodes[node];
-    if (tn.left == kLeaf) {
-      open.popTop();
-      cut.push_back({count, node, top.first});
-      continue;
-    }
-    // The left child's surfels come first in the parent's range, so its samples are a
-    // prefix of the parent's: one binary search inside the parent's samples.
-    const std::uint32_t l = tn.left, r = tn.right;
-    const std::uint32_t cl = lowerBound(samples.data() + top.first, count, makeSample(tn.split, 0));
-    const std::uint32_t cr = count - cl;
-    const std::size_t grow = (cl > 0 && cr > 0) ? 1 : 0;
-    if (open.size() + cut.size() + grow > limit) break;
-    if (cl > 0 && cr > 0) {
-      // The larger child takes the top (it often stays there: a short sift down), the
-      // smaller one enters at the bottom (a short sift up). Keys are unique, so the heap's
-      // layout does not change which node is refined next.
-      const OpenEntry left{openKey(cl, l), top.first}, right{openKey(cr, r), top.first + cl};
-      const bool left_larger = left.key > right.key;
-      open.replaceTop(left_larger ? left : right);
-      open.push(left_larger ? right : left);
-    } else if (cl > 0) {
-      open.replaceTop({openKey(cl, l), top.first});
-    } else {
-      open.replaceTop({openKey(cr, r), top.first + cl});
-    }
-  }
-  for (const OpenEntry& e : open.entries())
-    cut.push_back({static_cast<std::uint32_t>(e.key >> 32), ~static_cast<std::uint32_t>(e.key), e.first});
-  // The entries' sample ranges partition [0, samples): ordering them by first sample is a
-  // walk over the ranges through a first-sample -> entry table (no comparison sort).
-  for (std::uint32_t e = 0; e < cut.size(); ++e) s.at_first[cut[e].first] = e;
-  s.ordered.clear();
-  for (std::uint32_t k = 0; k < samples.size(); k += s.ordered.back().count) s.ordered.push_back(cut[s.at_first[k]]);
-  cut.swap(s.ordered);
-}
 
 // Sky visibility: sums of the basis polynomials over the escaped rays (escaped[i] is 1 or 0),
 // in kSkyLanes interleaved partial sums added in a fixed order at the end. Every lane adds in
@@ -370,7 +211,7 @@ void linkCache(std::size_t cache, const glm::vec3& p, const glm::vec3& normal, c
   float sky[kCoeffs];
   for (int q = 0; q < kCoeffs; ++q) sky[q] = w * sh::kBasisScale[q] * sky_poly[q];
   sortSamples(s.samples, s.sort_buffer, surfel_bits);
-  chooseCut(cut_nodes, s.samples, options.max_links, s);
+  chooseCut(cut_nodes, s.samples, options.max_links, s.cut_scratch, s.cut);
 
   // Each link's SH is w * sum over its hits of Y_q(dir) = w * kBasisScale[q] * (sum of the
   // basis polynomials): a few multiplies per hit instead of one per coefficient. Values go
@@ -625,7 +466,6 @@ Expected<Links> generateLinks(const scene::Scene& scene, const rt::Accel& accel,
     thread_local Scratch scratch;
     scratch.rays.resize(pattern.count());
     scratch.hits.resize(pattern.count());
-    scratch.at_first.resize(pattern.count());
     scratch.slots.resize(pattern.count());
     for (auto* v : {&scratch.dir_x, &scratch.dir_y, &scratch.dir_z, &scratch.escaped}) v->resize(skyPadded(pattern.count()));
     scratch.coeff_values.resize(std::size_t(options.max_links) * std::size_t(options.bands * options.bands));

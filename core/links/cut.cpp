@@ -1,0 +1,140 @@
+#include "core/links/cut.h"
+
+#include <algorithm>
+
+namespace lightlink::links {
+
+std::vector<CutNode> cutNodes(const hierarchy::Tree& tree) {
+  std::vector<CutNode> nodes(tree.nodeCount());
+  for (std::size_t i = 0; i < nodes.size(); ++i) {
+    if (tree.isLeaf(i)) {
+      nodes[i] = {kLeaf, kLeaf, 0};
+    } else {
+      const auto l = static_cast<std::uint32_t>(tree.left[i]);
+      nodes[i] = {l, static_cast<std::uint32_t>(tree.right[i]), tree.end[l]};
+    }
+  }
+  return nodes;
+}
+
+namespace {
+
+inline std::uint64_t openKey(std::uint32_t count, std::uint32_t node) {
+  return (std::uint64_t(count) << 32) | std::uint32_t(~node);
+}
+
+class OpenHeap {
+ public:
+  explicit OpenHeap(std::vector<OpenEntry>& storage) : h_(storage) { h_.clear(); }
+  bool empty() const { return h_.empty(); }
+  std::size_t size() const { return h_.size(); }
+  const OpenEntry& top() const { return h_[0]; }
+  void push(OpenEntry e) {
+    h_.push_back(e);
+    siftUp(h_.size() - 1);
+  }
+  // Replaces the top (with a key no larger than it had: a child of the popped node).
+  void replaceTop(OpenEntry e) {
+    h_[0] = e;
+    siftDown(0);
+  }
+  void popTop() {
+    h_[0] = h_.back();
+    h_.pop_back();
+    if (!h_.empty()) siftDown(0);
+  }
+  const std::vector<OpenEntry>& entries() const { return h_; }
+
+ private:
+  void siftUp(std::size_t i) {
+    const OpenEntry e = h_[i];
+    while (i > 0) {
+      const std::size_t parent = (i - 1) / 2;
+      if (h_[parent].key >= e.key) break;
+      h_[i] = h_[parent];
+      i = parent;
+    }
+    h_[i] = e;
+  }
+  void siftDown(std::size_t i) {
+    const OpenEntry e = h_[i];
+    const std::size_t n = h_.size();
+    for (;;) {
+      std::size_t c = 2 * i + 1;
+      if (c >= n) break;
+      c += (c + 1 < n && h_[c + 1].key > h_[c].key) ? 1 : 0;
+      if (h_[c].key <= e.key) break;
+      h_[i] = h_[c];
+      i = c;
+    }
+    h_[i] = e;
+  }
+  std::vector<OpenEntry>& h_;
+};
+
+// First position in sorted [first, first + n) whose key is >= key. Branch-free: the loop runs
+// ceil(log2 n) times whatever the data, and the select compiles to a conditional move (a
+// profile of the old cut had its samples on std::lower_bound's branches and the heap's).
+inline std::uint32_t lowerBound(const Sample* first, std::uint32_t n, Sample key) {
+  if (n == 0) return 0;
+  const Sample* base = first;
+  while (n > 1) {
+    const std::uint32_t half = n / 2;
+    base = base[half] < key ? base + half : base;
+    n -= half;
+  }
+  return static_cast<std::uint32_t>(base - first) + (*base < key ? 1u : 0u);
+}
+
+}  // namespace
+
+void chooseCut(std::span<const CutNode> nodes, std::span<const Sample> samples, int max_links, CutScratch& s,
+               std::vector<CutEntry>& cut) {
+  cut.clear();
+  if (samples.empty() || nodes.empty()) return;
+  OpenHeap open(s.open);
+  open.push({openKey(static_cast<std::uint32_t>(samples.size()), 0), 0});
+  const auto limit = static_cast<std::size_t>(max_links);
+  while (!open.empty()) {
+    const OpenEntry top = open.top();
+    const auto node = static_cast<std::uint32_t>(~static_cast<std::uint32_t>(top.key));
+    const auto count = static_cast<std::uint32_t>(top.key >> 32);
+    const CutNode& tn = nodes[node];
+    if (tn.left == kLeaf) {
+      open.popTop();
+      cut.push_back({count, node, top.first});
+      continue;
+    }
+    // The left child's surfels come first in the parent's range, so its samples are a
+    // prefix of the parent's: one binary search inside the parent's samples.
+    const std::uint32_t l = tn.left, r = tn.right;
+    const std::uint32_t cl = lowerBound(samples.data() + top.first, count, makeSample(tn.split, 0));
+    const std::uint32_t cr = count - cl;
+    const std::size_t grow = (cl > 0 && cr > 0) ? 1 : 0;
+    if (open.size() + cut.size() + grow > limit) break;
+    if (cl > 0 && cr > 0) {
+      // The larger child takes the top (it often stays there: a short sift down), the
+      // smaller one enters at the bottom (a short sift up). Keys are unique, so the heap's
+      // layout does not change which node is refined next.
+      const OpenEntry left{openKey(cl, l), top.first}, right{openKey(cr, r), top.first + cl};
+      const bool left_larger = left.key > right.key;
+      open.replaceTop(left_larger ? left : right);
+      open.push(left_larger ? right : left);
+    } else if (cl > 0) {
+      open.replaceTop({openKey(cl, l), top.first});
+    } else {
+      open.replaceTop({openKey(cr, r), top.first + cl});
+    }
+  }
+  for (const OpenEntry& e : open.entries())
+    cut.push_back({static_cast<std::uint32_t>(e.key >> 32), ~static_cast<std::uint32_t>(e.key), e.first});
+  // The entries' sample ranges partition [0, samples): ordering them by first sample is a
+  // walk over the ranges through a first-sample -> entry table (no comparison sort).
+  if (s.at_first.size() < samples.size()) s.at_first.resize(samples.size());
+  for (std::uint32_t e = 0; e < cut.size(); ++e) s.at_first[cut[e].first] = e;
+  s.ordered.clear();
+  for (std::uint32_t k = 0; k < samples.size(); k += s.ordered.back().count) s.ordered.push_back(cut[s.at_first[k]]);
+  cut.swap(s.ordered);
+}
+
+}  // namespace lightlink::links
