@@ -432,6 +432,18 @@ glm::vec3 decodeOctahedral(std::uint32_t packed) {
 Expected<Links> generateLinks(const scene::Scene& scene, const rt::Accel& accel, const surfels::Surfels& surfels,
                               const hierarchy::Tree& tree, const CacheQuery& caches, const LinkOptions& options,
                               Progress* progress) {
+  if (tree.surfelCount() != surfels.size())
+    return invalidInput("links: the tree covers {} surfels but {} were given", tree.surfelCount(), surfels.size());
+  const auto start = std::chrono::steady_clock::now();
+  const SurfelLocator locator(surfels, scene);
+  auto links = generateLinks(scene, accel, locator, tree, caches, options, progress);
+  if (links) links->stats.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  return links;
+}
+
+Expected<Links> generateLinks(const scene::Scene& scene, const rt::Accel& accel, const SurfelLocator& locator,
+                              const hierarchy::Tree& tree, const CacheQuery& caches, const LinkOptions& options,
+                              Progress* progress) {
   if (options.bands < 1 || options.bands > sh::kMaxBands)
     return invalidInput("SH bands {} is out of range (1..{})", options.bands, sh::kMaxBands);
   if (options.rays < 1 || options.rays > (1 << 20))
@@ -440,11 +452,11 @@ Expected<Links> generateLinks(const scene::Scene& scene, const rt::Accel& accel,
     return invalidInput("links per cache {} is out of range (1..65536)", options.max_links);
   if (caches.position.size() != caches.normal.size())
     return invalidInput("caches: {} positions but {} normals", caches.position.size(), caches.normal.size());
-  if (tree.surfelCount() != surfels.size())
-    return invalidInput("links: the tree covers {} surfels but {} were given", tree.surfelCount(), surfels.size());
+  if (tree.surfelCount() != locator.surfelCount())
+    return invalidInput("links: the tree covers {} surfels but the owner lookup {}", tree.surfelCount(),
+                        locator.surfelCount());
 
   const auto start = std::chrono::steady_clock::now();
-  const SurfelLocator locator(surfels, scene);
   const LinkCacheFn link_cache = linkCacheFor(options.bands);
   const LinkRays pattern(options);
   const std::vector<CutNode> cut_nodes = cutNodes(tree);
@@ -453,8 +465,8 @@ Expected<Links> generateLinks(const scene::Scene& scene, const rt::Accel& accel,
   std::vector<std::uint8_t> double_sided(scene.meshes.size());
   for (std::size_t m = 0; m < scene.meshes.size(); ++m)
     double_sided[m] = scene.materialOf(scene.meshes[m]).double_sided ? 1 : 0;
-  const auto surfel_bits =
-      std::max<std::uint32_t>(1, static_cast<std::uint32_t>(std::bit_width(std::max<std::size_t>(1, surfels.size()) - 1)));
+  const std::size_t surfel_count = std::max<std::size_t>(1, locator.surfelCount());
+  const auto surfel_bits = std::max<std::uint32_t>(1, static_cast<std::uint32_t>(std::bit_width(surfel_count - 1)));
   const std::size_t n = caches.position.size();
   const std::size_t chunks = (n + kChunk - 1) / kChunk;
   std::vector<ChunkResult> results(chunks);

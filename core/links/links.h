@@ -43,6 +43,8 @@
 
 namespace lightlink::links {
 
+class SurfelLocator;  // surfel_locator.h
+
 struct LinkOptions {
   int rays = 1024;       // directions per cache, rounded down to a square (stratified n x n)
   int max_links = 128;   // nL: most sender nodes per cache
@@ -102,6 +104,13 @@ struct Links {
 Expected<Links> generateLinks(const scene::Scene& scene, const rt::Accel& accel,
                               const surfels::Surfels& surfels, const hierarchy::Tree& tree,
                               const CacheQuery& caches, const LinkOptions& options,
+                              Progress* progress = nullptr);
+
+// The same over an owner lookup the caller built (from the same surfels, in tree order), so
+// that several cache sets share one: the precompute builds it once, as its own stage, for the
+// lightmap and the grid caches. Links::stats.seconds then counts the caches' work alone.
+Expected<Links> generateLinks(const scene::Scene& scene, const rt::Accel& accel, const SurfelLocator& locator,
+                              const hierarchy::Tree& tree, const CacheQuery& caches, const LinkOptions& options,
                               Progress* progress = nullptr);
 
 // The rays link generation traces for each cache: a strata x strata jittered stratified

@@ -15,7 +15,7 @@ constexpr std::size_t kMaxCells = std::size_t(1) << 22;
 }
 
 SurfelLocator::SurfelLocator(const surfels::Surfels& surfels, const scene::Scene& scene, std::size_t raster_budget)
-    : raster_budget_(raster_budget) {
+    : surfel_count_(surfels.size()), raster_budget_(raster_budget) {
   const std::size_t n = surfels.size();
   Aabb box;
   double area = 0.0;

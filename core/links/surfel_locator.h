@@ -101,8 +101,11 @@ class SurfelLocator {
   // big-triangle cell and side): for tests and the benchmark's report.
   std::size_t rasterCellCount() const { return raster_.size(); }
   std::uint32_t rasterFactor() const { return raster_factor_; }
+  // Surfels it was built over (link generation checks them against the tree).
+  std::size_t surfelCount() const { return surfel_count_; }
 
  private:
+  std::size_t surfel_count_ = 0;
   glm::ivec3 cellOf(const glm::vec3& p) const;
   void buildTriangleTables(const surfels::Surfels& surfels, const scene::Scene& scene);
   std::uint32_t search(const glm::vec3& p, const glm::vec3& n, int radius, float min_cos) const;

@@ -9,10 +9,12 @@
 #include <filesystem>
 #include <fstream>
 #include <limits>
+#include <optional>
 #include <sstream>
 
 #include <fmt/format.h>
 
+#include "core/links/surfel_locator.h"
 #include "core/rt/accel.h"
 
 namespace lightlink::precompute {
@@ -248,12 +250,21 @@ Expected<Precomputation> run(scene::Scene& scene, const PrecomputeOptions& optio
   });
   if (!s) return s;
 
+  // Which surfel owns a hit: built once for the lightmap and the grid caches (a per-scene
+  // structure, as the BVH is, and timed as its own stage).
+  std::optional<links::SurfelLocator> owners;
+  s = stage("owners", [&]() -> Status {
+    owners.emplace(p.surfels, scene);
+    return {};
+  });
+  if (!s) return s;
+
   const links::LinkOptions link_options{
       .rays = options.rays, .max_links = options.links, .bands = options.bands, .seed = options.seed};
   s = stage("links", [&]() -> Status {
     links::LinkOptions lm_options = link_options;
     lm_options.progress_label = "links lightmap";
-    auto lm = links::generateLinks(scene, *accel, p.surfels, p.tree, {p.lightmap.position, p.lightmap.normal},
+    auto lm = links::generateLinks(scene, *accel, *owners, p.tree, {p.lightmap.position, p.lightmap.normal},
                                    lm_options, &sink);
     if (!lm) return lm.status();
     p.lightmap_links = std::move(lm).value();
@@ -261,7 +272,7 @@ Expected<Precomputation> run(scene::Scene& scene, const PrecomputeOptions& optio
       const std::vector<glm::vec3> sphere(p.grid.size(), glm::vec3(0.0f));
       links::LinkOptions grid_options = link_options;
       grid_options.progress_label = "links grid";
-      auto g = links::generateLinks(scene, *accel, p.surfels, p.tree, {p.grid.position, sphere}, grid_options, &sink);
+      auto g = links::generateLinks(scene, *accel, *owners, p.tree, {p.grid.position, sphere}, grid_options, &sink);
       if (!g) return g.status();
       p.grid_links = std::move(g).value();
     }

@@ -9,6 +9,7 @@
 #include <tbb/global_control.h>
 
 #include "core/common/sampling.h"
+#include "core/links/surfel_locator.h"
 #include "core/sh/sh.h"
 #include "tests/common/scene_builders.h"
 
@@ -198,6 +199,37 @@ TEST(Links, BytesPerLinkMeetTheBudget) {
   l.bands = 3;
   EXPECT_LE(l.bytesPerLinkProjected(), 22u);
   EXPECT_LE(Links::bytesPerLinkRuntime(), 12u);
+}
+
+// The precompute builds the owner lookup once and links the lightmap and the grid caches over
+// it: the same links as building one per call, and a lookup over other surfels is refused.
+TEST(Links, SharedOwnerLookupGivesTheSameLinks) {
+  Scene s;
+  addBox(s, {0, 0, 0}, {2, 2, 2}, true);
+  addBox(s, {0.5f, 0, 0.5f}, {1.0f, 0.8f, 1.0f}, false);
+  const LinkFixture fixture = LinkFixture::make(std::move(s));
+  const std::vector<glm::vec3> p = {{1.2f, 1.2f, 1.5f}, {0.3f, 0.001f, 0.3f}}, n = {{0, 0, 0}, {0, 1, 0}};
+  const LinkOptions opt{.rays = 256, .max_links = 32};
+  const SurfelLocator owners(fixture.surfels, fixture.scene);
+  for (int twice = 0; twice < 2; ++twice) {
+    auto shared = generateLinks(fixture.scene, fixture.accel, owners, fixture.tree, {p, n}, opt);
+    ASSERT_TRUE(shared) << shared.status().toString();
+    const Links own = fixture.link(p, n, opt);
+    EXPECT_EQ(shared->offsets, own.offsets);
+    EXPECT_EQ(shared->node, own.node);
+    EXPECT_EQ(shared->coeffs, own.coeffs);
+    EXPECT_EQ(shared->direction, own.direction);
+    EXPECT_EQ(shared->solid_angle, own.solid_angle);
+    EXPECT_EQ(shared->sky, own.sky);
+    EXPECT_EQ(shared->stats.front_hits, own.stats.front_hits);
+  }
+  surfels::Surfels fewer = fixture.surfels;
+  fewer.resize(fewer.size() - 1);
+  const SurfelLocator other(fewer, fixture.scene);
+  auto r = generateLinks(fixture.scene, fixture.accel, other, fixture.tree, {p, n}, opt);
+  ASSERT_FALSE(r);
+  EXPECT_EQ(r.status().code(), Code::kInvalidInput);
+  EXPECT_NE(r.status().message().find("owner lookup"), std::string::npos) << r.status().message();
 }
 
 TEST(Links, RejectsAbsurdOptions) {

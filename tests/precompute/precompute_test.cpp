@@ -52,7 +52,7 @@ TEST(Precompute, DemoSceneProducesEveryStructure) {
   for (std::size_t c = 0; c < p.lightmap_links.cacheCount(); ++c)
     EXPECT_LE(p.lightmap_links.offsets[c + 1] - p.lightmap_links.offsets[c], 32u);
   const auto report = p.report();
-  for (const char* stage : {"unwrap", "surfels", "hierarchy", "bvh", "caches", "links", "total"})
+  for (const char* stage : {"unwrap", "surfels", "hierarchy", "bvh", "caches", "owners", "links", "total"})
     EXPECT_TRUE(report["seconds"].contains(stage)) << stage;
   EXPECT_GT(report["links"]["lightmap"]["rays"].get<std::uint64_t>(), 0u);
   EXPECT_GT(report["memory_bytes"]["lightmap_links_projected"].get<std::size_t>(), 0u);
