@@ -6,6 +6,7 @@
 #include <cmath>
 #include <numbers>
 
+#include <tbb/enumerable_thread_specific.h>
 #include <tbb/parallel_for.h>
 
 #include "core/common/sampling.h"
@@ -138,7 +139,7 @@ template <int Bands>
 void linkCache(std::size_t cache, const glm::vec3& p, const glm::vec3& normal, const std::uint8_t* double_sided,
                const rt::Accel& accel, std::span<const CutNode> cut_nodes, const SurfelLocator& locator,
                const LinkOptions& options, const LinkRays& pattern, std::uint32_t surfel_bits, Scratch& s,
-               ChunkResult& out) {
+               std::uint8_t* seen, ChunkResult& out) {
   constexpr int kCoeffs = Bands * Bands;
   const bool hemisphere = glm::dot(normal, normal) > 0.0f;
   const std::uint32_t count = pattern.count();
@@ -201,6 +202,7 @@ void linkCache(std::size_t cache, const glm::vec3& p, const glm::vec3& normal, c
       continue;
     }
     ++out.stats.front_hits;
+    seen[owner] = 1;
     s.samples.push_back(makeSample(owner, i));
   }
   out.stats.rays += count;
@@ -474,8 +476,13 @@ Expected<Links> generateLinks(const scene::Scene& scene, const rt::Accel& accel,
   Progress& sink = progress ? *progress : null_progress;
   sink.begin(options.progress_label, n);
   ProgressCounter counter(sink, std::max<std::size_t>(1, n / 200));
+  // Seen surfels per thread, merged by OR at the end: the union does not depend on which
+  // thread linked which cache.
+  tbb::enumerable_thread_specific<std::vector<std::uint8_t>> seen_by_thread(
+      [&] { return std::vector<std::uint8_t>(locator.surfelCount(), 0); });
   tbb::parallel_for(std::size_t(0), chunks, [&](std::size_t chunk) {
     thread_local Scratch scratch;
+    std::uint8_t* seen = seen_by_thread.local().data();
     scratch.rays.resize(pattern.count());
     scratch.hits.resize(pattern.count());
     scratch.slots.resize(pattern.count());
@@ -493,7 +500,7 @@ Expected<Links> generateLinks(const scene::Scene& scene, const rt::Accel& accel,
     out.solid_angle.reserve(most);
     for (std::size_t c = chunk * kChunk; c < end; ++c)
       link_cache(c, caches.position[c], caches.normal[c], double_sided.data(), accel, cut_nodes, locator, options, pattern,
-                 surfel_bits, scratch, out);
+                 surfel_bits, scratch, seen, out);
     counter.add(end - chunk * kChunk);
   });
   sink.end();
@@ -524,6 +531,9 @@ Expected<Links> generateLinks(const scene::Scene& scene, const rt::Accel& accel,
     links.stats.unowned += r.stats.unowned;
     r = ChunkResult();  // release as we go: peak memory stays ~1x the links
   }
+  links.seen.assign(locator.surfelCount(), 0);
+  for (const auto& part : seen_by_thread)
+    for (std::size_t i = 0; i < part.size(); ++i) links.seen[i] |= part[i];
   links.stats.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   return links;
 }

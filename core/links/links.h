@@ -89,6 +89,10 @@ struct Links {
   std::vector<std::uint32_t> direction; // per link: octahedral direction, 2 x snorm16 (runtime form)
   std::vector<half_bits> solid_angle;   // per link: visible solid angle / pi (runtime form)
   std::vector<float> sky;               // per cache, bands^2: SH of sky visibility / pi
+  // Per surfel (tree order): 1 when a front hit of some cache's ray was credited to it, else
+  // 0. Relight averages node radiosity over these surfels only (docs/relight.md, "Surfels no
+  // cache sees"); the precompute keeps their union over the lightmap and grid caches.
+  std::vector<std::uint8_t> seen;
   LinkStats stats;
 
   std::size_t cacheCount() const { return offsets.empty() ? 0 : offsets.size() - 1; }

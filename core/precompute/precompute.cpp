@@ -42,6 +42,7 @@ void visitSmallArrays(P& p, V&& v) {
   v("surfel.mesh", p.surfels.mesh);
   v("surfel.triangle", p.surfels.triangle);
   v("surfel.barycentric", p.surfels.barycentric);
+  v("surfel.seen", p.surfel_seen);
   v("tree.left", p.tree.left);
   v("tree.right", p.tree.right);
   v("tree.parent", p.tree.parent);
@@ -276,6 +277,11 @@ Expected<Precomputation> run(scene::Scene& scene, const PrecomputeOptions& optio
       if (!g) return g.status();
       p.grid_links = std::move(g).value();
     }
+    // A surfel is seen when either set of caches sees it; the per-set flags go.
+    p.surfel_seen = std::move(p.lightmap_links.seen);
+    for (std::size_t i = 0; i < p.grid_links.seen.size(); ++i) p.surfel_seen[i] |= p.grid_links.seen[i];
+    p.lightmap_links.seen = {};
+    p.grid_links.seen = {};
     return {};
   }, /*self_reporting=*/true);
   if (!s) return s;
@@ -290,6 +296,7 @@ nlohmann::ordered_json Precomputation::report() const {
                  {"tree_levels", tree.levelCount()},
                  {"lightmap_resolution", atlas.resolution},
                  {"texel_size_m", atlas.texel_size_m},
+                 {"surfels_seen", std::count(surfel_seen.begin(), surfel_seen.end(), 1)},
                  {"lightmap_caches", lightmap.size()},
                  {"lightmap_caches_valid", lightmap.validCount()},
                  {"lightmap_caches_pushed", std::count(lightmap.pushed.begin(), lightmap.pushed.end(), 1)},
@@ -535,6 +542,8 @@ Status checkSurfelsAndTree(const Precomputation& p, StructureCheck& c) {
   c.allFinite<glm::vec3>("surfel.emission", s.emission);
   c.allFinite<glm::vec2>("surfel.lightmap_uv", s.lightmap_uv);
   c.allFinite<glm::vec2>("surfel.barycentric", s.barycentric);
+  c.size("surfel.seen", p.surfel_seen.size(), ns);
+  c.below<std::uint8_t>("surfel.seen", p.surfel_seen, 2);
   if (!c.ok()) return c.status();
 
   const hierarchy::Tree& t = p.tree;

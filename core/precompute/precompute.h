@@ -81,6 +81,9 @@ struct Precomputation {
   caches::GridCaches grid;
   links::Links lightmap_links;
   links::Links grid_links;
+  // Per surfel (tree order): 1 when a ray of some cache (lightmap or grid) was credited to
+  // it. Node radiosity is averaged over these alone (relight::pullAreas).
+  std::vector<std::uint8_t> surfel_seen;
   caches::FillPlan lightmap_fill, grid_fill, dilation;
   std::vector<StageTime> timings;
   std::vector<std::string> notes;  // decisions taken (what was skipped and why)

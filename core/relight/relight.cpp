@@ -175,6 +175,7 @@ struct Relighter::Impl {
   // otherwise only the last pass's grid values are used (output).
   bool grid_gathered = false;
   std::vector<std::uint8_t> lm_has_value, grid_has_value;  // valid or filled
+  PullAreas pull;  // leaf areas and node inverse areas of the pull (pullAreas)
 
   // Per-relight state, kept for incremental updates.
   std::vector<scene::Light> last_lights;       // parallel to per_light_surfel
@@ -264,6 +265,39 @@ void Relighter::invalidate(Forget what) {
     impl_->emitter_valid = false, impl_->surfel_emit_valid = false;
 }
 
+Expected<PullAreas> pullAreas(const precompute::Precomputation& p) {
+  const std::size_t ns = p.surfels.size();
+  const auto& t = p.tree;
+  const auto& seen = p.surfel_seen;
+  if (!seen.empty() && seen.size() != ns)
+    return invalidInput("relight: {} seen flags for {} surfels", seen.size(), ns);
+  if (t.nodeCount() != (ns ? 2 * ns - 1 : 0) || t.leaf_of_surfel.size() != ns)
+    return invalidInput("relight: tree ({} nodes) does not match {} surfels", t.nodeCount(), ns);
+  PullAreas out;
+  out.surfel.resize(ns);
+  for (std::size_t s = 0; s < ns; ++s) {
+    const bool counts = seen.empty() || seen[s] != 0;
+    out.surfel[s] = counts ? p.surfels.area[s] : 0.0f;
+    out.unseen += counts ? 0 : 1;
+  }
+  // Summed bottom-up in double and rounded once per node, exactly as tree.area is
+  // (hierarchy/tree.cpp): with every surfel seen these are tree.area, bit for bit.
+  const std::size_t nodes = t.nodeCount();
+  std::vector<double> area(nodes, 0.0);
+  for (std::size_t s = 0; s < ns; ++s) {
+    if (t.leaf_of_surfel[s] >= nodes)
+      return invalidInput("relight: surfel {} names leaf {} of {} nodes", s, t.leaf_of_surfel[s], nodes);
+    area[t.leaf_of_surfel[s]] = out.surfel[s];
+  }
+  out.inv_node.resize(nodes);
+  for (std::size_t n = nodes; n-- > 0;) {
+    if (t.left[n] >= 0) area[n] = area[std::size_t(t.left[n])] + area[std::size_t(t.right[n])];
+    const float a = float(area[n]);
+    out.inv_node[n] = a > 0.0f ? 1.0f / a : 0.0f;
+  }
+  return out;
+}
+
 Expected<Relighter> Relighter::create(const scene::Scene& scene, const rt::Accel& accel,
                                       const precompute::Precomputation& p) {
   return create(scene, accel, p, p.lightmap_links.view(), p.grid_links.view());
@@ -286,7 +320,10 @@ Expected<Relighter> Relighter::create(const scene::Scene& scene, const rt::Accel
     if (p.surfels.mesh[i] >= scene.meshes.size())
       return invalidInput("relight: surfel {} names mesh {} of a scene with {} meshes", i, p.surfels.mesh[i],
                           scene.meshes.size());
+  auto pull = pullAreas(p);
+  if (!pull) return pull.status();
   auto impl = std::make_unique<Impl>(scene, accel, p, lm, grid);
+  impl->pull = std::move(pull).value();
   impl->simd = detail::cpuSupportsAvx2F16c();
   impl->surfel_material.resize(ns);
   for (std::size_t i = 0; i < ns; ++i) impl->surfel_material[i] = scene.meshes[p.surfels.mesh[i]].material;
@@ -613,11 +650,11 @@ void Relighter::Impl::pullEmission() {
   const std::size_t nodes = t.nodeCount();
   std::vector<glm::vec3>& fl = emit_flux;
   fl.assign(nodes, glm::vec3(0.0f));
-  for (std::size_t s = 0; s < p.surfels.size(); ++s) fl[t.leaf_of_surfel[s]] = emission_b[s] * p.surfels.area[s];
+  for (std::size_t s = 0; s < p.surfels.size(); ++s) fl[t.leaf_of_surfel[s]] = emission_b[s] * pull.surfel[s];
   rad_emit_rgbx.assign(4 * nodes, 0.0f);
   for (std::size_t n = nodes; n-- > 0;) {
     if (t.left[n] >= 0) fl[n] = fl[t.left[n]] + fl[t.right[n]];
-    const float inv_area = t.area[n] > 0.0f ? 1.0f / t.area[n] : 0.0f;
+    const float inv_area = pull.inv_node[n];
     for (int ch = 0; ch < 3; ++ch) rad_emit_rgbx[4 * n + ch] = fl[n][ch] * inv_area;
   }
 }
@@ -635,7 +672,7 @@ void Relighter::Impl::sumFullRadiosity(const std::vector<std::uint32_t>* nodes_s
 
 void Relighter::Impl::setLeafFlux(std::size_t s) {
   const std::uint32_t leaf = p.tree.leaf_of_surfel[s];
-  const glm::vec3 phi = b[s] * p.surfels.area[s];
+  const glm::vec3 phi = b[s] * pull.surfel[s];
   flux[0][leaf] = phi.x, flux[1][leaf] = phi.y, flux[2][leaf] = phi.z;
 }
 
@@ -645,7 +682,7 @@ void Relighter::Impl::pullAll() {
   for (std::size_t n = t.nodeCount(); n-- > 0;) {
     if (t.left[n] >= 0)
       for (int ch = 0; ch < 3; ++ch) flux[ch][n] = flux[ch][t.left[n]] + flux[ch][t.right[n]];
-    const float inv_area = t.area[n] > 0.0f ? 1.0f / t.area[n] : 0.0f;
+    const float inv_area = pull.inv_node[n];
     for (int ch = 0; ch < 3; ++ch) rad_rgbx[4 * n + ch] = flux[ch][n] * inv_area;
   }
 }
@@ -933,7 +970,7 @@ Status Relighter::relightInto(const LightSet& lights, const RelightOptions& o, R
       for (std::uint32_t n : changed_nodes) {
         if (t.left[n] >= 0)
           for (int ch = 0; ch < 3; ++ch) m.flux[ch][n] = m.flux[ch][t.left[n]] + m.flux[ch][t.right[n]];
-        const float inv_area = t.area[n] > 0.0f ? 1.0f / t.area[n] : 0.0f;
+        const float inv_area = m.pull.inv_node[n];
         for (int ch = 0; ch < 3; ++ch) m.rad_rgbx[4 * n + ch] = m.flux[ch][n] * inv_area;
       }
       m.sumFullRadiosity(&changed_nodes);

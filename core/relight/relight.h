@@ -164,6 +164,19 @@ struct RelightResult {
   nlohmann::ordered_json report() const;
 };
 
+// What the pull averages node radiosity over. A surfel that no cache sees
+// (Precomputation::surfel_seen is 0: no link ray of any lightmap or grid cache was credited
+// to it) adds neither flux nor area to its nodes: a link to a node carries the radiosity of
+// the part of it some cache can see, not of a patch hidden behind a lamp or under a box that
+// happens to share the node (docs/relight.md, "Surfels no cache sees"). Such surfels still
+// gather light and are lit. Without seen flags (an empty surfel_seen) every surfel counts.
+struct PullAreas {
+  std::vector<float> surfel;    // per surfel: its area if seen, else 0
+  std::vector<float> inv_node;  // per node: 1 / (sum of its surfels' `surfel`), 0 when that is 0
+  std::size_t unseen = 0;       // surfels left out
+};
+Expected<PullAreas> pullAreas(const precompute::Precomputation& p);
+
 class Relighter {
  public:
   // Static inputs; all must outlive the Relighter. `lightmap_links`/`grid_links` are views

@@ -311,11 +311,15 @@ Status GpuRelighter::Impl::setup() {
   surfel_normal_area = GlBuffer::of(v4);
   for (std::size_t s = 0; s < ns; ++s) v4[s] = glm::vec4(sf.albedo[s], 0.0f);
   surfel_albedo = GlBuffer::of(v4);
-  surfel_area = GlBuffer::of(sf.area);
+  // The pull's leaf areas and node inverse areas, as the CPU pull (relight::pullAreas:
+  // surfels no cache sees add nothing to their nodes).
+  auto pull_areas = relight::pullAreas(p);
+  if (!pull_areas) return pull_areas.status();
+  surfel_area = GlBuffer::of(pull_areas->surfel);
   surfel_leaf = GlBuffer::of(t.leaf_of_surfel);
   std::vector<glm::ivec4> tn(nodes);
   for (std::size_t n = 0; n < nodes; ++n) {
-    const float inv_area = t.area[n] > 0.0f ? 1.0f / t.area[n] : 0.0f;  // as the CPU pull
+    const float inv_area = pull_areas->inv_node[n];
     int bits;
     std::memcpy(&bits, &inv_area, 4);
     tn[n] = glm::ivec4(t.left[n], t.right[n], bits, 0);

@@ -174,6 +174,7 @@ TEST(Links, DeterministicAcrossThreadCounts) {
     return fixture.link(p, n, {.rays = 256, .max_links = 32});
   };
   const Links a = run(1), b = run(2);
+  EXPECT_EQ(a.seen, b.seen);
   EXPECT_EQ(a.offsets, b.offsets);
   EXPECT_EQ(a.node, b.node);
   EXPECT_EQ(a.coeffs, b.coeffs);
@@ -199,6 +200,37 @@ TEST(Links, BytesPerLinkMeetTheBudget) {
   l.bands = 3;
   EXPECT_LE(l.bytesPerLinkProjected(), 22u);
   EXPECT_LE(Links::bytesPerLinkRuntime(), 12u);
+}
+
+// A surfel is seen when a cache's ray was credited to it: every one faces some cache, a face
+// that turns away from the only cache is never seen, and the flags are those of the hits.
+TEST(Links, SeenSurfelsAreThoseTheRaysWereCreditedTo) {
+  Scene s;
+  addBox(s, {0, 0, 0}, {2, 2, 2}, true);
+  addBox(s, {0.8f, 0, 0.8f}, {1.2f, 0.4f, 1.2f}, false);  // a block on the floor
+  const LinkFixture fixture = LinkFixture::make(std::move(s), 4096);
+  const glm::vec3 cache(0.3f, 1.0f, 0.3f);
+  const Links links = fixture.link({cache}, {{0, 0, 0}}, {.rays = 4096, .max_links = 4096});
+  ASSERT_EQ(links.seen.size(), fixture.surfels.size());
+  std::size_t seen = 0, facing_away_seen = 0, hidden_by_block = 0;
+  for (std::size_t i = 0; i < links.seen.size(); ++i) {
+    ASSERT_LE(links.seen[i], 1);
+    seen += links.seen[i];
+    const glm::vec3 q = fixture.surfels.position[i];
+    if (links.seen[i] && glm::dot(fixture.surfels.normal[i], cache - q) < 0.0f) ++facing_away_seen;
+    // The block's far sides (+x, +z faces) turn away from the cache.
+    const bool far_side = (q.x > 1.19f && q.y < 0.4f && q.z > 0.8f && q.z < 1.2f) ||
+                          (q.z > 1.19f && q.y < 0.4f && q.x > 0.8f && q.x < 1.2f);
+    if (far_side) hidden_by_block += 1 - links.seen[i];
+  }
+  EXPECT_EQ(facing_away_seen, 0u);
+  EXPECT_GT(hidden_by_block, 0u);
+  // With one link per surfel hit, the seen surfels are the leaves of the cut exactly.
+  std::size_t leaves = 0;
+  for (std::uint32_t node : links.node) leaves += fixture.tree.isLeaf(node) ? 1 : 0;
+  ASSERT_EQ(leaves, links.linkCount()) << "the cut did not reach the leaves; raise max_links";
+  EXPECT_EQ(seen, links.linkCount());
+  for (std::uint32_t node : links.node) EXPECT_EQ(links.seen[fixture.tree.begin[node]], 1);
 }
 
 // The precompute builds the owner lookup once and links the lightmap and the grid caches over

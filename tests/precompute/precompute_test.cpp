@@ -87,6 +87,9 @@ TEST(Precompute, ArtifactRoundTripKeepsEveryArray) {
   EXPECT_EQ(q.surfels.area, p.surfels.area);
   EXPECT_EQ(q.tree.left, p.tree.left);
   EXPECT_EQ(q.tree.area, p.tree.area);
+  EXPECT_EQ(q.surfel_seen, p.surfel_seen);
+  EXPECT_EQ(p.surfel_seen.size(), p.surfels.size());
+  EXPECT_GT(std::count(p.surfel_seen.begin(), p.surfel_seen.end(), 1), 0);
   EXPECT_EQ(q.lightmap.texel, p.lightmap.texel);
   EXPECT_EQ(q.lightmap.cache_of_texel, p.lightmap.cache_of_texel);
   EXPECT_EQ(q.lightmap.width, p.lightmap.width);

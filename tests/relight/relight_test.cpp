@@ -600,6 +600,76 @@ TEST(RelightDeterminism, OneAndTwoThreadsAreBitIdentical) {
   for (std::size_t k = 0; k < one.bounce_log.size(); ++k) EXPECT_EQ(one.bounce_log[k].added_flux, two.bounce_log[k].added_flux);
 }
 
+// The pull's areas: a surfel no cache sees adds no area to its nodes; with every surfel seen
+// (or no flags at all) they are the tree's own areas, bit for bit.
+TEST(RelightPull, UnseenSurfelsAddNoAreaToTheirNodes) {
+  const auto& rm = room();
+  ASSERT_TRUE(rm.baked);
+  precompute::Precomputation p = rm.baked->p;
+  const auto& t = p.tree;
+  for (const bool flags : {true, false}) {
+    p.surfel_seen.assign(flags ? p.surfels.size() : 0, 1);
+    auto all = pullAreas(p);
+    ASSERT_TRUE(all) << all.status().toString();
+    EXPECT_EQ(all->unseen, 0u);
+    EXPECT_EQ(all->surfel, p.surfels.area);
+    for (std::size_t n = 0; n < t.nodeCount(); ++n)
+      ASSERT_EQ(all->inv_node[n], t.area[n] > 0.0f ? 1.0f / t.area[n] : 0.0f) << "node " << n;
+  }
+  // Hide the left half of the root's surfels.
+  p.surfel_seen.assign(p.surfels.size(), 1);
+  const std::uint32_t split = t.end[std::size_t(t.left[0])];
+  for (std::uint32_t s = 0; s < split; ++s) p.surfel_seen[s] = 0;
+  auto half = pullAreas(p);
+  ASSERT_TRUE(half);
+  EXPECT_EQ(half->unseen, split);
+  EXPECT_EQ(half->inv_node[std::size_t(t.left[0])], 0.0f);
+  EXPECT_EQ(half->inv_node[std::size_t(t.right[0])], 1.0f / t.area[std::size_t(t.right[0])]);
+  EXPECT_NEAR(1.0f / half->inv_node[0], t.area[std::size_t(t.right[0])], 1e-6f * t.area[0]);
+  p.surfel_seen.pop_back();
+  EXPECT_FALSE(pullAreas(p));
+}
+
+// A link carries the radiosity of what some cache sees of its node: surfels behind the
+// scenes, however bright, do not brighten the caches that link their node.
+TEST(RelightPull, HiddenSurfelsDoNotBrightenTheCaches) {
+  const auto& rm = room();
+  ASSERT_TRUE(rm.baked);
+  LightSet set;
+  ASSERT_TRUE(set.add(pointLight("a", {1, 1, 1}, 3.0f)));
+  auto relightWith = [&](const precompute::Precomputation& p) {
+    auto r = Relighter::create(rm.baked->scene, *rm.baked->accel, p);
+    EXPECT_TRUE(r) << r.status().toString();
+    auto res = r->relight(set, {.max_bounces = 0});
+    EXPECT_TRUE(res) << res.status().toString();
+    return std::move(res).value();
+  };
+  const RelightResult base = relightWith(rm.baked->p);
+  // Every surfel of the room is seen: the flags change nothing.
+  ASSERT_EQ(std::count(rm.baked->p.surfel_seen.begin(), rm.baked->p.surfel_seen.end(), 1),
+            static_cast<std::ptrdiff_t>(rm.baked->p.surfels.size()));
+  precompute::Precomputation no_flags = rm.baked->p;
+  no_flags.surfel_seen.clear();
+  expectSame(relightWith(no_flags), base, "no flags");
+  // Mark the ceiling right above the light unseen: the brightest surfels of the room, so
+  // every cache that linked a node holding them gets less light, none gets more.
+  precompute::Precomputation hidden = rm.baked->p;
+  std::size_t marked = 0;
+  for (std::size_t s = 0; s < hidden.surfels.size(); ++s)
+    if (glm::length(hidden.surfels.position[s] - glm::vec3(1, 2, 1)) < 0.6f) hidden.surfel_seen[s] = 0, ++marked;
+  ASSERT_GT(marked, 0u);
+  const RelightResult dim = relightWith(hidden);
+  const int bands = base.bands, nc = bands * bands;
+  std::size_t darker = 0, brighter = 0;
+  for (std::size_t texel = 0; texel * 3 * nc < base.lightmap_sh.size(); ++texel) {
+    const float a = base.lightmap_sh[texel * 3 * nc], b = dim.lightmap_sh[texel * 3 * nc];  // R, band 0
+    darker += b < a * (1.0f - 1e-4f) ? 1 : 0;
+    brighter += b > a * (1.0f + 1e-4f) + 1e-9f ? 1 : 0;
+  }
+  EXPECT_GT(darker, 0u);
+  EXPECT_EQ(brighter, 0u);
+}
+
 TEST(RelightInto, ReusedResultHoldsNoStaleValues) {
   const auto& rm = room();
   ASSERT_TRUE(rm.baked);
