@@ -274,14 +274,15 @@ int main(int argc, char** argv) {
     j["cache_lighting_vs_read"] = k;
   }
 
-  // ---- incremental: one point light with a range, moved ---------------------------------
-  {
+  // ---- incremental: one point light moved, with a range (a few surfels) and without one
+  // (every surfel: the daemon's case when a client drags the scene's light) -------------
+  auto incremental = [&](float range, const char* key) -> int {
     relight::LightSet inc = lights;
     relight::LightEntry lamp;
     lamp.id = "bench_lamp";
     lamp.light.kind = scene::Light::Kind::kPoint;
     lamp.light.position = scene->bounds.center();
-    lamp.light.range = 0.1f * scene->scale;
+    lamp.light.range = range;
     lamp.light.intensity = 100.0f;
     if (Status s = inc.add(lamp); !s) return 2;
     const relight::RelightOptions o{.max_bounces = 0};
@@ -289,6 +290,7 @@ int main(int argc, char** argv) {
     auto full = relighter->relight(inc, o);
     if (!full) return 2;
     std::vector<double> t;
+    std::map<std::string, std::vector<double>> stage_ms;
     std::size_t lit = 0, pulled = 0, summed = 0;
     relight::RelightResult res;
     for (int r = 0; r <= args.repeats; ++r) {
@@ -297,17 +299,30 @@ int main(int argc, char** argv) {
       if (Status s = relighter->relightInto(inc, o, res); !s || !res.passes.incremental) return 3;
       if (r == 0) continue;  // warm-up (first use of the buffers)
       t.push_back(res.totalSeconds());
+      for (const auto& st : res.timings) stage_ms[st.stage].push_back(st.seconds * 1e3);
       lit = res.counts.surfels_lit, pulled = res.counts.nodes_pulled, summed = res.counts.caches_summed;
     }
-    fmt::print("\nincremental (point light, range {:.2f} m, moved): {:.3f} ms vs full {:.3f} ms; surfels {}/{}, "
-               "nodes {}/{}, caches {}/{}\n",
-               lamp.light.range, median(t) * 1e3, full->totalSeconds() * 1e3, lit, full->counts.surfels, pulled,
-               full->counts.nodes, summed, full->counts.caches);
-    j["incremental"] = {{"ms", median(t) * 1e3},     {"full_ms", full->totalSeconds() * 1e3},
-                        {"surfels_lit", lit},        {"surfels", full->counts.surfels},
-                        {"nodes_pulled", pulled},    {"nodes", full->counts.nodes},
-                        {"caches_summed", summed},   {"caches", full->counts.caches}};
-  }
+    std::string stages;
+    nlohmann::ordered_json sj;
+    for (const auto& [name, v] : stage_ms) {
+      stages += fmt::format(" {} {:.3f}", name, median(v));
+      sj[name] = median(v);
+    }
+    fmt::print("{}incremental (point light, range {}, moved): {:.3f} ms vs full {:.3f} ms; surfels {}/{}, "
+               "nodes {}/{}, caches {}/{}; stages (ms):{}\n",
+               range > 0.0f ? "\n" : "", range > 0.0f ? fmt::format("{:.2f} m", range) : std::string("none"),
+               median(t) * 1e3, full->totalSeconds() * 1e3, lit, full->counts.surfels, pulled, full->counts.nodes,
+               summed, full->counts.caches, stages);
+    j[key] = {{"range_m", range},            {"ms", median(t) * 1e3},
+              {"full_ms", full->totalSeconds() * 1e3},
+              {"surfels_lit", lit},          {"surfels", full->counts.surfels},
+              {"nodes_pulled", pulled},      {"nodes", full->counts.nodes},
+              {"caches_summed", summed},     {"caches", full->counts.caches},
+              {"stages_ms", sj}};
+    return 0;
+  };
+  if (int rc = incremental(0.1f * scene->scale, "incremental"); rc) return rc;
+  if (int rc = incremental(0.0f, "incremental_unranged"); rc) return rc;
 
   // ---- bounces ------------------------------------------------------------------------------
   {
