@@ -35,8 +35,12 @@ struct CutNode {
 inline constexpr std::uint32_t kLeaf = 0xffffffffu;
 
 
-// The tree's nodes as the cut reads them.
-std::vector<CutNode> cutNodes(const hierarchy::Tree& tree);
+// The tree as the cut reads it: the node records, and the leaf of each surfel.
+struct CutTree {
+  std::vector<CutNode> nodes;
+  std::vector<std::uint32_t> leaf_of_surfel;
+};
+CutTree cutTree(const hierarchy::Tree& tree);
 
 struct CutEntry {
   std::uint32_t count, node, first;  // visible samples, tree node, index of its first sample
@@ -59,7 +63,7 @@ struct CutScratch {
 // Chooses the cut of at most max_links (>= 1) nodes over `samples`, sorted ascending (by
 // surfel, then ray). `cut` receives the nodes with their sample ranges, ordered by first
 // sample (= by surfel range, the order links are stored in).
-void chooseCut(std::span<const CutNode> nodes, std::span<const Sample> samples, int max_links, CutScratch& scratch,
+void chooseCut(const CutTree& tree, std::span<const Sample> samples, int max_links, CutScratch& scratch,
                std::vector<CutEntry>& cut);
 
 }  // namespace lightlink::links

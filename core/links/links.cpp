@@ -137,7 +137,7 @@ constexpr SkyFn skyPolynomials = Bands == 1 ? sky1 : Bands == 2 ? sky2 : Bands =
 
 template <int Bands>
 void linkCache(std::size_t cache, const glm::vec3& p, const glm::vec3& normal, const std::uint8_t* double_sided,
-               const rt::Accel& accel, std::span<const CutNode> cut_nodes, const SurfelLocator& locator,
+               const rt::Accel& accel, const CutTree& cut_tree, const SurfelLocator& locator,
                const LinkOptions& options, const LinkRays& pattern, std::uint32_t surfel_bits, Scratch& s,
                std::uint8_t* seen, ChunkResult& out) {
   constexpr int kCoeffs = Bands * Bands;
@@ -213,7 +213,7 @@ void linkCache(std::size_t cache, const glm::vec3& p, const glm::vec3& normal, c
   float sky[kCoeffs];
   for (int q = 0; q < kCoeffs; ++q) sky[q] = w * sh::kBasisScale[q] * sky_poly[q];
   sortSamples(s.samples, s.sort_buffer, surfel_bits);
-  chooseCut(cut_nodes, s.samples, options.max_links, s.cut_scratch, s.cut);
+  chooseCut(cut_tree, s.samples, options.max_links, s.cut_scratch, s.cut);
 
   // Each link's SH is w * sum over its hits of Y_q(dir) = w * kBasisScale[q] * (sum of the
   // basis polynomials): a few multiplies per hit instead of one per coefficient. Values go
@@ -461,7 +461,7 @@ Expected<Links> generateLinks(const scene::Scene& scene, const rt::Accel& accel,
   const auto start = std::chrono::steady_clock::now();
   const LinkCacheFn link_cache = linkCacheFor(options.bands);
   const LinkRays pattern(options);
-  const std::vector<CutNode> cut_nodes = cutNodes(tree);
+  const CutTree cut_tree = cutTree(tree);
   // Per mesh: are back faces visible (double-sided material)? One byte per hit instead of
   // a walk through the mesh and material records.
   std::vector<std::uint8_t> double_sided(scene.meshes.size());
@@ -499,7 +499,7 @@ Expected<Links> generateLinks(const scene::Scene& scene, const rt::Accel& accel,
     out.direction.reserve(most);
     out.solid_angle.reserve(most);
     for (std::size_t c = chunk * kChunk; c < end; ++c)
-      link_cache(c, caches.position[c], caches.normal[c], double_sided.data(), accel, cut_nodes, locator, options, pattern,
+      link_cache(c, caches.position[c], caches.normal[c], double_sided.data(), accel, cut_tree, locator, options, pattern,
                  surfel_bits, scratch, seen, out);
     counter.add(end - chunk * kChunk);
   });

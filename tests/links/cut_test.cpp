@@ -1,8 +1,9 @@
 // The cut against its definition taken literally: one refinement per step, the open node
 // with the most samples first (ties: the lower node index), children counted by a scan,
-// straight from the tree's arrays. chooseCut takes shortcuts (one integer key per open node,
-// a heap, split positions by binary search, the final order through a table); the nodes,
-// counts and sample ranges must be these all the same.
+// straight from the tree's arrays. chooseCut takes shortcuts (the leaves directly when there
+// are no more surfels than the budget, one integer key per open node, a heap, split
+// positions by binary search, the final order through a table); the nodes, counts and
+// sample ranges must be these all the same.
 #include "core/links/cut.h"
 
 #include <algorithm>
@@ -81,16 +82,16 @@ void expectLiteralCut(hierarchy::Builder builder) {
   ASSERT_TRUE(placed) << placed.status().toString();
   auto tree = hierarchy::buildTree(*placed, {.builder = builder});
   ASSERT_TRUE(tree) << tree.status().toString();
-  const std::vector<CutNode> nodes = cutNodes(*tree);
+  const CutTree cut_tree = cutTree(*tree);
   const auto n = static_cast<std::uint32_t>(placed->size());
   std::mt19937 rng(7);
   CutScratch scratch;
   std::vector<CutEntry> cut;
-  std::size_t cases = 0, shortened = 0;
+  std::size_t cases = 0, shortened = 0, within = 0;
   for (int trial = 0; trial < 60; ++trial) {
     const std::vector<Sample> samples = hitSamples(n, 1 + rng() % 12, rng() % 300, rng);
     for (int max_links : {1, 2, 3, 8, 64, 128, 4096}) {
-      chooseCut(nodes, samples, max_links, scratch, cut);
+      chooseCut(cut_tree, samples, max_links, scratch, cut);
       const std::vector<CutEntry> want = literalCut(*tree, samples, std::size_t(max_links));
       ASSERT_EQ(cut.size(), want.size()) << "trial " << trial << ", nL " << max_links;
       for (std::size_t k = 0; k < want.size(); ++k) {
@@ -100,21 +101,27 @@ void expectLiteralCut(hierarchy::Builder builder) {
       }
       ++cases;
       shortened += want.size() == std::size_t(max_links) ? 1 : 0;
+      std::size_t distinct = 0;
+      for (std::size_t k = 0; k < samples.size(); ++k)
+        distinct += (k == 0 || surfelOf(samples[k]) != surfelOf(samples[k - 1])) ? 1 : 0;
+      within += distinct <= std::size_t(max_links) ? 1 : 0;
     }
   }
   // Most cases must end at the link budget, where the order of refinements decides the
-  // cut, or the test would not see what the ordering has to get right.
+  // cut, or the test would not see what the ordering has to get right; and enough must
+  // have no more surfels than the budget (the cut of one leaf per surfel, taken directly).
   EXPECT_GT(shortened, cases / 2);
+  EXPECT_GT(within, cases / 10);
 }
 
 TEST(Cut, IsTheLiteralLargestFirstRefinementOnAnAgglomerativeTree) { expectLiteralCut(hierarchy::Builder::kAgglomerative); }
 TEST(Cut, IsTheLiteralLargestFirstRefinementOnAKdTree) { expectLiteralCut(hierarchy::Builder::kKdMedian); }
 
 TEST(Cut, NoSamplesNoLinks) {
-  std::vector<CutNode> nodes{{kLeaf, kLeaf, 0}};
+  const CutTree one{{{kLeaf, kLeaf, 0}}, {0}};
   CutScratch scratch;
   std::vector<CutEntry> cut{{1, 2, 3}};
-  chooseCut(nodes, {}, 8, scratch, cut);
+  chooseCut(one, {}, 8, scratch, cut);
   EXPECT_TRUE(cut.empty());
 }
 
