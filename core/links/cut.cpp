@@ -100,7 +100,8 @@ void chooseCut(const CutTree& tree, std::span<const Sample> samples, int max_lin
   // never more of them than distinct surfels. With no more of those than the budget, the
   // refinement therefore never stops early and ends with one leaf per surfel: that cut
   // straight from the runs of the sorted samples, without walking every root-to-leaf path.
-  // (On ShadowsDirectional, 52 links per cache on average, the walk was the cut's time.)
+  // (On ShadowsDirectional, 52 links per cache on average, this halved chooseCut's perf
+  // samples: docs/results.md, "Cuts that end at the leaves".)
   std::uint32_t distinct = 0;
   for (std::size_t k = 0; k < samples.size(); ++k)
     distinct += (k == 0 || surfelOf(samples[k]) != surfelOf(samples[k - 1])) ? 1 : 0;
