@@ -119,8 +119,11 @@ Expected<Links> generateLinks(const scene::Scene& scene, const rt::Accel& accel,
 
 // The rays link generation traces for each cache: a strata x strata jittered stratified
 // grid (strata = floor(sqrt(options.rays))) over the hemisphere around the cache normal (or
-// the sphere for a zero normal), jittered per (seed, cache). Exposed so a benchmark can
-// trace exactly the same rays through the bare BVH and compare throughput.
+// the sphere for a zero normal). One base pattern of jitters (from the seed) is randomised
+// per (seed, cache): its polar jitters shifted modulo 1 inside their strata, the whole
+// pattern turned about the normal, so every cache's samples are stratified and unbiased and
+// different caches' errors are uncorrelated (docs/precompute.md). Exposed so a benchmark
+// can trace exactly the same rays through the bare BVH and compare throughput.
 class LinkRays {
  public:
   explicit LinkRays(const LinkOptions& options);
@@ -136,9 +139,19 @@ class LinkRays {
                 std::span<rt::Ray> rays, const Directions* directions = nullptr) const;
 
  private:
+  // A cache's randomisation of the base pattern: every polar jitter j -> (j + jitter) mod 1,
+  // and the azimuth turned by alpha.
+  struct Shift {
+    float jitter = 0.0f;
+    float cos_alpha = 1.0f, sin_alpha = 0.0f;
+  };
+  Shift shiftOf(std::size_t cache) const;
+
   std::uint32_t strata_;
   std::uint64_t seed_;
-  std::vector<glm::vec2> column_cos_sin_;  // cos, sin of each azimuth stratum's start angle
+  // The base pattern, per ray: the polar jitter in [0, 1) inside its stratum, and the
+  // azimuth's cos and sin.
+  std::vector<float> base_jitter_, base_cos_, base_sin_;
 };
 
 // Zonal SH coefficients z_l (l < bands) of the indicator of a spherical cap of solid angle
