@@ -35,10 +35,11 @@ struct CutNode {
 inline constexpr std::uint32_t kLeaf = 0xffffffffu;
 
 
-// The tree as the cut reads it: the node records, and the leaf of each surfel.
+// The tree as the cut reads it: the node records, and the leaf of each surfel (a view of the
+// tree's own array: a CutTree must not outlive the tree it was made from).
 struct CutTree {
   std::vector<CutNode> nodes;
-  std::vector<std::uint32_t> leaf_of_surfel;
+  std::span<const std::uint32_t> leaf_of_surfel;
 };
 CutTree cutTree(const hierarchy::Tree& tree);
 

@@ -118,7 +118,8 @@ TEST(Cut, IsTheLiteralLargestFirstRefinementOnAnAgglomerativeTree) { expectLiter
 TEST(Cut, IsTheLiteralLargestFirstRefinementOnAKdTree) { expectLiteralCut(hierarchy::Builder::kKdMedian); }
 
 TEST(Cut, NoSamplesNoLinks) {
-  const CutTree one{{{kLeaf, kLeaf, 0}}, {0}};
+  static constexpr std::uint32_t kLeafOfSurfel[] = {0};
+  const CutTree one{{{kLeaf, kLeaf, 0}}, kLeafOfSurfel};
   CutScratch scratch;
   std::vector<CutEntry> cut{{1, 2, 3}};
   chooseCut(one, {}, 8, scratch, cut);
