@@ -14,6 +14,7 @@
 #include <tbb/enumerable_thread_specific.h>
 #include <tbb/parallel_for.h>
 
+#include "core/common/check.h"
 #include "core/common/sampling.h"
 #include "core/links/cut.h"
 #include "core/links/surfel_locator.h"
@@ -273,6 +274,8 @@ LinkRays::LinkRays(const LinkOptions& options) : strata_(strataFor(options)), se
   // The base pattern: one jittered sample per stratum, seeded by the link seed alone. Its
   // azimuths' cosines and sines are computed once here, in double, so the per-cache loop
   // needs neither hashing nor trigonometry.
+  // generate() builds a row on the stack; generateLinks rejects rays > 2^20 before this.
+  LL_CHECK_LE(strata_, 1024u);
   const std::uint32_t count = strata_ * strata_;
   const auto pattern_seed = static_cast<std::uint32_t>(mixBits(seed_ ^ 0x5851f42d4c957f2dULL) >> 32);
   base_jitter_.resize(count);
