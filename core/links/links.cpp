@@ -331,8 +331,10 @@ LL_MULTIVERSION void rowDirections(const RowSetup& r, const float* __restrict bj
     const float jitter = wrapped < 0.0f ? sum : wrapped;
     const float u = (static_cast<float>(sx) + jitter) * inv;
     const float z = 1.0f - z_scale * u;
-    // No clamp: u <= 1 (sx + jitter < strata, and rounding is monotone), so |z| <= 1 and
-    // z * z <= 1 in floats too. (With a second select, the clamp, GCC 12 keeps the loop scalar.)
+    // No clamp: u <= 1, so |z| <= 1 and z * z <= 1 in floats too. (sx + jitter rounds to at
+    // most strata, rounding is monotone, and strata * (1 / strata) <= 1 in floats for every
+    // strata <= 1024: LinkRays.DirectionsAreFiniteUnitVectorsForAnyRayCount checks it.) With
+    // a second select, the clamp, GCC 12 keeps the loop scalar.
     const float q = 1.0f - z * z;
     const float rad = std::sqrt(q);
     const float a = rad * bc[sx], c = rad * bs[sx];

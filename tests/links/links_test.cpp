@@ -351,6 +351,28 @@ TEST(LinkRays, KeepOneRayPerStratumInEveryCache) {
   }
 }
 
+TEST(LinkRays, DirectionsAreFiniteUnitVectorsForAnyRayCount) {
+  // The row loop takes sqrt(1 - z^2) without a clamp. That relies on u = (sx + jitter) *
+  // (1 / strata) <= 1, i.e. on strata * (1 / strata) <= 1 in floats for every row length.
+  for (std::uint32_t strata = 1; strata <= 1024; ++strata) {
+    const float inv = 1.0f / static_cast<float>(strata);
+    ASSERT_LE(static_cast<float>(strata) * inv, 1.0f) << strata;
+  }
+  // And on the rays themselves: odd strata (the sphere of grid caches is where z reaches -1),
+  // a single ray, many caches.
+  for (int rays : {1, 2, 5, 961, 1000}) {
+    for (const glm::vec3 normal : {glm::vec3(0.0f), glm::vec3(0.0f, 0.0f, -1.0f)}) {
+      for (std::uint32_t cache = 0; cache < 64; ++cache) {
+        for (const rt::Ray& r : cacheRays(rays, 5, cache, {0, 0, 0}, normal)) {
+          ASSERT_TRUE(std::isfinite(r.dir.x) && std::isfinite(r.dir.y) && std::isfinite(r.dir.z))
+              << rays << " rays, cache " << cache;
+          ASSERT_NEAR(glm::length(r.dir), 1.0f, 1e-5f) << rays << " rays, cache " << cache;
+        }
+      }
+    }
+  }
+}
+
 TEST(LinkRays, AreBitIdenticalToTheScalarFormula) {
   // The generator's vectorised row loop must round exactly like per-ray scalar code (no FMA,
   // no reassociation), so rays, and so links, are the same bits on every machine.
