@@ -76,13 +76,12 @@ inline glm::vec3 uniformHemisphere(float u1, float u2) {
   return {r * std::cos(phi), r * std::sin(phi), z};
 }
 
-// stratifiedSample with 32-bit hashing (mixBits32): what link rays use, 1024 per cache.
-inline glm::vec2 stratifiedSample32(std::uint32_t i, std::uint32_t n, std::uint32_t seed) {
-  const std::uint32_t sx = i % n, sy = (i / n) % n;
+// The two jitters in [0, 1) of sample `i` of a stratified grid, from 32-bit hashing
+// (mixBits32): what the link rays' base pattern uses (links::LinkRays), x for the polar
+// stratum and y for the azimuthal one.
+inline glm::vec2 stratifiedJitter32(std::uint32_t i, std::uint32_t seed) {
   const std::uint32_t bits = mixBits32(seed ^ (i * 0x9e3779b9U));
-  const float jx = unitFloat32(bits), jy = unitFloat32(mixBits32(bits));
-  return {(static_cast<float>(sx) + jx) / static_cast<float>(n),
-          (static_cast<float>(sy) + jy) / static_cast<float>(n)};
+  return {unitFloat32(bits), unitFloat32(mixBits32(bits))};
 }
 
 // Sample `i` of an n x n stratified grid with jitter from `seed`: stratum (i / n, i % n),

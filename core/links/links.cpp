@@ -282,27 +282,29 @@ LinkRays::LinkRays(const LinkOptions& options) : strata_(strataFor(options)), se
   base_cos_.resize(count);
   base_sin_.resize(count);
   for (std::uint32_t i = 0; i < count; ++i) {
-    // The jitters of stratifiedSample32(i, strata, pattern_seed): polar, then azimuthal.
-    const std::uint32_t bits = mixBits32(pattern_seed ^ (i * 0x9e3779b9U));
-    const float azimuth = (static_cast<float>(i / strata_) + unitFloat32(mixBits32(bits))) / static_cast<float>(strata_);
+    const glm::vec2 jitter = stratifiedJitter32(i, pattern_seed);
+    const float azimuth = (static_cast<float>(i / strata_) + jitter.y) / static_cast<float>(strata_);
     const double phi = 2.0 * std::numbers::pi * double(azimuth);
-    base_jitter_[i] = unitFloat32(bits);
+    base_jitter_[i] = jitter.x;
     base_cos_[i] = static_cast<float>(std::cos(phi));
     base_sin_[i] = static_cast<float>(std::sin(phi));
   }
 }
 
-LinkRays::Shift LinkRays::shiftOf(std::size_t cache) const {
-  const std::uint64_t bits = mixBits(seed_ ^ (std::uint64_t(cache) * 0xd1b54a32d192ed03ULL));
-  Shift s;
-  s.jitter = unitFloat32(static_cast<std::uint32_t>(bits >> 32));
-  const double alpha = 2.0 * std::numbers::pi * double(unitFloat32(static_cast<std::uint32_t>(bits)));
-  s.cos_alpha = static_cast<float>(std::cos(alpha));
-  s.sin_alpha = static_cast<float>(std::sin(alpha));
-  return s;
-}
-
 namespace {
+
+// A cache's randomisation of the base pattern, from the hash of (seed, cache): every polar
+// jitter j -> (j + jitter) mod 1, and the pattern turned about the normal by alpha.
+struct Shift {
+  float jitter;
+  float cos_alpha, sin_alpha;
+};
+Shift shiftOf(std::uint64_t seed, std::size_t cache) {
+  const std::uint64_t bits = mixBits(seed ^ (std::uint64_t(cache) * 0xd1b54a32d192ed03ULL));
+  const double alpha = 2.0 * std::numbers::pi * double(unitFloat32(static_cast<std::uint32_t>(bits)));
+  return {unitFloat32(static_cast<std::uint32_t>(bits >> 32)), static_cast<float>(std::cos(alpha)),
+          static_cast<float>(std::sin(alpha))};
+}
 
 // What a row of the per-cache loop reads besides the base pattern.
 struct RowSetup {
@@ -402,7 +404,7 @@ void LinkRays::generate(const rt::Accel& accel, std::size_t cache, const glm::ve
   // common to all caches: the mean sky irradiance over a plane came out 0.3 % off in
   // tests/relight. Shifting u itself modulo 1 breaks one polar stratum per row in two, one
   // piece at the normal and one at the horizon: 3 % error per cache at 256 rays.)
-  const Shift shift = shiftOf(cache);
+  const Shift shift = shiftOf(seed_, cache);
   const RowSetup setup{.shift = shift.jitter,
                        .inv = 1.0f / static_cast<float>(strata_),
                        .z_scale = hemisphere ? 1.0f : 2.0f,

@@ -139,14 +139,6 @@ class LinkRays {
                 std::span<rt::Ray> rays, const Directions* directions = nullptr) const;
 
  private:
-  // A cache's randomisation of the base pattern: every polar jitter j -> (j + jitter) mod 1,
-  // and the azimuth turned by alpha.
-  struct Shift {
-    float jitter = 0.0f;
-    float cos_alpha = 1.0f, sin_alpha = 0.0f;
-  };
-  Shift shiftOf(std::size_t cache) const;
-
   std::uint32_t strata_;
   std::uint64_t seed_;
   // The base pattern, per ray: the polar jitter in [0, 1) inside its stratum, and the
