@@ -317,7 +317,7 @@ struct RowSetup {
 // Directions of one row (strata rays, polar strata 0 .. strata - 1 of one azimuth stratum).
 // One loop with no hashing or trigonometry that vectorises (sqrt does: the module builds
 // with -fno-math-errno). The generator it replaced hashed two jitters per ray and took the
-// azimuth's cosine and sine per ray: 9 % of link generation's samples on EmissiveStrengthTest.
+// azimuth's cosine and sine per ray (docs/results.md, seventh pass: its perf samples halved).
 LL_MULTIVERSION void rowDirections(const RowSetup& r, const float* __restrict bj, const float* __restrict bc,
                                    const float* __restrict bs, std::uint32_t strata, float* __restrict dx,
                                    float* __restrict dy, float* __restrict dz) {
@@ -352,8 +352,8 @@ namespace {
 
 // Rays [0, count) from one origin along (x, y, z)[k], tnear 0, tfar infinity. On x86-64, four
 // at a time: a 4 x 4 transpose of (x, y, z, tfar) gives each ray's second half, so a ray is
-// two 16-byte stores instead of eight 4-byte ones (the scalar loop, nearly all of it on its
-// stores, took 991 perf samples on EmissiveStrengthTest, this one 380).
+// two 16-byte stores instead of eight 4-byte ones (generate's perf samples on
+// EmissiveStrengthTest: 781 / 768 -> 301 / 245, docs/results.md, seventh pass).
 void storeRays(const glm::vec3& origin, const float* x, const float* y, const float* z, std::uint32_t count,
                rt::Ray* out) {
   static_assert(sizeof(rt::Ray) == 32 && offsetof(rt::Ray, tnear) == 12 && offsetof(rt::Ray, dir) == 16 &&
