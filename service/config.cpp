@@ -80,6 +80,7 @@ Status applyConfigFile(const std::string& path, DaemonConfig& c) {
       if (!v.is_boolean()) return invalidInput("--config {}: 'progressive' must be true or false", path);
       c.progressive = v.get<bool>();
     }
+    else if (key == "shared_memory_dir") s = str(c.shared_memory_dir);
     else if (key == "restore_sessions") {
       if (!v.is_boolean()) return invalidInput("--config {}: 'restore_sessions' must be true or false", path);
       c.restore_sessions = v.get<bool>();
@@ -91,7 +92,7 @@ Status applyConfigFile(const std::string& path, DaemonConfig& c) {
 
 // Declares every flag on `app`, bound to `c`. Called twice (see parseArgs).
 void declareFlags(CLI::App& app, DaemonConfig& c, std::string& config_path, std::string& token_file,
-                  std::string& log_format, bool& no_restore) {
+                  std::string& log_format, bool& no_restore, bool& no_shared_memory) {
   app.add_option("--config", config_path, "JSON config file; its keys are the flag names with '_' (flags override it)");
   app.add_option("--listen", c.listen,
                  "Address host:port to listen on; port 0 picks a free port. Anything but loopback requires --token")
@@ -124,6 +125,12 @@ void declareFlags(CLI::App& app, DaemonConfig& c, std::string& config_path, std:
                "Publish a bounce-free preview of each light change first, then the converged result as the next "
                "version");
   app.add_flag("--no-restore", no_restore, "Do not re-open the scenes recorded in <cache-dir>/sessions.json");
+  app.add_option("--shared-memory-dir", c.shared_memory_dir,
+                 "Base directory (a memory file system) for results handed to clients on this machine through "
+                 "shared memory; empty turns that delivery off")
+      ->capture_default_str();
+  app.add_flag("--no-shared-memory", no_shared_memory,
+               "Send every result on the stream, also to clients on this machine that ask for shared memory");
 }
 
 }  // namespace
@@ -151,6 +158,8 @@ Status DaemonConfig::validate() const {
     return invalidInput("--chunk-bytes {} is out of range (4096..1048576)", chunk_bytes);
   if (!std::isfinite(drain_seconds) || drain_seconds < 0.0 || drain_seconds > 3600.0)
     return invalidInput("--drain-seconds {} is out of range (0..3600)", drain_seconds);
+  if (!shared_memory_dir.empty() && shared_memory_dir.front() != '/')
+    return invalidInput("--shared-memory-dir '{}' must be an absolute path", shared_memory_dir);
   if (relight_bounces < 0 || relight_bounces > 64)
     return invalidInput("--bounces {} is out of range (0..64)", relight_bounces);
   return {};
@@ -162,8 +171,8 @@ ParsedArgs parseArgs(int argc, char** argv) {
     CLI::App app{"lightlinkd: keeps precomputed scenes resident and relights them over gRPC (lightlink.v1)"};
     app.set_version_flag("--version", "lightlinkd 0.1.0");
     std::string token_file, log_format = c.log_format == LogFormat::kJson ? "json" : "text";
-    bool no_restore = false;
-    declareFlags(app, c, config_path, token_file, log_format, no_restore);
+    bool no_restore = false, no_shared_memory = false;
+    declareFlags(app, c, config_path, token_file, log_format, no_restore, no_shared_memory);
     try {
       app.parse(argc, argv);
     } catch (const CLI::ParseError& e) {
@@ -181,6 +190,7 @@ ParsedArgs parseArgs(int argc, char** argv) {
     }
     c.log_format = log_format == "json" ? LogFormat::kJson : LogFormat::kText;
     if (no_restore) c.restore_sessions = false;
+    if (no_shared_memory) c.shared_memory_dir.clear();
     if (!token_file.empty()) {
       auto t = readTokenFile(token_file);
       if (!t) {

@@ -38,6 +38,9 @@ struct DaemonConfig {
   int relight_bounces = 8;                 // relight options of every scene
   bool progressive = false;                // bounce-free preview first, then the converged result
   bool restore_sessions = true;            // re-open the scenes of sessions.json at start
+  // Base directory (a memory file system) for results delivered through shared memory to
+  // clients on this machine (service/shared_results.h); empty: that delivery is off.
+  std::string shared_memory_dir = "/dev/shm";
 
   // Host part of `listen` is a loopback address (127.0.0.0/8, ::1, localhost).
   bool loopbackOnly() const;

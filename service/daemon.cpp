@@ -19,6 +19,7 @@
 #include "service/logging.h"
 #include "service/scene_registry.h"
 #include "service/service.h"
+#include "service/shared_results.h"
 #include "service/session_store.h"
 
 namespace lightlink::service {
@@ -100,6 +101,9 @@ int runDaemon(int argc, char** argv) {
   auto creds = credentialsFor(config);
   if (!creds) return fail("start_failed", creds.status().message());
 
+  // Shared-memory results of a daemon that was killed (its pid gone) are left under the base.
+  if (const int stale = removeStaleSharedDirs(config.shared_memory_dir); stale > 0)
+    logEvent(LogLevel::kInfo, "shared_memory_cleaned", {{"dir", config.shared_memory_dir}, {"removed", stale}});
   SceneRegistry registry(config);
   if (config.restore_sessions) registry.restore();
   LightlinkService service(config, registry);
@@ -125,6 +129,7 @@ int runDaemon(int argc, char** argv) {
             {"tls", !config.tls_cert.empty()},
             {"auth", config.token.empty() ? "none (loopback)" : "bearer"},
             {"cache_dir", config.cache_dir},
+            {"shared_memory", config.shared_memory_dir.empty() ? "off" : config.shared_memory_dir},
             {"scenes", registry.size()}});
 
   int sig = 0;

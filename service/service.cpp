@@ -157,7 +157,7 @@ void LightlinkService::replaceWithWireHandler(
 }
 
 LightlinkService::LightlinkService(const DaemonConfig& config, SceneRegistry& registry)
-    : config_(config), registry_(registry) {
+    : config_(config), registry_(registry), shared_(config.shared_memory_dir) {
   replaceWithWireHandler("Relight", &LightlinkService::RelightWire);
   replaceWithWireHandler("GetTextures", &LightlinkService::GetTexturesWire);
   replaceWithWireHandler("Subscribe", &LightlinkService::SubscribeWire);
@@ -295,6 +295,24 @@ grpc::Status LightlinkService::UpdateLights(grpc::ServerContext* ctx, const v1::
   return grpc::Status::OK;
 }
 
+template <typename Stream>
+grpc::Status LightlinkService::sendResult(grpc::ServerContext* ctx, const Snapshot& snap, const SpecKey& spec,
+                                          bool shared_memory, Stream* stream) {
+  if (shared_memory && shared_.enabled() && isLocalPeer(ctx->peer())) {
+    const auto wire = snap.wire(spec, config_.chunk_bytes);
+    if (!wire) return grpcError(grpc::StatusCode::INTERNAL, "result: could not serialize the result messages");
+    auto header = shared_.header(snap, spec, config_.chunk_bytes, *wire);
+    if (header) {
+      if (!stream->Write(WireMessage{header->get()}))
+        return grpcError(grpc::StatusCode::CANCELLED, "the client went away");
+      return grpc::Status::OK;
+    }
+    // No file (no space, an old result): the stream still works.
+    logEvent(LogLevel::kDebug, "shared_memory_skipped", {{"scene", snap.scene_id}, {"reason", header.status().message()}});
+  }
+  return sendWire(snap, spec, config_.chunk_bytes, stream);
+}
+
 grpc::Status LightlinkService::RelightWire(grpc::ServerContext* ctx, RelightStreamer* stream) {
   v1::RelightRequest request;
   std::shared_ptr<SceneSession> s;
@@ -312,7 +330,7 @@ grpc::Status LightlinkService::RelightWire(grpc::ServerContext* ctx, RelightStre
     return grpcError(grpc::StatusCode::DEADLINE_EXCEEDED,
                      fmt::format("version: no result >= {} within the deadline", request.version()));
   }
-  return sendWire(*snap, SpecKey::from(request.spec(), snap->bands), config_.chunk_bytes, stream);
+  return sendResult(ctx, *snap, SpecKey::from(request.spec(), snap->bands), request.shared_memory(), stream);
 }
 
 grpc::Status LightlinkService::GetTexturesWire(grpc::ServerContext* ctx, GetTexturesStreamer* stream) {
@@ -344,7 +362,7 @@ grpc::Status LightlinkService::GetTexturesWire(grpc::ServerContext* ctx, GetText
     }
   }
   if (snap->version == request.last_seen_version()) return sendNotModified(*s, *snap, stream);
-  return sendWire(*snap, SpecKey::from(request.spec(), snap->bands), config_.chunk_bytes, stream);
+  return sendResult(ctx, *snap, SpecKey::from(request.spec(), snap->bands), request.shared_memory(), stream);
 }
 
 grpc::Status LightlinkService::SubscribeWire(grpc::ServerContext* ctx, SubscribeStreamer* stream) {
@@ -403,6 +421,7 @@ grpc::Status LightlinkService::CloseScene(grpc::ServerContext* ctx, const v1::Cl
   if (auto st = lookup(request->scene(), &s); !st.ok()) return st;
   if (!registry_.close(s->identity().id))
     return grpcError(grpc::StatusCode::NOT_FOUND, "scene_id: the scene was already closed");
+  shared_.dropScene(s->identity().id);
   return grpc::Status::OK;
 }
 

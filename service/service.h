@@ -21,6 +21,7 @@
 #include "proto/lightlink.grpc.pb.h"
 #include "service/config.h"
 #include "service/scene_registry.h"
+#include "service/shared_results.h"
 #include "service/wire_message.h"
 
 namespace lightlink::service {
@@ -57,6 +58,7 @@ class LightlinkService final : public v1::Lightlink::Service {
   void beginDrain();
   bool draining() const { return draining_.load(); }
   int activeStreams() const { return active_streams_.load(); }
+  const SharedResults& sharedResults() const { return shared_; }
 
  private:
   // Per-client stream accounting (RAII: released when the handler returns).
@@ -87,6 +89,12 @@ class LightlinkService final : public v1::Lightlink::Service {
                              const char* rpc, Request* request, std::shared_ptr<SceneSession>* scene,
                              std::optional<StreamSlot>* slot);
   std::chrono::steady_clock::time_point waitDeadline(grpc::ServerContext* ctx) const;
+  // Sends a full result: as one header naming a shared file when the client asked for shared
+  // memory, is on this machine and delivery is on (service/shared_results.h), else as the
+  // header and chunk messages of its wire form.
+  template <typename Stream>
+  grpc::Status sendResult(grpc::ServerContext* ctx, const Snapshot& snap, const SpecKey& spec, bool shared_memory,
+                          Stream* stream);
   // Registers `handler` for the method `name` of lightlink.v1.Lightlink in place of the
   // generated one.
   template <typename Request>
@@ -96,6 +104,7 @@ class LightlinkService final : public v1::Lightlink::Service {
 
   DaemonConfig config_;
   SceneRegistry& registry_;
+  SharedResults shared_;
   std::atomic<bool> draining_{false};
   std::atomic<int> active_streams_{0};
   std::atomic<int> opening_{0};

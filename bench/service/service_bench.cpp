@@ -57,6 +57,7 @@ struct Args {
   bool progressive = false;  // the started daemon's --progressive: preview, then converged
   bool subscribe = false;    // also measure clients holding a Subscribe stream (tile deltas)
   int bands = 0;             // SH bands the clients ask for (0 = all): the payload size
+  bool shared_memory = false;  // polling clients ask for results through shared memory
   std::vector<std::string> daemon_flags;  // more flags for the started daemon (--daemon-flag, repeated)
   std::string scene = std::string(LIGHTLINK_SOURCE_DIR) + "/clients/demo/cornell_box.gltf";
   std::string preset = "medium";
@@ -128,6 +129,7 @@ struct Poller {
   std::vector<Arrival> arrivals;
   std::vector<double> not_modified_ms, fetch_ms;
   std::size_t errors = 0;
+  std::size_t shared = 0;  // results whose chunks came through a shared-memory file
   std::string first_error;
 };
 
@@ -175,6 +177,7 @@ nlohmann::ordered_json latencyScenario(const Args& a, const ConnectOptions& co, 
           if (p->errors++ == 0) p->first_error = r.status().toString();
         } else if (r->has_value()) {
           last = (*r)->info.version;
+          if ((*r)->info.shared) ++p->shared;
           p->arrivals.push_back({last, t1, (*r)->info.relight_ms, (*r)->info.preview});
           p->fetch_ms.push_back(ms(t1 - t0));
           if (!(*r)->info.preview) p->latest_converged.store(last, std::memory_order_release);
@@ -223,9 +226,11 @@ nlohmann::ordered_json latencyScenario(const Args& a, const ConnectOptions& co, 
   for (auto& t : threads) t.join();
 
   std::vector<double> latency, overhead, not_modified, fetch, converged;
-  std::size_t missing = 0, errors = 0;
+  std::size_t missing = 0, errors = 0, shared = 0, fetched = 0;
   std::string first_error;
   for (auto& p : pollers) {
+    shared += p->shared;
+    fetched += p->fetch_ms.size();
     for (const auto& [v, t_send] : sent) {
       auto it = std::find_if(p->arrivals.begin(), p->arrivals.end(), [&](const auto& x) { return x.version >= v; });
       if (it == p->arrivals.end()) {
@@ -259,6 +264,9 @@ nlohmann::ordered_json latencyScenario(const Args& a, const ConnectOptions& co, 
   j["late_updates"] = late;
   j["poll_not_modified_ms"] = summary(not_modified);
   j["poll_new_version_ms"] = summary(fetch);
+  // Polled results whose chunks came through shared memory (--shared-memory), of all fetched.
+  j["shared_memory_results"] = shared;
+  j["fetched_results"] = fetched;
   j["errors"] = errors;
   if (!first_error.empty()) j["first_error"] = first_error;
   return j;
@@ -323,6 +331,7 @@ Args parseArgs(int argc, char** argv) {
       else if (k == "--bounces") a.bounces = std::stoi(val());
       else if (k == "--progressive") a.progressive = true;
       else if (k == "--subscribe") a.subscribe = true;
+      else if (k == "--shared-memory") a.shared_memory = true;
       else if (k == "--bands") a.bands = std::stoi(val());
       else if (k == "--daemon-flag") a.daemon_flags.push_back(val());
       else if (k == "--scene") a.scene = val();
@@ -342,13 +351,15 @@ Args parseArgs(int argc, char** argv) {
             "              [--scene F] [--preset P]\n"
             "              [--clients 1,50] [--wait-ms 0,2000] [--updates N] [--poll-ms MS] [--gap-ms MS]\n"
             "              [--burst-s S] [--daemon-cpus LIST] [--client-cpus LIST] [--daemon-flag F ...] [--json F]\n"
-            "              [--subscribe] [--bands B]\n"
+            "              [--subscribe] [--bands B] [--shared-memory]\n"
             "  --wait-ms    one latency scenario per value and client count: 0 = poll every --poll-ms,\n"
             "               > 0 = long poll (GetTextures wait_ms)\n"
             "  --daemon-cpus, --client-cpus  taskset-style CPU lists (0-1, 2-15, 0,2,4-7): where the started\n"
             "               daemon and this process (driver, clients) may run\n"
             "  --subscribe  also one scenario per client count with Subscribe streams (tile deltas)\n"
             "  --bands      SH bands the clients fetch (default 0: all): how latency scales with the payload\n"
+            "  --shared-memory  polling clients ask for results through shared memory (the daemon is on this\n"
+            "               machine: chunks in a file it writes once, docs/service.md)\n"
             "  --daemon-flag  one more flag for the started daemon (repeat: --daemon-flag --log-level\n"
             "               --daemon-flag debug --daemon-flag --log-file --daemon-flag d.log)\n");
         std::exit(0);
@@ -397,6 +408,7 @@ int main(int argc, char** argv) {
   co.own_connection = true;
   co.call_timeout = std::chrono::seconds(60);
   Client driver = must(Client::connect(co));
+  co.shared_memory = a.shared_memory;  // the polling clients' (the driver's own fetches stay on the stream)
   auto stats0 = must(driver.stats());
 
   OpenOptions oo;
@@ -428,6 +440,7 @@ int main(int argc, char** argv) {
   out["daemon_bounces"] = a.bounces >= 0 ? std::to_string(a.bounces) : std::string("daemon default");
   out["progressive"] = a.progressive;
   out["fetched_bands"] = a.bands;
+  out["shared_memory"] = a.shared_memory;
   out["poll_ms"] = a.poll_ms;
   out["gap_ms"] = a.gap_ms;
   out["daemon_cpus"] = a.daemon_cpus.empty() ? "any" : a.daemon_cpus;
@@ -466,14 +479,18 @@ int main(int argc, char** argv) {
   for (const auto& s : out["latency"]) {
     text += fmt::format("latency      {:<9} {:>3} client(s): p50 {:6.2f} ms  p99 {:6.2f} ms  max {:6.2f} ms  (minus relight: p50 "
                         "{:.2f} ms, p99 {:.2f} ms; {} samples, {} missing); not-modified poll p50 {:.3f} ms; "
-                        "{:.0f} KiB per result\n",
+                        "{:.0f} KiB per result{}\n",
                         s["mode"].get<std::string>(), s["clients"].get<int>(), s["latency_ms"]["p50"].get<double>(),
                         s["latency_ms"]["p99"].get<double>(), s["latency_ms"]["max"].get<double>(),
                         s["latency_minus_relight_ms"]["p50"].get<double>(),
                         s["latency_minus_relight_ms"]["p99"].get<double>(),
                         s["latency_ms"]["count"].get<std::size_t>(), s["missing"].get<std::size_t>(),
                         s["poll_not_modified_ms"]["p50"].get<double>(),
-                        double(s["result_bytes"].get<std::size_t>()) / 1024.0);
+                        double(s["result_bytes"].get<std::size_t>()) / 1024.0,
+                        a.shared_memory ? fmt::format(", {} of {} fetched through shared memory",
+                                                      s["shared_memory_results"].get<std::size_t>(),
+                                                      s["fetched_results"].get<std::size_t>())
+                                        : std::string());
     if (a.progressive)
       text += fmt::format("             converged (bounced) result: p50 {:6.2f} ms  p99 {:6.2f} ms\n",
                           s["latency_converged_ms"]["p50"].get<double>(), s["latency_converged_ms"]["p99"].get<double>());

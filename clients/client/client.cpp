@@ -2,11 +2,13 @@
 #include "clients/client/client.h"
 
 #include <fstream>
+#include <optional>
 #include <sstream>
 
 #include <grpcpp/grpcpp.h>
 
 #include "clients/client/raw_result.h"
+#include "clients/client/shared_result.h"
 #include "proto/lightlink.grpc.pb.h"
 
 namespace lightlink::client {
@@ -60,18 +62,24 @@ const grpc::internal::RpcMethod kSubscribeMethod("/lightlink.v1.Lightlink/Subscr
 
 // Reads the one result (header + chunks) a Relight or GetTextures stream carries, each
 // message as a RawResultMessage: chunk data goes from gRPC's receive slices straight into
-// the payload (clients/client/raw_result.h).
+// the payload (clients/client/raw_result.h). When the header names a shared-memory file
+// instead, the chunks are read from it (shared_result.h); if that fails, `*shared_unreadable`
+// is set and the error returned, for the caller to ask again on the stream.
 template <typename Request>
 Expected<Textures> readOneRawResult(const char* rpc, const grpc::internal::RpcMethod& rpc_method,
-                                    grpc::ChannelInterface* channel, grpc::ClientContext& ctx, const Request& request) {
+                                    grpc::ChannelInterface* channel, grpc::ClientContext& ctx, const Request& request,
+                                    bool* shared_unreadable = nullptr) {
   std::unique_ptr<grpc::ClientReader<RawResultMessage>> reader(
       grpc::internal::ClientReaderFactory<RawResultMessage>::Create(channel, rpc_method, &ctx, request));
   ResultAssembler assembler;
   RawResultMessage msg;
   RawResult decoded;
   Status status;
+  std::optional<v1::SharedResult> shared;
   while (reader->Read(&msg)) {
     status = decodeRawResult(msg.bytes, decoded);
+    if (status && decoded.kind == RawResult::Kind::kHeader && decoded.header.has_shared())
+      shared = decoded.header.shared();
     if (status) status = assembler.add(decoded);
     if (!status) {
       // A torn or malformed result: stop the call, drain what is in flight, report.
@@ -83,6 +91,12 @@ Expected<Textures> readOneRawResult(const char* rpc, const grpc::internal::RpcMe
     }
   }
   if (Status s = fromGrpc(rpc, reader->Finish()); !s) return s;
+  if (shared) {
+    if (Status s = readSharedResult(*shared, assembler); !s) {
+      if (shared_unreadable) *shared_unreadable = true;
+      return Status(s.code(), fmt::format("{}: {}", rpc, s.message()));
+    }
+  }
   auto t = assembler.take();
   if (!t) return Status(t.status().code(), fmt::format("{}: {}", rpc, t.status().message()));
   return t;
@@ -254,6 +268,16 @@ Expected<Textures> Client::relight(const SceneHandle& scene, std::uint64_t versi
   setRef(req.mutable_scene(), scene);
   req.set_version(version);
   *req.mutable_spec() = toProto(spec);
+  req.set_shared_memory(options_.shared_memory);
+  bool shared_unreadable = false;
+  {
+    grpc::ClientContext ctx;
+    impl_->prepare(ctx);
+    auto t = readOneRawResult("Relight", kRelightMethod, impl_->channel.get(), ctx, req, &shared_unreadable);
+    if (t || !shared_unreadable) return t;
+  }
+  // The shared file was gone or unreadable (another user's daemon, removed): on the stream.
+  req.set_shared_memory(false);
   grpc::ClientContext ctx;
   impl_->prepare(ctx);
   return readOneRawResult("Relight", kRelightMethod, impl_->channel.get(), ctx, req);
@@ -266,9 +290,22 @@ Expected<std::optional<Textures>> Client::getTextures(const SceneHandle& scene, 
   req.set_last_seen_version(last_seen_version);
   *req.mutable_spec() = toProto(spec);
   req.set_wait_ms(wait_ms);
-  grpc::ClientContext ctx;
-  impl_->prepare(ctx, impl_->waitingDeadline(wait_ms));
-  auto t = readOneRawResult("GetTextures", kGetTexturesMethod, impl_->channel.get(), ctx, req);
+  req.set_shared_memory(options_.shared_memory);
+  bool shared_unreadable = false;
+  auto t = [&] {
+    grpc::ClientContext ctx;
+    impl_->prepare(ctx, impl_->waitingDeadline(wait_ms));
+    return readOneRawResult("GetTextures", kGetTexturesMethod, impl_->channel.get(), ctx, req, &shared_unreadable);
+  }();
+  if (!t && shared_unreadable) {
+    // The shared file was gone or unreadable: the same poll on the stream, answered at once
+    // (a newer result than last_seen_version exists: the daemon just named one).
+    req.set_shared_memory(false);
+    req.set_wait_ms(0);
+    grpc::ClientContext ctx;
+    impl_->prepare(ctx);
+    t = readOneRawResult("GetTextures", kGetTexturesMethod, impl_->channel.get(), ctx, req);
+  }
   if (!t) return t.status();
   if (t->info.not_modified) return std::optional<Textures>{};
   return std::optional<Textures>(std::move(t).value());

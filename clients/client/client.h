@@ -51,6 +51,12 @@ struct ConnectOptions {
   // channels to the same target in a process; a benchmark simulating many game clients (or a
   // tool that must not queue behind a big transfer of another client) wants its own.
   bool own_connection = false;
+  // true: Relight and GetTextures ask for results through shared memory (a file the daemon
+  // wrote once for all its clients, docs/service.md "Shared-memory delivery"). The daemon
+  // honours it only for a connection from its own machine; a result whose file cannot be
+  // read is asked for again on the stream, so the answer is the same either way
+  // (ResultInfo::shared tells which way it came).
+  bool shared_memory = false;
 };
 
 // What the daemon needs to find (or precompute) a scene. Zeros / empty strings: the

@@ -73,6 +73,7 @@ ResultInfo ResultInfo::fromProto(const v1::ResultHeader& h) {
   r.relight_ms = h.relight_ms();
   r.skipped_versions = h.skipped_versions();
   r.coalesced_updates = h.coalesced_updates();
+  r.shared = h.has_shared();
   r.preview = h.preview();
   return r;
 }

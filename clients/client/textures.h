@@ -70,6 +70,7 @@ struct ResultInfo {
   std::uint64_t skipped_versions = 0;
   std::uint64_t coalesced_updates = 0;
   bool preview = false;  // progressive daemon: bounce-free result, the converged one follows
+  bool shared = false;   // the chunks came through a shared-memory file (ConnectOptions::shared_memory)
 
   int coeffCount() const { return bands * bands; }
   std::size_t texels() const { return std::size_t(width) * std::size_t(height); }
