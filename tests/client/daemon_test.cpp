@@ -206,6 +206,98 @@ TEST_F(ClientDaemon, LongPollGetTextures) {
   EXPECT_NE(absurd.status().message().find("wait_ms"), std::string::npos) << absurd.status().toString();
 }
 
+// Shared-memory delivery (docs/service.md): a client on the daemon's machine that asks for it
+// gets the same bytes from the daemon's file as another gets on the stream; a file that is
+// gone is asked for again on the stream; the daemon removes a closed scene's files and its
+// directory when it exits; --no-shared-memory answers on the stream.
+TEST(ClientSharedMemory, SameResultAsTheStreamFallbackAndCleanup) {
+  TempDir shm;
+  LocalDaemon::Options d;
+  d.binary = LIGHTLINK_DAEMON_PATH;
+  d.cache_dir = lightlink::testing::clientTestCacheDir();
+  d.extra = {"--no-restore", "--shared-memory-dir", shm.path().string()};
+  auto started = LocalDaemon::start(d);
+  ASSERT_TRUE(started) << started.status().toString();
+  auto daemon = std::move(started).value();
+  ConnectOptions o;
+  o.target = daemon->target();
+  o.call_timeout = std::chrono::seconds(60);
+  auto plain = Client::connect(o);
+  o.shared_memory = true;
+  auto shared = Client::connect(o);
+  ASSERT_TRUE(plain && shared);
+  OpenOptions open;
+  open.path = kCornell;
+  open.preset = kPreset;
+  open.timeout = std::chrono::seconds(240);
+  auto scene = plain->openScene(open);
+  ASSERT_TRUE(scene) << scene.status().toString() << "\n" << daemon->log();
+
+  auto streamed = plain->relight(*scene, scene->info.version());
+  auto from_file = shared->relight(*scene, scene->info.version());
+  ASSERT_TRUE(streamed && from_file) << daemon->log();
+  EXPECT_FALSE(streamed->info.shared);
+  EXPECT_TRUE(from_file->info.shared) << daemon->log();
+  EXPECT_EQ(from_file->info.version, streamed->info.version);
+  EXPECT_EQ(from_file->payloads, streamed->payloads);
+  EXPECT_TRUE(from_file->has(Payload::kLightmapSh));
+  EXPECT_TRUE(from_file->has(Payload::kGridSh));
+
+  // The daemon's directory under the base holds the file; a poll with the same spec reuses it.
+  std::vector<fs::path> dirs;
+  for (const auto& e : fs::directory_iterator(shm.path())) dirs.push_back(e.path());
+  ASSERT_EQ(dirs.size(), 1u);
+  EXPECT_EQ(dirs[0].filename().string().rfind("lightlinkd-" + std::to_string(daemon->pid()) + "-", 0), 0u);
+  auto polled = shared->getTextures(*scene, 0);
+  ASSERT_TRUE(polled && polled->has_value());
+  EXPECT_TRUE((*polled)->info.shared);
+  EXPECT_EQ((*polled)->payloads, streamed->payloads);
+  std::size_t files = 0;
+  for (const auto& e : fs::directory_iterator(dirs[0])) files += e.is_regular_file() ? 1 : 0;
+  EXPECT_EQ(files, 1u);
+
+  // Files gone (as if removed under a slow client): the same poll on the stream, same bytes.
+  for (const auto& e : fs::directory_iterator(dirs[0])) fs::remove(e.path());
+  auto fallback = shared->getTextures(*scene, 0);
+  ASSERT_TRUE(fallback) << fallback.status().toString();
+  ASSERT_TRUE(fallback->has_value());
+  EXPECT_FALSE((*fallback)->info.shared);
+  EXPECT_EQ((*fallback)->payloads, streamed->payloads);
+  auto relit = shared->relight(*scene, 0);
+  ASSERT_TRUE(relit) << relit.status().toString();
+  EXPECT_FALSE(relit->info.shared);
+  EXPECT_EQ(relit->payloads, streamed->payloads);
+
+  // A new result gets a new file; closing the scene removes it; SIGTERM removes the directory.
+  LightUpdate u;
+  ASSERT_TRUE(u.modify(moveTo(scene->info.light_ids(0), 0.2f, 0.4f, 0.3f)));
+  auto r = plain->updateLights(*scene, u, 30000);
+  ASSERT_TRUE(r && r->relit);
+  auto moved = shared->getTextures(*scene, streamed->info.version);
+  ASSERT_TRUE(moved && moved->has_value());
+  EXPECT_TRUE((*moved)->info.shared);
+  EXPECT_NE((*moved)->payloads, streamed->payloads);
+  EXPECT_FALSE(fs::is_empty(dirs[0]));
+  ASSERT_TRUE(plain->closeScene(*scene));
+  EXPECT_TRUE(fs::is_empty(dirs[0]));
+  EXPECT_EQ(daemon->stop(), 0) << daemon->log();
+  EXPECT_FALSE(fs::exists(dirs[0]));
+
+  // Delivery off: the flag is ignored, the stream carries the result.
+  d.extra = {"--no-restore", "--no-shared-memory"};
+  auto off = LocalDaemon::start(d);
+  ASSERT_TRUE(off) << off.status().toString();
+  o.target = (*off)->target();
+  auto client = Client::connect(o);
+  ASSERT_TRUE(client);
+  auto again = client->openScene(open);
+  ASSERT_TRUE(again) << again.status().toString();
+  auto plain_result = client->relight(*again, again->info.version());
+  ASSERT_TRUE(plain_result) << plain_result.status().toString();
+  EXPECT_FALSE(plain_result->info.shared);
+  EXPECT_EQ(plain_result->payloads, streamed->payloads) << "the same scene and lights";
+}
+
 // Subscribe with tile deltas: after applying every delta, the stream's local copy equals a
 // full fetch of the same version, byte for byte.
 TEST_F(ClientDaemon, SubscribeDeltasRebuildTheFullResult) {
