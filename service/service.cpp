@@ -115,19 +115,31 @@ grpc::Status sendNotModified(const SceneSession& s, const Snapshot& snap, Stream
   grpc::ByteBuffer bytes;
   bool own = false;
   if (auto st = grpc::SerializationTraits<v1::ResultMessage>::Serialize(m, &bytes, &own); !st.ok()) return st;
-  stream->Write(WireMessage{&bytes});
+  stream->WriteLast(WireMessage{&bytes}, grpc::WriteOptions());  // with the status: one flush
   return grpc::Status::OK;
 }
+
+// How a result ends its call: Relight and GetTextures send one result and finish, so their
+// last message can go out with the call's status; a Subscribe stream goes on.
+enum class CallEnds { kAfterThisResult, kLater };
 
 // Sends a result from the snapshot's shared wire form (Snapshot::wire: `previous` and
 // `delta` for a Subscribe stream). CANCELLED when a write fails: the client is gone.
 template <typename Stream>
-grpc::Status sendWire(const Snapshot& snap, const SpecKey& spec, std::size_t chunk_bytes, Stream* stream,
+grpc::Status sendWire(const Snapshot& snap, const SpecKey& spec, std::size_t chunk_bytes, Stream* stream, CallEnds ends,
                       const Snapshot* previous = nullptr, bool delta = false) {
   const auto wire = snap.wire(spec, chunk_bytes, previous, delta);
   if (!wire) return grpcError(grpc::StatusCode::INTERNAL, "result: could not serialize the result messages");
-  for (const grpc::ByteBuffer& m : wire->messages)
-    if (!stream->Write(WireMessage{&m})) return grpcError(grpc::StatusCode::CANCELLED, "the client went away");
+  const std::size_t n = wire->messages.size();
+  // The last message of a call's only result goes out with its status (WriteLast): one flush
+  // and one wake-up of the client fewer. (A buffer hint on the other messages is not an
+  // option: on the synchronous server a hinted Write waits for a flush only the next write
+  // starts.)
+  const std::size_t plain = ends == CallEnds::kAfterThisResult && n > 0 ? n - 1 : n;
+  for (std::size_t i = 0; i < plain; ++i)
+    if (!stream->Write(WireMessage{&wire->messages[i]}))
+      return grpcError(grpc::StatusCode::CANCELLED, "the client went away");
+  if (plain < n) stream->WriteLast(WireMessage{&wire->messages.back()}, grpc::WriteOptions());
   return grpc::Status::OK;
 }
 
@@ -303,14 +315,15 @@ grpc::Status LightlinkService::sendResult(grpc::ServerContext* ctx, const Snapsh
     if (!wire) return grpcError(grpc::StatusCode::INTERNAL, "result: could not serialize the result messages");
     auto header = shared_.header(snap, spec, config_.chunk_bytes, *wire);
     if (header) {
-      if (!stream->Write(WireMessage{header->get()}))
-        return grpcError(grpc::StatusCode::CANCELLED, "the client went away");
+      // The one message goes out with the call's status: one flush and one wake-up of the
+      // client instead of two.
+      stream->WriteLast(WireMessage{header->get()}, grpc::WriteOptions());
       return grpc::Status::OK;
     }
     // No file (no space, an old result): the stream still works.
     logEvent(LogLevel::kDebug, "shared_memory_skipped", {{"scene", snap.scene_id}, {"reason", header.status().message()}});
   }
-  return sendWire(snap, spec, config_.chunk_bytes, stream);
+  return sendWire(snap, spec, config_.chunk_bytes, stream, CallEnds::kAfterThisResult);
 }
 
 grpc::Status LightlinkService::RelightWire(grpc::ServerContext* ctx, RelightStreamer* stream) {
@@ -392,7 +405,8 @@ grpc::Status LightlinkService::SubscribeWire(grpc::ServerContext* ctx, Subscribe
     // Streams that sent the same previous result send the same bytes: one wire form for
     // all of them (Snapshot::wire), full or delta.
     const SpecKey spec = SpecKey::from(request.spec(), snap->bands);
-    if (auto st = sendWire(*snap, spec, config_.chunk_bytes, stream, previous.get(), request.deltas()); !st.ok())
+    if (auto st = sendWire(*snap, spec, config_.chunk_bytes, stream, CallEnds::kLater, previous.get(),
+                            request.deltas()); !st.ok())
       return st;
     previous = std::move(snap);
   }

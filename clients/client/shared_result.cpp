@@ -1,12 +1,13 @@
 #include "clients/client/shared_result.h"
 
 #include <fcntl.h>
-#include <sys/mman.h>
 #include <sys/stat.h>
 #include <unistd.h>
 
 #include <cerrno>
 #include <cstring>
+#include <span>
+#include <vector>
 
 #include <grpcpp/support/byte_buffer.h>
 #include <grpcpp/support/slice.h>
@@ -16,46 +17,44 @@
 namespace lightlink::client {
 namespace {
 
-// The file, mapped; unmapped and closed on every way out.
-class Mapping {
- public:
-  ~Mapping() {
-    if (data_ != nullptr) ::munmap(data_, size_);
-    if (fd_ >= 0) ::close(fd_);
+// The file's bytes, read into a buffer each thread reuses: one copy out of the page cache.
+// Mapping the file instead cost a munmap per result, and with the client's threads on
+// several cores every munmap is a TLB shootdown: 10 % of the clients' samples in a perf
+// profile of bench/service with 50 clients (docs/results.md, shared-memory delivery).
+Expected<std::span<const std::uint8_t>> readWhole(const std::string& path, std::uint64_t expected) {
+  const int fd = ::open(path.c_str(), O_RDONLY | O_CLOEXEC);
+  if (fd < 0) return notFound("shared result {}: cannot open: {}", path, std::strerror(errno));
+  struct Closer {
+    int fd;
+    ~Closer() { ::close(fd); }
+  } closer{fd};
+  struct stat st {};
+  if (::fstat(fd, &st) != 0 || !S_ISREG(st.st_mode)) return invalidInput("shared result {}: not a regular file", path);
+  if (static_cast<std::uint64_t>(st.st_size) != expected)
+    return invalidInput("shared result {}: {} bytes, the header names {}", path, st.st_size, expected);
+  thread_local std::vector<std::uint8_t> buffer;
+  const auto size = static_cast<std::size_t>(st.st_size);
+  if (buffer.size() < size) buffer.resize(size);
+  std::size_t done = 0;
+  while (done < size) {
+    const ssize_t n = ::pread(fd, buffer.data() + done, size - done, static_cast<off_t>(done));
+    if (n < 0 && errno == EINTR) continue;
+    if (n < 0) return invalidInput("shared result {}: read failed: {}", path, std::strerror(errno));
+    if (n == 0) return invalidInput("shared result {}: ended after {} of {} bytes", path, done, size);
+    done += static_cast<std::size_t>(n);
   }
-  Status open(const std::string& path, std::uint64_t expected) {
-    fd_ = ::open(path.c_str(), O_RDONLY | O_CLOEXEC);
-    if (fd_ < 0) return notFound("shared result {}: cannot open: {}", path, std::strerror(errno));
-    struct stat st {};
-    if (::fstat(fd_, &st) != 0 || !S_ISREG(st.st_mode))
-      return invalidInput("shared result {}: not a regular file", path);
-    if (static_cast<std::uint64_t>(st.st_size) != expected)
-      return invalidInput("shared result {}: {} bytes, the header names {}", path, st.st_size, expected);
-    size_ = static_cast<std::size_t>(st.st_size);
-    if (size_ == 0) return invalidInput("shared result {}: empty", path);
-    void* p = ::mmap(nullptr, size_, PROT_READ, MAP_PRIVATE, fd_, 0);
-    if (p == MAP_FAILED) return invalidInput("shared result {}: cannot map: {}", path, std::strerror(errno));
-    data_ = p;
-    return {};
-  }
-  const std::uint8_t* bytes() const { return static_cast<const std::uint8_t*>(data_); }
-  std::size_t size() const { return size_; }
-
- private:
-  int fd_ = -1;
-  void* data_ = nullptr;
-  std::size_t size_ = 0;
-};
+  return std::span<const std::uint8_t>(buffer.data(), size);
+}
 
 }  // namespace
 
 Status readSharedResult(const v1::SharedResult& shared, ResultAssembler& assembler) {
   const std::string& path = shared.path();
   if (path.empty()) return invalidInput("shared result: no path");
-  Mapping m;
-  if (Status s = m.open(path, shared.bytes()); !s) return s;
-  const std::uint8_t* p = m.bytes();
-  const std::size_t size = m.size();
+  auto whole = readWhole(path, shared.bytes());
+  if (!whole) return whole.status();
+  const std::uint8_t* p = whole->data();
+  const std::size_t size = whole->size();
   if (size < sizeof v1::kSharedResultMagic || std::memcmp(p, v1::kSharedResultMagic, sizeof v1::kSharedResultMagic) != 0)
     return invalidInput("shared result {}: not a lightlink shared result of format version 1 (magic)", path);
   std::size_t at = sizeof v1::kSharedResultMagic;
@@ -68,7 +67,7 @@ Status readSharedResult(const v1::SharedResult& shared, ResultAssembler& assembl
     at += sizeof length;
     if (length > size - at)
       return invalidInput("shared result {}: record {} claims {} bytes, {} left", path, record, length, size - at);
-    // A slice over the mapping (no copy); the mapping outlives every use of it below.
+    // A slice over the buffer (no copy); the buffer outlives every use of it below.
     const grpc::Slice slice(p + at, length, grpc::Slice::STATIC_SLICE);
     const grpc::ByteBuffer message(&slice, 1);
     at += length;

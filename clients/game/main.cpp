@@ -46,6 +46,7 @@ struct Args {
   int width = 384, height = 384;
   int first_frame = 0;      // number of the first frame file (scripts call it repeatedly)
   std::uint32_t wait_ms = 0;  // > 0: long poll (GetTextures wait_ms)
+  bool shared_memory = false; // results through shared memory when the daemon is on this machine
 };
 
 double ms(Clock::duration d) { return std::chrono::duration<double, std::milli>(d).count(); }
@@ -75,6 +76,7 @@ int run(const Args& a) {
   client::ConnectOptions co;
   co.target = session.target;
   co.bearer_token = a.token;
+  co.shared_memory = a.shared_memory;
   if (co.bearer_token.empty())
     if (const char* env = std::getenv("LIGHTLINK_TOKEN")) co.bearer_token = env;
   auto c = client::Client::connect(co);
@@ -183,6 +185,9 @@ int main(int argc, char** argv) {
   app.add_option("--fps", a.fps, "Polls per second (at most, with --wait-ms)")->capture_default_str();
   app.add_option("--wait-ms", a.wait_ms, "Long poll: the daemon answers when a new version exists or after this long")
       ->capture_default_str();
+  app.add_flag("--shared-memory", a.shared_memory,
+               "Ask for results through shared memory (the daemon on this machine writes each result once for all "
+               "its clients; falls back to the stream)");
   app.add_option("--frames", a.frames, "Stop after N rendered frames");
   app.add_option("--duration", a.duration_s, "Stop after S seconds");
   app.add_option("--width", a.width, "Frame width")->capture_default_str();
