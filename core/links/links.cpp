@@ -56,6 +56,7 @@ struct Scratch {
   std::vector<float> escaped;           // per ray: 1 escaped, 0 not (0 in the padding)
   std::vector<float> coeff_values;      // per link of the cache: its SH in float, then fp16
   std::vector<float> solid_values;
+  std::vector<float> link_x, link_y, link_z;  // per link of the cache: the direction to encode
 };
 
 // Stable LSD radix sort of the samples by surfel: they are appended in ray order, so the
@@ -140,6 +141,32 @@ LL_MULTIVERSION void sky4(const float* e, const float* x, const float* y, const 
 }
 template <int Bands>
 constexpr SkyFn skyPolynomials = Bands == 1 ? sky1 : Bands == 2 ? sky2 : Bands == 3 ? sky3 : sky4;
+
+// One octahedral code (encodeOctahedral's formula), written with selects only so that the
+// batch loop below vectorises; IEEE operations in the same order give the same bits in
+// every lane as the scalar code.
+inline std::uint32_t octahedralCode(float x, float y, float z) {
+  const float inv = 1.0f / (std::abs(x) + std::abs(y) + std::abs(z));
+  const float ox = x * inv, oy = y * inv;
+  const float fx = (1.0f - std::abs(oy)) * (ox >= 0.0f ? 1.0f : -1.0f);
+  const float fy = (1.0f - std::abs(ox)) * (oy >= 0.0f ? 1.0f : -1.0f);
+  const float u = z < 0.0f ? fx : ox, v = z < 0.0f ? fy : oy;
+  // Round to nearest (even on ties: lrint is one instruction, where lround was a libm call
+  // per link).
+  auto q = [](float c) {
+    return static_cast<std::uint32_t>(static_cast<std::uint16_t>(
+        static_cast<std::int16_t>(std::lrint(std::clamp(c, -1.0f, 1.0f) * 32767.0f))));
+  };
+  return q(u) | (q(v) << 16);
+}
+
+// The codes of a cache's link directions, after its link loop: called per link, the
+// encoding took 3.5 % of link generation's samples on the bundled Cornell box
+// (docs/results.md, issue 4 eighth pass).
+LL_MULTIVERSION void octahedralCodes(const float* __restrict x, const float* __restrict y, const float* __restrict z,
+                                     std::uint32_t count, std::uint32_t* __restrict out) {
+  for (std::uint32_t i = 0; i < count; ++i) out[i] = octahedralCode(x[i], y[i], z[i]);
+}
 
 template <int Bands>
 void linkCache(std::size_t cache, const glm::vec3& p, const glm::vec3& normal, const std::uint8_t* double_sided,
@@ -242,12 +269,19 @@ void linkCache(std::size_t cache, const glm::vec3& p, const glm::vec3& normal, c
     if constexpr (Bands >= 2) sum_dir = glm::vec3(m[3], m[1], m[2]);  // the band-1 polynomials are y, z, x
     for (int q = 0; q < kCoeffs; ++q) coeff_values[links * kCoeffs + q] = w * sh::kBasisScale[q] * m[q];
     solid_values[links] = w * static_cast<float>(e.count);
-    ++links;
     out.node.push_back(e.node);
     // The octahedral map divides by the L1 norm, so the sum needs no normalising.
     const float l1 = std::abs(sum_dir.x) + std::abs(sum_dir.y) + std::abs(sum_dir.z);
-    out.direction.push_back(encodeOctahedral(l1 > 0.0f ? sum_dir : n));
+    const glm::vec3 d = l1 > 0.0f ? sum_dir : n;
+    s.link_x[links] = d.x;
+    s.link_y[links] = d.y;
+    s.link_z[links] = d.z;
+    ++links;
   }
+  const std::size_t direction_at = out.direction.size();
+  out.direction.resize(direction_at + links);
+  octahedralCodes(s.link_x.data(), s.link_y.data(), s.link_z.data(), static_cast<std::uint32_t>(links),
+                  out.direction.data() + direction_at);
   // |coefficient| <= (omega / pi) * max |Y_q| < 4: nothing comes near half's 65504.
   const std::size_t coeffs_at = out.coeffs.size(), solid_at = out.solid_angle.size();
   out.coeffs.resize(coeffs_at + links * kCoeffs);
@@ -441,21 +475,7 @@ void projectRuntimeLink(const glm::vec3& direction, float omega_over_pi, int ban
   }
 }
 
-std::uint32_t encodeOctahedral(const glm::vec3& d) {
-  const float inv = 1.0f / (std::abs(d.x) + std::abs(d.y) + std::abs(d.z));
-  glm::vec2 o(d.x * inv, d.y * inv);
-  if (d.z < 0.0f) {
-    o = glm::vec2((1.0f - std::abs(o.y)) * (o.x >= 0.0f ? 1.0f : -1.0f),
-                  (1.0f - std::abs(o.x)) * (o.y >= 0.0f ? 1.0f : -1.0f));
-  }
-  // Round to nearest (even on ties: lrint is one instruction, where lround was a libm call
-  // per link).
-  auto q = [](float v) {
-    return static_cast<std::uint32_t>(static_cast<std::uint16_t>(
-        static_cast<std::int16_t>(std::lrint(std::clamp(v, -1.0f, 1.0f) * 32767.0f))));
-  };
-  return q(o.x) | (q(o.y) << 16);
-}
+std::uint32_t encodeOctahedral(const glm::vec3& d) { return octahedralCode(d.x, d.y, d.z); }
 
 glm::vec3 decodeOctahedral(std::uint32_t packed) {
   const float x = static_cast<float>(static_cast<std::int16_t>(packed & 0xffffu)) / 32767.0f;
@@ -526,6 +546,7 @@ Expected<Links> generateLinks(const scene::Scene& scene, const rt::Accel& accel,
     for (auto* v : {&scratch.dir_x, &scratch.dir_y, &scratch.dir_z, &scratch.escaped}) v->resize(skyPadded(pattern.count()));
     scratch.coeff_values.resize(std::size_t(options.max_links) * std::size_t(options.bands * options.bands));
     scratch.solid_values.resize(std::size_t(options.max_links));
+    for (auto* v : {&scratch.link_x, &scratch.link_y, &scratch.link_z}) v->resize(std::size_t(options.max_links));
     ChunkResult& out = results[chunk];
     const std::size_t end = std::min(n, (chunk + 1) * kChunk);
     if (sink.cancelled()) return;
