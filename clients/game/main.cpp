@@ -138,9 +138,10 @@ int run(const Args& a) {
       if (!stats) return fail(stats.status());
       const std::string png = (fs::path(a.output_dir) / fmt::format("frame_{:04d}.png", a.first_frame + rendered)).string();
       if (Status s = writePngRgb8(png, a.width, a.height, rgb, "frame"); !s) return fail(s);
-      std::printf("frame %4d  version %6llu  poll %7.2f ms (%zu KiB)  decode+render %7.1f ms  -> %s\n", a.first_frame + rendered,
-                  static_cast<unsigned long long>(t.info.version), poll_ms, t.totalBytes() / 1024,
-                  ms(Clock::now() - t1), png.c_str());
+      std::printf("frame %4d  version %6llu  poll %7.2f ms (%zu KiB%s)  decode+render %7.1f ms  -> %s\n",
+                  a.first_frame + rendered, static_cast<unsigned long long>(t.info.version), poll_ms,
+                  t.totalBytes() / 1024, t.info.shared ? " through shared memory" : "", ms(Clock::now() - t1),
+                  png.c_str());
       std::fflush(stdout);
       last_seen = t.info.version;
       ++rendered;

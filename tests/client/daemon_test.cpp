@@ -518,14 +518,17 @@ TEST_F(ClientDaemon, GameClientRendersAFrame) {
       std::this_thread::sleep_for(std::chrono::milliseconds(300));
     }
   });
+  // Long polls, results through shared memory (the fixture's daemon keeps its default base,
+  // /dev/shm, where the machine has one).
   auto waited = runCommand({LIGHTLINK_GAME_CLIENT_PATH, "--session", session, "--preset", kPreset, "--frames", "2",
-                            "--wait-ms", "5000", "--duration", "60", "--width", "32", "--height", "24", "-o",
-                            (tmp / "waited").string()},
+                            "--wait-ms", "5000", "--duration", "60", "--width", "32", "--height", "24",
+                            "--shared-memory", "-o", (tmp / "waited").string()},
                            std::chrono::seconds(120));
   done = true;
   mover.join();
   ASSERT_EQ(waited.exit_code, 0) << waited.out << waited.err;
   EXPECT_TRUE(fs::exists(tmp / "waited" / "frame_0001.png")) << waited.out;
+  EXPECT_EQ(waited.out.find("through shared memory") != std::string::npos, fs::is_directory("/dev/shm")) << waited.out;
   // A preset whose atlas differs from the daemon's is refused, not rendered with wrong UVs.
   auto wrong = runCommand({LIGHTLINK_GAME_CLIENT_PATH, "--session", session, "--preset", "high", "--frames", "1",
                            "-o", (tmp / "frames").string()},
