@@ -26,6 +26,15 @@ using lightlink::testing::TempDir;
 const std::string kCornell = (lightlink::testing::sourceDir() / "clients/demo/cornell_box.gltf").string();
 constexpr const char* kPreset = "draft";  // the smallest precompute: these tests are about the wire
 
+// OpenScene of the bundled Cornell box at the draft preset.
+OpenOptions cornellOpen() {
+  OpenOptions o;
+  o.path = kCornell;
+  o.preset = kPreset;
+  o.timeout = std::chrono::seconds(240);
+  return o;
+}
+
 class ClientDaemon : public ::testing::Test {
  protected:
   void SetUp() override {
@@ -45,11 +54,7 @@ class ClientDaemon : public ::testing::Test {
   }
 
   SceneHandle open() {
-    OpenOptions o;
-    o.path = kCornell;
-    o.preset = kPreset;
-    o.timeout = std::chrono::seconds(240);
-    auto s = client_->openScene(o);
+    auto s = client_->openScene(cornellOpen());
     EXPECT_TRUE(s) << s.status().toString() << "\n" << daemon_->log();
     return s ? std::move(s).value() : SceneHandle{};
   }
@@ -226,10 +231,7 @@ TEST(ClientSharedMemory, SameResultAsTheStreamFallbackAndCleanup) {
   o.shared_memory = true;
   auto shared = Client::connect(o);
   ASSERT_TRUE(plain && shared);
-  OpenOptions open;
-  open.path = kCornell;
-  open.preset = kPreset;
-  open.timeout = std::chrono::seconds(240);
+  const OpenOptions open = cornellOpen();
   auto scene = plain->openScene(open);
   ASSERT_TRUE(scene) << scene.status().toString() << "\n" << daemon->log();
 

@@ -9,6 +9,7 @@
 #include "service/result_stream.h"
 #include "service/snapshot.h"
 #include "service/validation.h"
+#include "tests/service/test_snapshots.h"
 
 namespace lightlink::service {
 namespace {
@@ -138,19 +139,7 @@ TEST(ServiceValidation, OpenParameters) {
   EXPECT_FALSE(precomputeOptionsFrom(r));
 }
 
-// A 70 x 40 snapshot with 2 bands: tiles 3 x 2 (edge tiles clipped).
-// (Snapshots hold a mutex: built in place, never moved.)
-void fillSnapshot(Snapshot& s, float base) {
-  s.version = 1;
-  s.bands = 2;
-  s.width = 70;
-  s.height = 40;
-  const std::size_t texels = 70 * 40;
-  s.lightmap_sh.resize(texels * 12);
-  for (std::size_t i = 0; i < s.lightmap_sh.size(); ++i) s.lightmap_sh[i] = base + 0.001f * static_cast<float>(i % 977);
-  s.direct.assign(texels * 3, base);
-  s.texel_valid.assign(texels, 1);
-}
+using testing::fillSnapshot;
 
 TEST(ServicePayload, BandPrefixAndPrecision) {
   Snapshot s;

@@ -13,25 +13,19 @@
 #include "service/shared_results.h"
 #include "service/snapshot.h"
 #include "tests/common/testing.h"
+#include "tests/service/test_snapshots.h"
 
 namespace lightlink::service {
 namespace {
 
 namespace fs = std::filesystem;
 
-// A 70 x 40 snapshot with 2 bands (built in place: Snapshots hold mutexes).
+// The service tests' small snapshot as result `sequence` of scene-a.
 void fill(Snapshot& s, std::uint64_t sequence, float base) {
+  testing::fillSnapshot(s, base);
   s.scene_id = "scene-a";
   s.version = sequence;
   s.sequence = sequence;
-  s.bands = 2;
-  s.width = 70;
-  s.height = 40;
-  const std::size_t texels = 70 * 40;
-  s.lightmap_sh.resize(texels * 12);
-  for (std::size_t i = 0; i < s.lightmap_sh.size(); ++i) s.lightmap_sh[i] = base + 0.001f * static_cast<float>(i % 977);
-  s.direct.assign(texels * 3, base);
-  s.texel_valid.assign(texels, 1);
 }
 
 v1::ResultHeader parseHeader(const grpc::ByteBuffer& b) {
