@@ -462,6 +462,8 @@ grpc::Status LightlinkService::Stats(grpc::ServerContext* ctx, const v1::StatsRe
   response->set_scenes(static_cast<std::uint32_t>(registry_.size()));
   response->set_active_streams(static_cast<std::uint32_t>(active_streams_.load()));
   response->set_rss_bytes(residentSetBytes());
+  response->set_shared_memory_files(static_cast<std::uint32_t>(shared_.fileCount()));
+  response->set_shared_memory_bytes(shared_.byteCount());
   if (!request->scene().scene_id().empty()) {
     std::shared_ptr<SceneSession> s;
     if (auto st = lookup(request->scene(), &s); !st.ok()) return st;

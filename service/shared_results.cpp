@@ -100,6 +100,14 @@ std::size_t SharedResults::fileCount() const {
   return n;
 }
 
+std::uint64_t SharedResults::byteCount() const {
+  std::lock_guard lock(mutex_);
+  std::uint64_t n = 0;
+  for (const auto& [scene, files] : by_scene_)
+    for (const Entry& e : files) n += e.bytes;
+  return n;
+}
+
 Status SharedResults::ensureDirectory() {
   if (!dir_.empty()) return Status();
   std::string pattern = fmt::format("{}/{}{}-XXXXXX", base_, kDirPrefix, ::getpid());
@@ -159,6 +167,7 @@ Expected<SharedResults::Entry> SharedResults::write(const Snapshot& snap, const 
   }
   header.mutable_header()->mutable_shared()->set_path(e.path);
   header.mutable_header()->mutable_shared()->set_bytes(bytes);
+  e.bytes = bytes;
   auto serialized = std::make_shared<grpc::ByteBuffer>();
   bool own = false;
   if (!grpc::SerializationTraits<v1::ResultMessage>::Serialize(header, serialized.get(), &own).ok()) {

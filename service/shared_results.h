@@ -68,8 +68,9 @@ class SharedResults {
 
   // The directory holding the files; empty until the first file is written.
   std::string directory() const;
-  // Files currently on disk (all scenes).
+  // Files currently on disk (all scenes), and their bytes.
   std::size_t fileCount() const;
+  std::uint64_t byteCount() const;
 
  private:
   struct Entry {
@@ -77,6 +78,7 @@ class SharedResults {
     SpecKey spec;
     std::size_t chunk_bytes = 0;
     std::string path;
+    std::uint64_t bytes = 0;  // the file's size
     std::shared_ptr<const grpc::ByteBuffer> header;
   };
   Status ensureDirectory();  // under mutex_

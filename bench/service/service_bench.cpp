@@ -468,7 +468,10 @@ int main(int argc, char** argv) {
                    {"rss_per_scene_bytes", std::int64_t(stats1.rss_bytes()) - std::int64_t(stats0.rss_bytes())},
                    {"rss_end_bytes", stats2.rss_bytes()},
                    {"resident_bytes", sc.resident_bytes()},
-                   {"artifact_bytes", sc.artifact_bytes()}};
+                   {"artifact_bytes", sc.artifact_bytes()},
+                   // Files the daemon keeps for shared-memory delivery (--shared-memory), at the end.
+                   {"shared_memory_files", stats2.shared_memory_files()},
+                   {"shared_memory_bytes", stats2.shared_memory_bytes()}};
   out["relight"] = {{"relights", sc.relights()}, {"previews", sc.previews()}, {"coalesced", sc.coalesced()},
                     {"mean_relight_ms", sc.mean_relight_ms()}, {"last_relight_ms", sc.last_relight_ms()}};
   (void)driver.closeScene(scene);

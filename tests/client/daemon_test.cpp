@@ -255,8 +255,17 @@ TEST(ClientSharedMemory, SameResultAsTheStreamFallbackAndCleanup) {
   EXPECT_TRUE((*polled)->info.shared);
   EXPECT_EQ((*polled)->payloads, streamed->payloads);
   std::size_t files = 0;
-  for (const auto& e : fs::directory_iterator(dirs[0])) files += e.is_regular_file() ? 1 : 0;
+  std::uint64_t bytes = 0;
+  for (const auto& e : fs::directory_iterator(dirs[0])) {
+    files += e.is_regular_file() ? 1 : 0;
+    bytes += e.is_regular_file() ? e.file_size() : 0;
+  }
   EXPECT_EQ(files, 1u);
+  auto stats = plain->stats();
+  ASSERT_TRUE(stats) << stats.status().toString();
+  EXPECT_EQ(stats->shared_memory_files(), 1u);
+  EXPECT_EQ(stats->shared_memory_bytes(), bytes);
+  EXPECT_GT(bytes, from_file->totalBytes()) << "the payloads and their chunk framing";
 
   // Files gone (as if removed under a slow client): the same poll on the stream, same bytes.
   for (const auto& e : fs::directory_iterator(dirs[0])) fs::remove(e.path());

@@ -157,8 +157,13 @@ TEST(ServiceSharedMemory, OnlyTheNewestResultsKeepTheirFilesAndAClosedSceneNone)
   for (std::uint64_t seq = 1; seq <= kResults; ++seq)
     EXPECT_EQ(fs::exists(paths[seq - 1]), seq > kResults - SharedResults::kKeepResults) << "result " << seq;
   std::size_t on_disk = 0;
-  for (const auto& e : fs::directory_iterator(shared.directory())) on_disk += e.is_regular_file() ? 1 : 0;
+  std::uint64_t bytes_on_disk = 0;
+  for (const auto& e : fs::directory_iterator(shared.directory())) {
+    on_disk += e.is_regular_file() ? 1 : 0;
+    bytes_on_disk += e.is_regular_file() ? e.file_size() : 0;
+  }
   EXPECT_EQ(on_disk, shared.fileCount()) << "no temporary or orphaned file is left";
+  EXPECT_EQ(bytes_on_disk, shared.byteCount());
 
   // A result older than every kept one gets no file (the caller sends it on the stream).
   Snapshot old;
@@ -168,6 +173,7 @@ TEST(ServiceSharedMemory, OnlyTheNewestResultsKeepTheirFilesAndAClosedSceneNone)
 
   shared.dropScene("scene-a");
   EXPECT_EQ(shared.fileCount(), 0u);
+  EXPECT_EQ(shared.byteCount(), 0u);
   EXPECT_TRUE(fs::is_empty(shared.directory()));
 }
 
