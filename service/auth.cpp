@@ -11,21 +11,43 @@
 
 namespace lightlink::service {
 
-bool isLoopbackListen(std::string_view listen) {
-  std::string_view host = listen;
-  if (!host.empty() && host.front() == '[') {
-    const auto close = host.find(']');
-    host = close == std::string_view::npos ? host.substr(1) : host.substr(1, close - 1);
-  } else if (const auto colon = host.rfind(':'); colon != std::string_view::npos) {
-    host = host.substr(0, colon);
+namespace {
+
+// The host of "host:port" / "[v6]:port".
+std::string_view hostOf(std::string_view address) {
+  if (!address.empty() && address.front() == '[') {
+    const auto close = address.find(']');
+    return close == std::string_view::npos ? address.substr(1) : address.substr(1, close - 1);
   }
-  if (host == "localhost") return true;
+  const auto colon = address.rfind(':');
+  return colon == std::string_view::npos ? address : address.substr(0, colon);
+}
+
+// 127.0.0.0/8 or ::1; with `v4_mapped` also ::ffff:127.0.0.0/104 (how a dual-stack socket
+// names an IPv4 loopback peer).
+bool isLoopbackAddress(std::string_view host, bool v4_mapped) {
   const std::string h(host);
   in_addr v4{};
   if (::inet_pton(AF_INET, h.c_str(), &v4) == 1) return (ntohl(v4.s_addr) >> 24) == 127;
   in6_addr v6{};
-  if (::inet_pton(AF_INET6, h.c_str(), &v6) == 1) return IN6_IS_ADDR_LOOPBACK(&v6);
-  return false;  // a name other than localhost, 0.0.0.0, [::]: exposed
+  if (::inet_pton(AF_INET6, h.c_str(), &v6) == 1)
+    return IN6_IS_ADDR_LOOPBACK(&v6) || (v4_mapped && IN6_IS_ADDR_V4MAPPED(&v6) && v6.s6_addr[12] == 127);
+  return false;
+}
+
+}  // namespace
+
+bool isLoopbackListen(std::string_view listen) {
+  const std::string_view host = hostOf(listen);
+  if (host == "localhost") return true;
+  return isLoopbackAddress(host, false);  // a name other than localhost, 0.0.0.0, [::]: exposed
+}
+
+bool isLocalPeer(std::string_view peer) {
+  if (peer.starts_with("unix:") || peer.starts_with("unix-abstract:")) return true;
+  for (std::string_view scheme : {"ipv4:", "ipv6:"})
+    if (peer.starts_with(scheme)) return isLoopbackAddress(hostOf(peer.substr(scheme.size())), true);
+  return false;
 }
 
 std::string randomToken() {

@@ -19,6 +19,11 @@ namespace lightlink::service {
 // True when the host of "host:port" / "[v6]:port" is loopback (127.0.0.0/8, ::1, localhost).
 bool isLoopbackListen(std::string_view listen);
 
+// True when a gRPC peer string (ServerContext::peer(): "ipv4:127.0.0.1:5555",
+// "ipv6:[::1]:5555", "unix:/path") names a connection from this machine: a loopback address
+// (IPv4-mapped ones included) or a Unix socket.
+bool isLocalPeer(std::string_view peer);
+
 // 128 random bits as 32 lowercase hex characters (from the OS random source).
 std::string randomToken();
 

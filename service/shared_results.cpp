@@ -17,6 +17,7 @@
 #include <grpcpp/impl/codegen/proto_utils.h>
 
 #include "proto/lightlink.pb.h"
+#include "service/auth.h"
 
 namespace lightlink::service {
 namespace {
@@ -24,8 +25,6 @@ namespace {
 namespace fs = std::filesystem;
 
 constexpr std::string_view kDirPrefix = "lightlinkd-";
-
-bool startsWith(std::string_view s, std::string_view prefix) { return s.substr(0, prefix.size()) == prefix; }
 
 // Writes every byte of `parts` (iovecs) to fd, across short writes.
 Status writeAllV(int fd, std::vector<iovec> parts, const std::string& path) {
@@ -49,18 +48,13 @@ Status writeAllV(int fd, std::vector<iovec> parts, const std::string& path) {
 
 }  // namespace
 
-bool isLocalPeer(const std::string& peer) {
-  return startsWith(peer, "ipv4:127.") || startsWith(peer, "ipv6:[::1]") || startsWith(peer, "ipv6:[::ffff:127.") ||
-         startsWith(peer, "unix:") || startsWith(peer, "unix-abstract:");
-}
-
 int removeStaleSharedDirs(const std::string& base) {
   std::error_code ec;
   if (base.empty() || !fs::is_directory(base, ec)) return 0;
   int removed = 0;
   for (const auto& entry : fs::directory_iterator(base, ec)) {
     const std::string name = entry.path().filename().string();
-    if (!startsWith(name, kDirPrefix)) continue;
+    if (!name.starts_with(kDirPrefix)) continue;
     // lightlinkd-<pid>-<suffix>
     const std::string rest = name.substr(kDirPrefix.size());
     const auto dash = rest.find('-');
@@ -178,14 +172,20 @@ Expected<SharedResults::Entry> SharedResults::write(const Snapshot& snap, const 
   return e;
 }
 
+std::size_t SharedResults::distinctResults(const std::deque<Entry>& files) {
+  std::vector<std::uint64_t> seqs;
+  for (const auto& e : files) seqs.push_back(e.sequence);
+  std::sort(seqs.begin(), seqs.end());
+  return static_cast<std::size_t>(std::unique(seqs.begin(), seqs.end()) - seqs.begin());
+}
+
+bool SharedResults::olderThanKept(const std::deque<Entry>& files, std::uint64_t sequence) {
+  return distinctResults(files) >= kKeepResults &&
+         std::all_of(files.begin(), files.end(), [&](const Entry& e) { return e.sequence > sequence; });
+}
+
 void SharedResults::trim(std::deque<Entry>& files) {
-  auto distinctResults = [&] {
-    std::vector<std::uint64_t> seqs;
-    for (const Entry& e : files) seqs.push_back(e.sequence);
-    std::sort(seqs.begin(), seqs.end());
-    return static_cast<std::size_t>(std::unique(seqs.begin(), seqs.end()) - seqs.begin());
-  };
-  while (!files.empty() && (files.size() > kMaxFilesPerScene || distinctResults() > kKeepResults)) {
+  while (!files.empty() && (files.size() > kMaxFilesPerScene || distinctResults(files) > kKeepResults)) {
     // The oldest result goes first; within it, the file written first.
     auto oldest = std::min_element(files.begin(), files.end(),
                                    [](const Entry& a, const Entry& b) { return a.sequence < b.sequence; });
@@ -204,15 +204,17 @@ Expected<std::shared_ptr<const grpc::ByteBuffer>> SharedResults::header(const Sn
   std::deque<Entry>& files = by_scene_[snap.scene_id];
   for (const Entry& e : files)
     if (e.sequence == snap.sequence && e.spec == spec && e.chunk_bytes == chunk_bytes) return e.header;
+  if (olderThanKept(files, snap.sequence))  // its file would be the first to go: not written
+    return unsupported("shared memory: result {} is older than the {} kept", snap.sequence, kKeepResults);
   auto e = write(snap, spec, chunk_bytes, wire);
   if (!e) return e.status();
   const std::string path = e->path;
   auto header = e->header;
   files.push_back(std::move(e).value());
   trim(files);
-  const bool kept = std::any_of(files.begin(), files.end(), [&](const Entry& f) { return f.path == path; });
-  if (!kept)  // older than every kept result: not worth a file
-    return unsupported("shared memory: result {} is older than the {} kept", snap.sequence, kKeepResults);
+  // Past the file cap the oldest result's files go, and that may be this one.
+  if (std::none_of(files.begin(), files.end(), [&](const Entry& f) { return f.path == path; }))
+    return unsupported("shared memory: result {} is older than the {} files kept", snap.sequence, kMaxFilesPerScene);
   return header;
 }
 

@@ -4,7 +4,7 @@
 //
 // Fifty game clients polling one 1 MB lightmap over loopback TCP move 50 MB per version
 // through the kernel twice (send and receive copies) and through 100 threads' wake-ups; on
-// 2 cores that was 22-40 ms per version beyond the relight (docs/results.md, issue 7). A
+// 2 cores that was 20-32 ms (p50) per version beyond the relight (docs/results.md, issue 7). A
 // client on the same machine can instead read the bytes the daemon wrote once: the daemon
 // writes a result's chunk messages for a spec to one immutable file, per result and spec, and
 // answers each asking client with a header naming it. The file holds exactly the chunk
@@ -33,10 +33,6 @@
 #include "service/snapshot.h"
 
 namespace lightlink::service {
-
-// True when a gRPC peer string (ServerContext::peer()) names a connection from this machine:
-// loopback IPv4/IPv6 or a Unix socket.
-bool isLocalPeer(const std::string& peer);
 
 // Removes `base`/lightlinkd-<pid>-* directories whose daemon process no longer exists.
 // Returns how many it removed.
@@ -85,6 +81,9 @@ class SharedResults {
   Expected<Entry> write(const Snapshot& snap, const SpecKey& spec, std::size_t chunk_bytes,
                         const WireResult& wire);  // under mutex_
   void trim(std::deque<Entry>& files);  // under mutex_
+  static std::size_t distinctResults(const std::deque<Entry>& files);  // results among a scene's files
+  // True when a scene already keeps kKeepResults results, all newer than `sequence`.
+  static bool olderThanKept(const std::deque<Entry>& files, std::uint64_t sequence);
 
   const std::string base_;
   mutable std::mutex mutex_;

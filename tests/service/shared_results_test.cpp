@@ -10,6 +10,7 @@
 #include <gtest/gtest.h>
 
 #include "clients/client/shared_result.h"
+#include "service/auth.h"
 #include "service/shared_results.h"
 #include "service/snapshot.h"
 #include "tests/common/testing.h"
