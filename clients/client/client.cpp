@@ -170,6 +170,26 @@ struct Client::Impl {
   std::chrono::milliseconds waitingDeadline(std::uint32_t wait_ms) const {
     return call_timeout.count() > 0 ? call_timeout + std::chrono::milliseconds(wait_ms) : call_timeout;
   }
+  // One Relight or GetTextures call. When its header named a shared-memory file that could
+  // not be read (removed, another user's daemon), the same call again on the stream: the
+  // request without shared_memory and, for a long poll, with wait_ms 0 (the daemon just
+  // named a result newer than last_seen_version).
+  template <typename Request>
+  Expected<Textures> readResult(const char* rpc, const grpc::internal::RpcMethod& method, Request req,
+                                std::chrono::milliseconds deadline) const {
+    bool shared_unreadable = false;
+    {
+      grpc::ClientContext ctx;
+      prepare(ctx, deadline);
+      auto t = readOneRawResult(rpc, method, channel.get(), ctx, req, &shared_unreadable);
+      if (t || !shared_unreadable) return t;
+    }
+    req.set_shared_memory(false);
+    if constexpr (requires { req.set_wait_ms(0u); }) req.set_wait_ms(0);
+    grpc::ClientContext ctx;
+    prepare(ctx);
+    return readOneRawResult(rpc, method, channel.get(), ctx, req);
+  }
 };
 
 Client::Client(ConnectOptions options, std::unique_ptr<Impl> impl)
@@ -269,18 +289,7 @@ Expected<Textures> Client::relight(const SceneHandle& scene, std::uint64_t versi
   req.set_version(version);
   *req.mutable_spec() = toProto(spec);
   req.set_shared_memory(options_.shared_memory);
-  bool shared_unreadable = false;
-  {
-    grpc::ClientContext ctx;
-    impl_->prepare(ctx);
-    auto t = readOneRawResult("Relight", kRelightMethod, impl_->channel.get(), ctx, req, &shared_unreadable);
-    if (t || !shared_unreadable) return t;
-  }
-  // The shared file was gone or unreadable (another user's daemon, removed): on the stream.
-  req.set_shared_memory(false);
-  grpc::ClientContext ctx;
-  impl_->prepare(ctx);
-  return readOneRawResult("Relight", kRelightMethod, impl_->channel.get(), ctx, req);
+  return impl_->readResult("Relight", kRelightMethod, std::move(req), impl_->call_timeout);
 }
 
 Expected<std::optional<Textures>> Client::getTextures(const SceneHandle& scene, std::uint64_t last_seen_version,
@@ -291,21 +300,7 @@ Expected<std::optional<Textures>> Client::getTextures(const SceneHandle& scene, 
   *req.mutable_spec() = toProto(spec);
   req.set_wait_ms(wait_ms);
   req.set_shared_memory(options_.shared_memory);
-  bool shared_unreadable = false;
-  auto t = [&] {
-    grpc::ClientContext ctx;
-    impl_->prepare(ctx, impl_->waitingDeadline(wait_ms));
-    return readOneRawResult("GetTextures", kGetTexturesMethod, impl_->channel.get(), ctx, req, &shared_unreadable);
-  }();
-  if (!t && shared_unreadable) {
-    // The shared file was gone or unreadable: the same poll on the stream, answered at once
-    // (a newer result than last_seen_version exists: the daemon just named one).
-    req.set_shared_memory(false);
-    req.set_wait_ms(0);
-    grpc::ClientContext ctx;
-    impl_->prepare(ctx);
-    t = readOneRawResult("GetTextures", kGetTexturesMethod, impl_->channel.get(), ctx, req);
-  }
+  auto t = impl_->readResult("GetTextures", kGetTexturesMethod, std::move(req), impl_->waitingDeadline(wait_ms));
   if (!t) return t.status();
   if (t->info.not_modified) return std::optional<Textures>{};
   return std::optional<Textures>(std::move(t).value());

@@ -3,9 +3,9 @@
 //
 // A client on the daemon's machine that asks with `shared_memory` gets one header naming a
 // file that holds the result's chunk messages, written once by the daemon for every client
-// with the same spec. The file is mapped read-only and each record is decoded from the
-// mapping with the same decoder as a received message (raw_result.h), so the chunk data is
-// copied once, into its payload, as from the socket.
+// with the same spec. The file is read into a buffer the calling thread reuses and each
+// record is decoded from it with the same decoder as a received message (raw_result.h): the
+// chunk data is copied out of the page cache, then once into its payload.
 #pragma once
 
 #include "clients/client/textures.h"
