@@ -143,9 +143,8 @@ LL_MULTIVERSION void sky4(const float* e, const float* x, const float* y, const 
 template <int Bands>
 constexpr SkyFn skyPolynomials = Bands == 1 ? sky1 : Bands == 2 ? sky2 : Bands == 3 ? sky3 : sky4;
 
-// One octahedral code (encodeOctahedral's formula), written with selects only so that the
-// batch loop below vectorises; IEEE operations in the same order give the same bits in
-// every lane as the scalar code.
+// One octahedral code (encodeOctahedral's formula; the same operations in the same order as
+// before, so the same bits).
 inline std::uint32_t octahedralCode(float x, float y, float z) {
   const float inv = 1.0f / (std::abs(x) + std::abs(y) + std::abs(z));
   const float ox = x * inv, oy = y * inv;
@@ -161,10 +160,11 @@ inline std::uint32_t octahedralCode(float x, float y, float z) {
   return q(u) | (q(v) << 16);
 }
 
-// The codes of a cache's link directions, after its link loop: called per link, the
-// encoding took 3.5 % of link generation's samples on the bundled Cornell box
-// (docs/results.md, issue 4 eighth pass).
-LL_MULTIVERSION void octahedralCodes(const float* __restrict x, const float* __restrict y, const float* __restrict z,
+// The codes of a cache's link directions, in one loop after its link loop: called per link
+// (out of line, from inside the projection loop) the encoding took 3.5 % of link generation's
+// samples on the bundled Cornell box, this loop 0.8 % (docs/results.md, issue 4 eighth pass).
+// GCC 12 keeps it scalar (the clamp and the rounding are control flow to it).
+void octahedralCodes(const float* __restrict x, const float* __restrict y, const float* __restrict z,
                                      std::uint32_t count, std::uint32_t* __restrict out) {
   for (std::uint32_t i = 0; i < count; ++i) out[i] = octahedralCode(x[i], y[i], z[i]);
 }
@@ -213,9 +213,9 @@ void linkCache(std::size_t cache, const glm::vec3& p, const glm::vec3& normal, c
   }
   // Counts and the sample cursor in locals: the byte stores to `seen` may alias anything, so
   // counters in `out` and the samples vector's own pointers were reloaded and stored back for
-  // every hit (seen in the loop's assembly). Measured gain: link rays/s +3 %, -0.5 %, +3 % on
-  // the bundled box, EmissiveStrengthTest and CornellBox-Original (medians of 15 pairs,
-  // docs/results.md, issue 4 eighth pass), within the VM's noise.
+  // every hit (seen in the loop's assembly). No speed-up beyond noise was measured (link
+  // rays/s +3 %, -0.5 %, +3 % on three scenes, docs/results.md, issue 4 eighth pass); it is
+  // the simpler loop.
   Sample* samples = s.samples.data();  // `count` long (Scratch)
   std::size_t sampled = 0;
   std::uint64_t back_hits = 0, unowned = 0;
