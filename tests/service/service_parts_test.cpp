@@ -25,6 +25,20 @@ TEST(ServiceAuth, LoopbackClassification) {
   EXPECT_FALSE(isLoopbackListen("example.com:443"));
 }
 
+// Who may ask for shared-memory delivery (service/shared_results.h): callers on this machine.
+TEST(ServiceAuth, LocalPeerClassification) {
+  EXPECT_TRUE(isLocalPeer("ipv4:127.0.0.1:50412"));
+  EXPECT_TRUE(isLocalPeer("ipv4:127.3.4.5:1"));
+  EXPECT_TRUE(isLocalPeer("ipv6:[::1]:50412"));
+  EXPECT_TRUE(isLocalPeer("ipv6:[::ffff:127.0.0.1]:9"));
+  EXPECT_TRUE(isLocalPeer("unix:/run/lightlinkd.sock"));
+  EXPECT_FALSE(isLocalPeer("ipv4:10.0.0.7:50412"));
+  EXPECT_FALSE(isLocalPeer("ipv4:128.0.0.1:1"));
+  EXPECT_FALSE(isLocalPeer("ipv6:[2001:db8::1]:50412"));
+  EXPECT_FALSE(isLocalPeer("ipv6:[::2]:1"));
+  EXPECT_FALSE(isLocalPeer(""));
+}
+
 TEST(ServiceAuth, BearerAndTokens) {
   EXPECT_TRUE(checkBearer("", false, "").empty()) << "no token configured: everyone passes";
   EXPECT_FALSE(checkBearer("", false, "abc").empty());

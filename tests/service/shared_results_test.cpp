@@ -10,7 +10,6 @@
 #include <gtest/gtest.h>
 
 #include "clients/client/shared_result.h"
-#include "service/auth.h"
 #include "service/shared_results.h"
 #include "service/snapshot.h"
 #include "tests/common/testing.h"
@@ -56,19 +55,6 @@ client::Textures fromStream(const WireResult& w) {
   auto t = a.take();
   EXPECT_TRUE(t) << t.status().toString();
   return t ? std::move(t).value() : client::Textures{};
-}
-
-TEST(ServiceSharedMemory, OnlyPeersOnThisMachineMayAsk) {
-  EXPECT_TRUE(isLocalPeer("ipv4:127.0.0.1:50412"));
-  EXPECT_TRUE(isLocalPeer("ipv4:127.3.4.5:1"));
-  EXPECT_TRUE(isLocalPeer("ipv6:[::1]:50412"));
-  EXPECT_TRUE(isLocalPeer("ipv6:[::ffff:127.0.0.1]:9"));
-  EXPECT_TRUE(isLocalPeer("unix:/run/lightlinkd.sock"));
-  EXPECT_FALSE(isLocalPeer("ipv4:10.0.0.7:50412"));
-  EXPECT_FALSE(isLocalPeer("ipv4:128.0.0.1:1"));
-  EXPECT_FALSE(isLocalPeer("ipv6:[2001:db8::1]:50412"));
-  EXPECT_FALSE(isLocalPeer("ipv6:[::2]:1"));
-  EXPECT_FALSE(isLocalPeer(""));
 }
 
 TEST(ServiceSharedMemory, TheFileHoldsTheStreamsChunksAndReadsBackToTheSameResult) {
