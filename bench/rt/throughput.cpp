@@ -1,6 +1,7 @@
 #include "bench/rt/throughput.h"
 
 #include <algorithm>
+#include <atomic>
 #include <chrono>
 #include <cmath>
 #include <fstream>
@@ -100,6 +101,60 @@ ThroughputResult measureThroughput(const rt::Accel& accel, std::span<const rt::R
         std::count_if(hits.begin(), hits.end(), [](const rt::Hit& h) { return h.hit(); }));
   else
     result.hits = static_cast<std::size_t>(std::count(blocked.begin(), blocked.end(), std::uint8_t{1}));
+  return result;
+}
+
+ThroughputResult measureFanThroughput(const rt::Accel& accel, const FanSet& fans, const ThroughputOptions& options) {
+  LL_CHECK_GT(fans.per_fan, 0u);
+  const std::size_t per_fan = fans.per_fan;
+  const std::size_t fan_count = fans.origin.size();
+  LL_CHECK_EQ(fans.x.size(), fan_count * per_fan);
+  const std::size_t fans_per_task = std::max<std::size_t>(1, options.chunk / per_fan);
+  const std::size_t tasks = (fan_count + fans_per_task - 1) / fans_per_task;
+  std::atomic<std::size_t> hits{0};
+  auto trace = [&](std::size_t task) {
+    thread_local std::vector<std::uint32_t> mesh, triangle;
+    thread_local std::vector<float> u, v, t, nx, ny, nz;
+    for (auto* a : {&mesh, &triangle}) a->resize(per_fan);
+    for (auto* a : {&u, &v, &t, &nx, &ny, &nz}) a->resize(per_fan);
+    const rt::HitArrays out{mesh.data(), triangle.data(), u.data(), v.data(), t.data(), nx.data(), ny.data(), nz.data()};
+    std::size_t task_hits = 0;
+    for (std::size_t f = task * fans_per_task; f < std::min(fan_count, (task + 1) * fans_per_task); ++f) {
+      rt::RayFan fan;
+      fan.origin = fans.origin[f];
+      fan.dir_x = fans.x.data() + f * per_fan;
+      fan.dir_y = fans.y.data() + f * per_fan;
+      fan.dir_z = fans.z.data() + f * per_fan;
+      fan.count = per_fan;
+      accel.intersectFan(fan, out);
+      for (std::size_t i = 0; i < per_fan; ++i) task_hits += mesh[i] != rt::kNoHit ? 1 : 0;
+    }
+    hits.fetch_add(task_hits, std::memory_order_relaxed);
+  };
+  const int threads = options.threads == 0 ? tbb::info::default_concurrency() : options.threads;
+  tbb::task_arena arena(threads);
+  auto pass = [&] {
+    hits.store(0);
+    if (threads == 1) {
+      for (std::size_t k = 0; k < tasks; ++k) trace(k);
+      return;
+    }
+    arena.execute([&] {
+      tbb::parallel_for(
+          tbb::blocked_range<std::size_t>(0, tasks, 1),
+          [&](const tbb::blocked_range<std::size_t>& r) {
+            for (std::size_t k = r.begin(); k < r.end(); ++k) trace(k);
+          },
+          tbb::simple_partitioner());
+    });
+  };
+  const PassTiming timing = timePasses(pass, options.min_seconds);
+  ThroughputResult result;
+  result.rays = fan_count * per_fan;
+  result.threads = threads;
+  result.passes = timing.passes;
+  result.seconds = timing.seconds;
+  result.hits = hits.load();
   return result;
 }
 

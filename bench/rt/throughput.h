@@ -55,6 +55,20 @@ struct ThroughputResult {
 ThroughputResult measureThroughput(const rt::Accel& accel, std::span<const rt::Ray> rays,
                                    const ThroughputOptions& options);
 
+// Fans of rays (one origin each, directions as arrays): what link generation traces per cache
+// through rt::Accel::intersectFan. Fan f's rays are [f * per_fan, (f + 1) * per_fan).
+struct FanSet {
+  std::vector<glm::vec3> origin;  // per fan
+  std::vector<float> x, y, z;     // per ray
+  std::uint32_t per_fan = 0;
+};
+
+// Closest hits of every fan through Accel::intersectFan (16-ray packets), each fan's hits
+// into the task's own arrays, as link generation keeps them (counted after every fan, so
+// nothing is elided); tasks of options.chunk rays (whole fans); options.query and .api are
+// ignored. The timing rule is measureThroughput's.
+ThroughputResult measureFanThroughput(const rt::Accel& accel, const FanSet& fans, const ThroughputOptions& options);
+
 // The timing rule on its own, for a benchmark timing its own work (e.g. link generation
 // over the same rays): one untimed call of `pass`, then calls until min_seconds elapsed.
 struct PassTiming {

@@ -102,8 +102,9 @@ void chooseCut(const CutTree& tree, std::span<const Sample> samples, int max_lin
   // straight from the runs of the sorted samples, without walking every root-to-leaf path.
   // (On ShadowsDirectional, 52 links per cache on average, this halved chooseCut's perf
   // samples: docs/results.md, "Cuts that end at the leaves".)
+  // (Counting stops once past the budget: most caches of a closed scene see hundreds of surfels.)
   std::uint32_t distinct = 0;
-  for (std::size_t k = 0; k < samples.size(); ++k)
+  for (std::size_t k = 0; k < samples.size() && distinct <= static_cast<std::uint32_t>(max_links); ++k)
     distinct += (k == 0 || surfelOf(samples[k]) != surfelOf(samples[k - 1])) ? 1 : 0;
   if (distinct <= static_cast<std::uint32_t>(max_links)) {
     for (std::uint32_t k = 0; k < samples.size();) {

@@ -5,6 +5,7 @@
 #include <chrono>
 #include <cstddef>
 #include <cmath>
+#include <cstring>
 #include <numbers>
 
 #if defined(__SSE2__)
@@ -45,8 +46,9 @@ std::uint32_t strataFor(const LinkOptions& options) {
 
 // Per-thread scratch, reused across caches so the hot loop never allocates.
 struct Scratch {
-  std::vector<rt::Ray> rays;
-  std::vector<rt::Hit> hits;
+  // The fan's hits, one array per field (rt::HitArrays).
+  std::vector<std::uint32_t> hit_mesh, hit_triangle;
+  std::vector<float> hit_u, hit_v, hit_t, hit_ng_x, hit_ng_y, hit_ng_z;
   std::vector<Sample> samples;
   std::vector<Sample> sort_buffer;
   std::vector<CutEntry> cut;
@@ -54,6 +56,7 @@ struct Scratch {
   std::vector<std::uint32_t> slots;     // per ray: owner raster slot or ray class
   std::vector<float> dir_x, dir_y, dir_z;  // per ray, padded to a multiple of kSkyLanes
   std::vector<float> escaped;           // per ray: 1 escaped, 0 not (0 in the padding)
+  std::vector<float> poly;              // per SH coefficient q >= 1, per ray (padded): the basis polynomial
   std::vector<float> coeff_values;      // per link of the cache: its SH in float, then fp16
   std::vector<float> solid_values;
   std::vector<float> link_x, link_y, link_z;  // per link of the cache: the direction to encode
@@ -100,22 +103,42 @@ struct ChunkResult {
 // bits; a plain reduction would not vectorise without reassociating. Most rays of an open
 // scene escape (ShadowsDirectional: 82 %); there the hit loop with the sky projected ray by
 // ray took 0.23 Gcycles, this pass and the owner rasters 0.10 (docs/results.md).
+// The same pass keeps every ray's polynomials (q >= 1) in `poly`, one array of `count`
+// floats per q: the links' projection sums them over each link's hits instead of evaluating
+// them again per hit (docs/results.md, issue 4 ninth pass).
 constexpr std::uint32_t kSkyLanes = 8;
 // Rays rounded up to whole groups of lanes: the length of the sky pass's arrays.
 constexpr std::uint32_t skyPadded(std::uint32_t rays) { return (rays + kSkyLanes - 1) / kSkyLanes * kSkyLanes; }
+// Distance between the polynomial arrays of consecutive q: one cache line more than the
+// padded ray count, so that ray i's 8 or 15 polynomials do not all fall into one L1 set
+// (4 KiB apart at 1024 rays, they would).
+constexpr std::uint32_t polyStride(std::uint32_t padded) { return padded + 16; }
+
+// Eight floats as one GCC vector: the sky pass below is written on it so that it stays
+// vectorised while it also stores every ray's polynomials (written on scalars with those
+// stores added, GCC 12 turned it into scalar code, and link generation got 10 % slower).
+typedef float Lanes8 __attribute__((vector_size(32)));
+static_assert(kSkyLanes == 8);
 
 template <int Bands>
 __attribute__((always_inline)) inline void skyPolynomialsImpl(const float* __restrict escaped, const float* __restrict x,
                                                               const float* __restrict y, const float* __restrict z,
-                                                              std::uint32_t count, float* __restrict sums) {
+                                                              std::uint32_t count, float* __restrict sums,
+                                                              float* __restrict poly_out) {
   constexpr int kCoeffs = Bands * Bands;
-  float acc[kCoeffs][kSkyLanes] = {};
+  const std::size_t stride = polyStride(count);
+  Lanes8 acc[kCoeffs] = {};
   for (std::uint32_t i0 = 0; i0 < count; i0 += kSkyLanes) {
-    for (std::uint32_t l = 0; l < kSkyLanes; ++l) {
-      const float e = escaped[i0 + l];
-      float poly[kCoeffs];
-      sh::evalBasisPolynomial<Bands>(glm::vec3(x[i0 + l], y[i0 + l], z[i0 + l]), poly);
-      for (int q = 1; q < kCoeffs; ++q) acc[q][l] += e * poly[q];
+    Lanes8 e, vx, vy, vz;  // unaligned loads (memcpy: no vector-typed function returns)
+    std::memcpy(&e, escaped + i0, sizeof e);
+    std::memcpy(&vx, x + i0, sizeof vx);
+    std::memcpy(&vy, y + i0, sizeof vy);
+    std::memcpy(&vz, z + i0, sizeof vz);
+    Lanes8 poly[kCoeffs];
+    sh::evalBasisPolynomialOf<Bands, Lanes8>(vx, vy, vz, poly);
+    for (int q = 1; q < kCoeffs; ++q) {
+      acc[q] += e * poly[q];
+      std::memcpy(poly_out + std::size_t(q - 1) * stride + i0, &poly[q], sizeof(Lanes8));
     }
   }
   for (int q = 1; q < kCoeffs; ++q) {
@@ -126,19 +149,24 @@ __attribute__((always_inline)) inline void skyPolynomialsImpl(const float* __res
 }
 
 // One multiversioned entry per band count (target_clones does not apply to templates).
-// `count` is a multiple of kSkyLanes (the arrays are padded, escaped = 0 there).
-using SkyFn = void (*)(const float*, const float*, const float*, const float*, std::uint32_t, float*);
-LL_MULTIVERSION void sky1(const float* e, const float* x, const float* y, const float* z, std::uint32_t n, float* s) {
-  skyPolynomialsImpl<1>(e, x, y, z, n, s);
+// `count` is a multiple of kSkyLanes (the arrays are padded, escaped = 0 there); `poly`
+// holds (bands^2 - 1) * count floats.
+using SkyFn = void (*)(const float*, const float*, const float*, const float*, std::uint32_t, float*, float*);
+LL_MULTIVERSION void sky1(const float* e, const float* x, const float* y, const float* z, std::uint32_t n, float* s,
+                          float* poly) {
+  skyPolynomialsImpl<1>(e, x, y, z, n, s, poly);
 }
-LL_MULTIVERSION void sky2(const float* e, const float* x, const float* y, const float* z, std::uint32_t n, float* s) {
-  skyPolynomialsImpl<2>(e, x, y, z, n, s);
+LL_MULTIVERSION void sky2(const float* e, const float* x, const float* y, const float* z, std::uint32_t n, float* s,
+                          float* poly) {
+  skyPolynomialsImpl<2>(e, x, y, z, n, s, poly);
 }
-LL_MULTIVERSION void sky3(const float* e, const float* x, const float* y, const float* z, std::uint32_t n, float* s) {
-  skyPolynomialsImpl<3>(e, x, y, z, n, s);
+LL_MULTIVERSION void sky3(const float* e, const float* x, const float* y, const float* z, std::uint32_t n, float* s,
+                          float* poly) {
+  skyPolynomialsImpl<3>(e, x, y, z, n, s, poly);
 }
-LL_MULTIVERSION void sky4(const float* e, const float* x, const float* y, const float* z, std::uint32_t n, float* s) {
-  skyPolynomialsImpl<4>(e, x, y, z, n, s);
+LL_MULTIVERSION void sky4(const float* e, const float* x, const float* y, const float* z, std::uint32_t n, float* s,
+                          float* poly) {
+  skyPolynomialsImpl<4>(e, x, y, z, n, s, poly);
 }
 template <int Bands>
 constexpr SkyFn skyPolynomials = Bands == 1 ? sky1 : Bands == 2 ? sky2 : Bands == 3 ? sky3 : sky4;
@@ -179,9 +207,12 @@ void linkCache(std::size_t cache, const glm::vec3& p, const glm::vec3& normal, c
   const std::uint32_t count = pattern.count();
   const glm::vec3 n = hemisphere ? glm::normalize(normal) : glm::vec3(0, 0, 1);
   const LinkRays::Directions dirs{s.dir_x.data(), s.dir_y.data(), s.dir_z.data()};
-  pattern.generate(accel, cache, p, normal, std::span<rt::Ray>(s.rays.data(), count), &dirs);
-  accel.intersect(std::span<const rt::Ray>(s.rays.data(), count), std::span<rt::Hit>(s.hits.data(), count),
-                  rt::Coherence::kCoherent);
+  // Traced as a fan: directions and hits stay in arrays from the generator through Embree's
+  // packets to the loops below (docs/precompute.md, "Ray generation").
+  const rt::RayFan fan = pattern.fan(accel, cache, p, normal, dirs);
+  const rt::HitArrays hits{s.hit_mesh.data(), s.hit_triangle.data(), s.hit_u.data(), s.hit_v.data(),
+                           s.hit_t.data(),    s.hit_ng_x.data(),     s.hit_ng_y.data(), s.hit_ng_z.data()};
+  accel.intersectFan(fan, hits);
 
   const float omega = hemisphere ? 2.0f * kPi : 4.0f * kPi;
   const float w = omega / static_cast<float>(count) / kPi;  // per-ray weight of V/pi
@@ -197,17 +228,20 @@ void linkCache(std::size_t cache, const glm::vec3& p, const glm::vec3& normal, c
   constexpr std::uint32_t kEscaped = 0xffffffffu, kBlocked = 0xfffffffeu, kAskLocator = 0xfffffffdu;
   std::uint32_t* slot = s.slots.data();
   for (std::uint32_t i = 0; i < count; ++i) {
-    const rt::Hit& h = s.hits[i];
-    escaped_mask[i] = h.hit() ? 0.0f : 1.0f;
-    if (!h.hit()) {
+    const std::uint32_t mesh = hits.mesh[i];
+    escaped_mask[i] = mesh != rt::kNoHit ? 0.0f : 1.0f;
+    if (mesh == rt::kNoHit) {
       slot[i] = kEscaped;
       continue;
     }
-    if (h.backFacing(s.rays[i].dir) && !double_sided[h.mesh]) {
+    // rt::Hit::backFacing.
+    const bool back = glm::dot(glm::vec3(hits.ng_x[i], hits.ng_y[i], hits.ng_z[i]),
+                               glm::vec3(dirs.x[i], dirs.y[i], dirs.z[i])) > 0.0f;
+    if (back && !double_sided[mesh]) {
       slot[i] = kBlocked;
       continue;
     }
-    const std::uint32_t k = locator.rasterSlot(h.mesh, h.triangle, h.u, h.v);
+    const std::uint32_t k = locator.rasterSlot(mesh, hits.triangle[i], hits.u[i], hits.v[i]);
     slot[i] = k == kNoSurfel ? kAskLocator : k;
     if (k != kNoSurfel) __builtin_prefetch(locator.slotAddress(k));
   }
@@ -233,10 +267,10 @@ void linkCache(std::size_t cache, const glm::vec3& p, const glm::vec3& normal, c
       // Stray hits (a raster cell beyond a hypotenuse, a triangle without a surfel to stand
       // for it): the full lookup. The visible side's normal faces the cache (left
       // unnormalised: the locator only needs it when it falls back to its grid).
-      const rt::Hit& h = s.hits[i];
-      const glm::vec3& dir = s.rays[i].dir;
-      owner = locator.ownerOfHit(h.mesh, h.triangle, h.u, h.v, s.rays[i].origin + h.t * dir,
-                                 h.backFacing(dir) ? -h.ng : h.ng);
+      const glm::vec3 dir(dirs.x[i], dirs.y[i], dirs.z[i]);
+      const glm::vec3 ng(hits.ng_x[i], hits.ng_y[i], hits.ng_z[i]);
+      owner = locator.ownerOfHit(hits.mesh[i], hits.triangle[i], hits.u[i], hits.v[i], fan.origin + hits.t[i] * dir,
+                                 glm::dot(ng, dir) > 0.0f ? -ng : ng);
     }
     if (owner == kNoSurfel) {
       ++unowned;
@@ -251,7 +285,8 @@ void linkCache(std::size_t cache, const glm::vec3& p, const glm::vec3& normal, c
   out.stats.unowned += unowned;
   out.stats.front_hits += sampled;
   float sky_poly[kCoeffs];  // sums of the basis polynomials over the escaped rays
-  skyPolynomials<Bands>(escaped_mask, dirs.x, dirs.y, dirs.z, padded, sky_poly);
+  float* const poly = s.poly.data();  // ray i's Y_q polynomial at [(q - 1) * polyStride(padded) + i]
+  skyPolynomials<Bands>(escaped_mask, dirs.x, dirs.y, dirs.z, padded, sky_poly, poly);
   sky_poly[0] = static_cast<float>(escaped);
   float sky[kCoeffs];
   for (int q = 0; q < kCoeffs; ++q) sky[q] = w * sh::kBasisScale[q] * sky_poly[q];
@@ -269,11 +304,8 @@ void linkCache(std::size_t cache, const glm::vec3& p, const glm::vec3& normal, c
     glm::vec3 sum_dir(0.0f);
     for (std::uint32_t k = e.first; k < e.first + e.count; ++k) {
       const std::uint32_t ray = rayOf(sorted[k]);
-      const glm::vec3 dir(dirs.x[ray], dirs.y[ray], dirs.z[ray]);
-      float poly[kCoeffs];
-      sh::evalBasisPolynomial<Bands>(dir, poly);
-      for (int q = 1; q < kCoeffs; ++q) m[q] += poly[q];
-      if constexpr (Bands < 2) sum_dir += dir;
+      for (int q = 1; q < kCoeffs; ++q) m[q] += poly[std::size_t(q - 1) * polyStride(padded) + ray];
+      if constexpr (Bands < 2) sum_dir += glm::vec3(dirs.x[ray], dirs.y[ray], dirs.z[ray]);
     }
     m[0] = static_cast<float>(e.count);
     if constexpr (Bands >= 2) sum_dir = glm::vec3(m[3], m[1], m[2]);  // the band-1 polynomials are y, z, x
@@ -430,8 +462,9 @@ void storeRays(const glm::vec3& origin, const float* x, const float* y, const fl
 
 }  // namespace
 
-void LinkRays::generate(const rt::Accel& accel, std::size_t cache, const glm::vec3& p, const glm::vec3& normal,
-                        std::span<rt::Ray> rays, const Directions* directions) const {
+template <typename RowSink>
+glm::vec3 LinkRays::forEachRow(const rt::Accel& accel, std::size_t cache, const glm::vec3& p, const glm::vec3& normal,
+                               const Directions* directions, RowSink&& sink) const {
   const bool hemisphere = glm::dot(normal, normal) > 0.0f;
   glm::vec3 t(1, 0, 0), b(0, 1, 0), n(0, 0, 1);
   if (hemisphere) {
@@ -465,8 +498,28 @@ void LinkRays::generate(const rt::Accel& accel, std::size_t cache, const glm::ve
     float* z = directions ? directions->z + first : bz;
     rowDirections(setup, base_jitter_.data() + first, base_cos_.data() + first, base_sin_.data() + first, strata,
                   x, y, z);
-    storeRays(origin, x, y, z, strata, rays.data() + first);
+    sink(origin, x, y, z, first, strata);
   }
+  return origin;
+}
+
+void LinkRays::generate(const rt::Accel& accel, std::size_t cache, const glm::vec3& p, const glm::vec3& normal,
+                        std::span<rt::Ray> rays, const Directions* directions) const {
+  forEachRow(accel, cache, p, normal, directions,
+             [&](const glm::vec3& origin, const float* x, const float* y, const float* z, std::uint32_t first,
+                 std::uint32_t n) { storeRays(origin, x, y, z, n, rays.data() + first); });
+}
+
+rt::RayFan LinkRays::fan(const rt::Accel& accel, std::size_t cache, const glm::vec3& p, const glm::vec3& normal,
+                         const Directions& directions) const {
+  rt::RayFan fan;
+  fan.origin = forEachRow(accel, cache, p, normal, &directions,
+                          [](const glm::vec3&, const float*, const float*, const float*, std::uint32_t, std::uint32_t) {});
+  fan.dir_x = directions.x;
+  fan.dir_y = directions.y;
+  fan.dir_z = directions.z;
+  fan.count = count();
+  return fan;
 }
 
 void capZonal(float omega, int bands, float* z) {
@@ -550,12 +603,15 @@ Expected<Links> generateLinks(const scene::Scene& scene, const rt::Accel& accel,
   tbb::parallel_for(std::size_t(0), chunks, [&](std::size_t chunk) {
     thread_local Scratch scratch;
     std::uint8_t* seen = seen_by_thread.local().data();
-    scratch.rays.resize(pattern.count());
-    scratch.hits.resize(pattern.count());
+    for (auto* v : {&scratch.hit_mesh, &scratch.hit_triangle}) v->resize(pattern.count());
+    for (auto* v : {&scratch.hit_u, &scratch.hit_v, &scratch.hit_t, &scratch.hit_ng_x, &scratch.hit_ng_y,
+                    &scratch.hit_ng_z})
+      v->resize(pattern.count());
     scratch.slots.resize(pattern.count());
     scratch.samples.resize(pattern.count());
     scratch.sort_buffer.resize(pattern.count());
     for (auto* v : {&scratch.dir_x, &scratch.dir_y, &scratch.dir_z, &scratch.escaped}) v->resize(skyPadded(pattern.count()));
+    scratch.poly.resize(std::size_t(polyStride(skyPadded(pattern.count()))) * std::size_t(options.bands * options.bands - 1));
     scratch.coeff_values.resize(std::size_t(options.max_links) * std::size_t(options.bands * options.bands));
     scratch.solid_values.resize(std::size_t(options.max_links));
     for (auto* v : {&scratch.link_x, &scratch.link_y, &scratch.link_z}) v->resize(std::size_t(options.max_links));

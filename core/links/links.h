@@ -137,8 +137,18 @@ class LinkRays {
   };
   void generate(const rt::Accel& accel, std::size_t cache, const glm::vec3& position, const glm::vec3& normal,
                 std::span<rt::Ray> rays, const Directions* directions = nullptr) const;
+  // The same rays as a fan (one origin, the directions written to `directions`), for
+  // Accel::intersectFan: what link generation traces.
+  rt::RayFan fan(const rt::Accel& accel, std::size_t cache, const glm::vec3& position, const glm::vec3& normal,
+                 const Directions& directions) const;
 
  private:
+  // Computes the directions row by row (into `directions` when given) and hands each row to
+  // sink(origin, x, y, z, first ray, rays in the row); returns the origin.
+  template <typename RowSink>
+  glm::vec3 forEachRow(const rt::Accel& accel, std::size_t cache, const glm::vec3& position,
+                       const glm::vec3& normal, const Directions* directions, RowSink&& sink) const;
+
   std::uint32_t strata_;
   std::uint64_t seed_;
   // The base pattern, per ray: the polar jitter in [0, 1) inside its stratum, and the

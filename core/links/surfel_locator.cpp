@@ -152,6 +152,14 @@ void SurfelLocator::buildTriangleTables(const surfels::Surfels& surfels, const s
       raster_ref_.push_back(ref);
     }
   }
+  // Fewer than 65535 surfels (the usual case, nS = 32k): the raster in 16 bits, half the
+  // memory that every link ray's owner load reads from (docs/results.md, issue 4 ninth pass).
+  if (surfel_count_ < kNoSurfel16) {
+    raster16_.resize(raster_.size());
+    for (std::size_t k = 0; k < raster_.size(); ++k)
+      raster16_[k] = raster_[k] == kNoSurfel ? kNoSurfel16 : static_cast<std::uint16_t>(raster_[k]);
+    std::vector<std::uint32_t>().swap(raster_);
+  }
 }
 
 glm::ivec3 SurfelLocator::cellOf(const glm::vec3& p) const {

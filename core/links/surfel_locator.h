@@ -63,8 +63,8 @@ class SurfelLocator {
   std::uint32_t ownerOfHit(std::uint32_t mesh, std::uint32_t triangle, float u, float v, const glm::vec3& p,
                            const glm::vec3& n) const {
     const std::uint32_t k = rasterSlot(mesh, triangle, u, v);
-    if (k != kNoSurfel && raster_[k] != kNoSurfel) return raster_[k];
-    return owner(p, n);
+    const std::uint32_t s = k != kNoSurfel ? slotOwner(k) : kNoSurfel;
+    return s != kNoSurfel ? s : owner(p, n);
   }
 
   // ownerOfHit in two steps, for a caller that looks up many hits at once and wants the
@@ -76,8 +76,13 @@ class SurfelLocator {
     if (t == kNoSurfel || raster_of_tri_[t] == kNoSurfel) return kNoSurfel;
     return rasterIndex(raster_ref_[raster_of_tri_[t]], u, v);
   }
-  std::uint32_t slotOwner(std::uint32_t slot) const { return raster_[slot]; }
-  const void* slotAddress(std::uint32_t slot) const { return raster_.data() + slot; }
+  std::uint32_t slotOwner(std::uint32_t slot) const {
+    if (!raster16_.empty()) return raster16_[slot] == kNoSurfel16 ? kNoSurfel : raster16_[slot];
+    return raster_[slot];
+  }
+  const void* slotAddress(std::uint32_t slot) const {
+    return raster16_.empty() ? static_cast<const void*>(raster_.data() + slot) : raster16_.data() + slot;
+  }
 
   // Nearest surfel to p whose normal is within ~60 degrees of n (unit); falls back to a
   // wider search, then to the nearest surfel regardless of normal, then kNoSurfel.
@@ -99,7 +104,7 @@ class SurfelLocator {
   float cellSize() const { return cell_; }
   // Raster cells over all triangles (1 for each small one), and r (raster cells per
   // big-triangle cell and side): for tests and the benchmark's report.
-  std::size_t rasterCellCount() const { return raster_.size(); }
+  std::size_t rasterCellCount() const { return raster16_.empty() ? raster_.size() : raster16_.size(); }
   std::uint32_t rasterFactor() const { return raster_factor_; }
   // Surfels it was built over (link generation checks them against the tree).
   std::size_t surfelCount() const { return surfel_count_; }
@@ -159,6 +164,10 @@ class SurfelLocator {
   std::vector<std::uint32_t> big_surfel_;
   std::vector<glm::vec3> big_position_;
   std::vector<std::uint32_t> raster_;  // surfel ids, all triangles' rasters in order
+  // The same in 16 bits (kNoSurfel16 for kNoSurfel) when there are fewer than 65535
+  // surfels; raster_ is then emptied.
+  static constexpr std::uint16_t kNoSurfel16 = 0xffff;
+  std::vector<std::uint16_t> raster16_;
   std::vector<std::uint32_t> raster_of_tri_;  // global triangle -> index into raster_ref_, or kNoSurfel
   std::vector<RasterRef> raster_ref_;
   std::uint32_t raster_factor_ = kRaster;

@@ -312,6 +312,80 @@ void Accel::Impl::intersectPackets(std::span<const Ray> rays, std::span<Hit> hit
   }
 }
 
+void Accel::intersectFan(const RayFan& fan, const HitArrays& out) const {
+  RTCIntersectContext ctx = makeContext(Coherence::kCoherent);
+  alignas(64) RTCRayHit16 rh;
+  alignas(64) std::array<int, 16> valid;
+  // What every packet shares is written once. Embree writes only tfar and the hit fields,
+  // and of those instID only for instances (there are none).
+  for (std::size_t j = 0; j < 16; ++j) {
+    rh.ray.org_x[j] = fan.origin.x;
+    rh.ray.org_y[j] = fan.origin.y;
+    rh.ray.org_z[j] = fan.origin.z;
+    rh.ray.tnear[j] = fan.tnear;
+    rh.ray.time[j] = 0.0f;
+    rh.ray.mask[j] = 0xFFFFFFFFu;
+    rh.ray.id[j] = static_cast<unsigned>(j);
+    rh.ray.flags[j] = 0;
+    rh.hit.instID[0][j] = RTC_INVALID_GEOMETRY_ID;
+  }
+  // Locals (and restrict) so that the per-lane loops below are plain array copies and selects
+  // the compiler vectorises, not reloads of the pointers after every store.
+  const float* __restrict dx = fan.dir_x;
+  const float* __restrict dy = fan.dir_y;
+  const float* __restrict dz = fan.dir_z;
+  std::uint32_t* __restrict mesh = out.mesh;
+  std::uint32_t* __restrict triangle = out.triangle;
+  float* __restrict u = out.u;
+  float* __restrict v = out.v;
+  float* __restrict t = out.t;
+  float* __restrict nx = out.ng_x;
+  float* __restrict ny = out.ng_y;
+  float* __restrict nz = out.ng_z;
+  const std::uint32_t* geom_to_mesh = impl_->geom_to_mesh.data();
+  const float tfar = fan.tfar;
+  RTCScene scene = impl_->scene.get();
+  for (std::size_t base = 0; base < fan.count; base += 16) {
+    const std::size_t count = std::min<std::size_t>(16, fan.count - base);
+    if (count == 16) {
+      // A full packet (all but a fan's last when its size is not a multiple of 16): straight
+      // copies the compiler turns into vector moves.
+      for (std::size_t j = 0; j < 16; ++j) {
+        valid[j] = -1;
+        rh.ray.dir_x[j] = dx[base + j];
+        rh.ray.dir_y[j] = dy[base + j];
+        rh.ray.dir_z[j] = dz[base + j];
+        rh.ray.tfar[j] = tfar;
+        rh.hit.geomID[j] = RTC_INVALID_GEOMETRY_ID;
+      }
+    } else {
+      for (std::size_t j = 0; j < 16; ++j) {
+        const bool active = j < count;
+        // Lanes past the end: a harmless ray Embree skips (valid = 0), as in intersect().
+        valid[j] = active ? -1 : 0;
+        rh.ray.dir_x[j] = active ? dx[base + j] : 0.0f;
+        rh.ray.dir_y[j] = active ? dy[base + j] : 0.0f;
+        rh.ray.dir_z[j] = active ? dz[base + j] : 1.0f;
+        rh.ray.tfar[j] = active ? tfar : -1.0f;
+        rh.hit.geomID[j] = RTC_INVALID_GEOMETRY_ID;
+      }
+    }
+    rtcIntersect16(valid.data(), scene, &ctx, &rh);
+    for (std::size_t j = 0; j < count; ++j) {
+      const unsigned g = rh.hit.geomID[j];
+      const bool hit = g != RTC_INVALID_GEOMETRY_ID;
+      mesh[base + j] = hit ? geom_to_mesh[g] : kNoHit;
+      triangle[base + j] = hit ? rh.hit.primID[j] : 0u;
+      u[base + j] = hit ? rh.hit.u[j] : 0.0f;
+      v[base + j] = hit ? rh.hit.v[j] : 0.0f;
+      t[base + j] = rh.ray.tfar[j];
+      nx[base + j] = hit ? rh.hit.Ng_x[j] : 0.0f;
+      ny[base + j] = hit ? rh.hit.Ng_y[j] : 0.0f;
+      nz[base + j] = hit ? rh.hit.Ng_z[j] : 0.0f;
+    }
+  }
+}
+
 void Accel::Impl::intersectStream(std::span<const Ray> rays, std::span<Hit> hits,
                                   RTCIntersectContext& ctx) const {
   std::array<RTCRayHit, kStreamGroup> rh;

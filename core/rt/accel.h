@@ -85,6 +85,31 @@ struct AccelOptions {
 // packets (unrelated rays visit the union of their paths) vs 2.5 single and 2.7 as a stream.
 enum class Coherence { kIncoherent, kCoherent };
 
+// Rays that all leave one point (a fan), directions as three arrays: what link generation
+// traces per cache. Same rays as Ray{origin, tnear, {dir_x[i], dir_y[i], dir_z[i]}, tfar}.
+struct RayFan {
+  glm::vec3 origin{0.0f};
+  float tnear = 0.0f;
+  float tfar = std::numeric_limits<float>::infinity();
+  const float* dir_x = nullptr;
+  const float* dir_y = nullptr;
+  const float* dir_z = nullptr;
+  std::size_t count = 0;
+};
+
+// A fan's hits as arrays of fan.count each (Hit's fields, one array per field). For a miss,
+// mesh is kNoHit, t is the fan's tfar and the other fields are 0.
+struct HitArrays {
+  std::uint32_t* mesh = nullptr;
+  std::uint32_t* triangle = nullptr;
+  float* u = nullptr;
+  float* v = nullptr;
+  float* t = nullptr;
+  float* ng_x = nullptr;
+  float* ng_y = nullptr;
+  float* ng_z = nullptr;
+};
+
 class Accel {
  public:
   // Fails with kInvalidInput when no triangle would be traced (empty scene, or only
@@ -111,6 +136,13 @@ class Accel {
                  Coherence coherence = Coherence::kIncoherent) const;
   void occluded(std::span<const Ray> rays, std::span<std::uint8_t> occluded,
                 Coherence coherence = Coherence::kIncoherent) const;
+
+  // A fan in 16-ray packets (rtcIntersect16, coherent): the hits intersect() gives for the
+  // same rays with Coherence::kCoherent, bit for bit. Rays and hits stay in arrays, as
+  // Embree's packets hold them, so there is no conversion to and from Ray and Hit per ray
+  // (for link generation's fans of ~1k rays that conversion cost as much as a third of the
+  // tracing on small scenes: docs/results.md, issue 4 ninth pass).
+  void intersectFan(const RayFan& fan, const HitArrays& hits) const;
 
   // Bounds diagonal of the geometry in the BVH (metres); the yardstick for epsilons.
   float sceneScale() const;

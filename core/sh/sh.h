@@ -92,18 +92,20 @@ inline constexpr std::array<float, kMaxCoeffs> kBasisScale = {
     kY00, kY1, kY1, kY1, kY2Cross, kY2Cross, kY20, kY2Cross, kY22,
     kY33, kY3Xyz, kY31, kY30, kY31, kY32, kY33};
 
-template <int Bands>
-inline void evalBasisPolynomial(const glm::vec3& dir, float* out) {
+// The same polynomials for any arithmetic type T with float's operators (float, or a GCC
+// vector of floats: link generation evaluates 8 directions at once). One expression for
+// both, so a lane of the vector form gives the scalar form's bits (with no FMA contraction,
+// which lightlink's targets do not enable). out[0] (band 0's polynomial, 1) is not written.
+template <int Bands, typename T>
+inline void evalBasisPolynomialOf(T x, T y, T z, T* out) {
   static_assert(Bands >= 1 && Bands <= kMaxBands);
-  const float x = dir.x, y = dir.y, z = dir.z;
-  out[0] = 1.0f;
   if constexpr (Bands >= 2) {
     out[1] = y;
     out[2] = z;
     out[3] = x;
   }
   if constexpr (Bands >= 3) {
-    const float xx = x * x, yy = y * y, zz = z * z;
+    const T xx = x * x, yy = y * y, zz = z * z;
     out[4] = x * y;
     out[5] = y * z;
     out[6] = 3.0f * zz - 1.0f;
@@ -119,6 +121,12 @@ inline void evalBasisPolynomial(const glm::vec3& dir, float* out) {
       out[15] = x * (xx - 3.0f * yy);
     }
   }
+}
+
+template <int Bands>
+inline void evalBasisPolynomial(const glm::vec3& dir, float* out) {
+  out[0] = 1.0f;
+  evalBasisPolynomialOf<Bands, float>(dir.x, dir.y, dir.z, out);
 }
 
 // ---- value types ---------------------------------------------------------------------

@@ -115,6 +115,28 @@ TEST(Sh, BasisIsScaleTimesPolynomial) {
   }
 }
 
+TEST(Sh, PolynomialOfEightLanesEqualsTheScalarBitForBit) {
+  // Link generation evaluates the polynomials 8 directions at a time (a GCC vector) in its
+  // sky pass and sums those values into the links: each lane must be the scalar's bits.
+  typedef float Lanes8 __attribute__((vector_size(32)));
+  std::mt19937 rng(12);
+  std::normal_distribution<float> g(0.0f, 1.0f);
+  for (int k = 0; k < 250; ++k) {
+    Lanes8 x, y, z;
+    for (int l = 0; l < 8; ++l) {
+      const glm::vec3 d = glm::normalize(glm::vec3(g(rng), g(rng), g(rng)));
+      x[l] = d.x, y[l] = d.y, z[l] = d.z;
+    }
+    Lanes8 lanes[kMaxCoeffs];
+    evalBasisPolynomialOf<4, Lanes8>(x, y, z, lanes);
+    for (int l = 0; l < 8; ++l) {
+      float p[kMaxCoeffs];
+      evalBasisPolynomial<4>(glm::vec3(x[l], y[l], z[l]), p);
+      for (int i = 1; i < kMaxCoeffs; ++i) EXPECT_EQ(lanes[i][l], p[i]) << "lane " << l << " coefficient " << i;
+    }
+  }
+}
+
 // The products Y_i Y_j have degree <= 6: 8 Gauss-Legendre nodes in z and 16 azimuths
 // integrate them exactly, so the only error is float evaluation of the basis (~1e-7).
 TEST(Sh, OrthonormalByExactQuadrature) {
