@@ -217,7 +217,8 @@ int main(int argc, char** argv) {
                                         {"raw_passes", raw.passes},
                                         {"locator_build_seconds", locator_s},
                                         {"owner_raster_cells", locator.rasterCellCount()},
-                                        {"owner_raster_factor", locator.rasterFactor()}};
+                                        {"owner_raster_factor", locator.rasterFactor()},
+                                        {"owner_raster_cell_bytes", locator.rasterCellBytes()}};
   j["tree_build_seconds"] = {{"kd", kd_s}, {"hac", hac_s}, {"hac_over_kd", kd_s > 0 ? hac_s / kd_s : 0.0},
                              {"ok", bool(kd) && bool(hac)}};
   const auto& t = report["seconds"];
@@ -239,8 +240,9 @@ int main(int argc, char** argv) {
     for (std::size_t k = 0; k < pair_ratios.size(); ++k) fmt::print(" {:.2f} ({:.2f})", pair_ratios[k], pair_api_ratios[k]);
     fmt::print(": median ratio {:.2f} ({:.2f} to ray records)\n", median_ratio, median_api_ratio);
   }
-  fmt::print("owner lookup: {} raster cells ({} per cell side), built in {:.3f} s (stage \"owners\", not in the link time)\n",
-             locator.rasterCellCount(), locator.rasterFactor(), locator_s);
+  fmt::print("owner lookup: {} raster cells of {} bytes ({} per cell side), built in {:.3f} s (stage \"owners\", not in "
+             "the link time)\n",
+             locator.rasterCellCount(), locator.rasterCellBytes(), locator.rasterFactor(), locator_s);
   fmt::print("tree build: kd {:.3f} s, hac {:.3f} s ({:.1f}x)\n", kd_s, hac_s, kd_s > 0 ? hac_s / kd_s : 0.0);
   for (const auto& [what, b] : report["memory_bytes"].items())
     fmt::print("  mem {:<26} {:10.2f} MiB\n", what, b.get<double>() / (1024.0 * 1024.0));

@@ -150,24 +150,18 @@ __attribute__((always_inline)) inline void skyPolynomialsImpl(const float* __res
 
 // One multiversioned entry per band count (target_clones does not apply to templates).
 // `count` is a multiple of kSkyLanes (the arrays are padded, escaped = 0 there); `poly`
-// holds (bands^2 - 1) * count floats.
+// holds (bands^2 - 1) * polyStride(count) floats.
 using SkyFn = void (*)(const float*, const float*, const float*, const float*, std::uint32_t, float*, float*);
-LL_MULTIVERSION void sky1(const float* e, const float* x, const float* y, const float* z, std::uint32_t n, float* s,
-                          float* poly) {
-  skyPolynomialsImpl<1>(e, x, y, z, n, s, poly);
-}
-LL_MULTIVERSION void sky2(const float* e, const float* x, const float* y, const float* z, std::uint32_t n, float* s,
-                          float* poly) {
-  skyPolynomialsImpl<2>(e, x, y, z, n, s, poly);
-}
-LL_MULTIVERSION void sky3(const float* e, const float* x, const float* y, const float* z, std::uint32_t n, float* s,
-                          float* poly) {
-  skyPolynomialsImpl<3>(e, x, y, z, n, s, poly);
-}
-LL_MULTIVERSION void sky4(const float* e, const float* x, const float* y, const float* z, std::uint32_t n, float* s,
-                          float* poly) {
-  skyPolynomialsImpl<4>(e, x, y, z, n, s, poly);
-}
+#define LL_SKY_ENTRY(B)                                                                                   \
+  LL_MULTIVERSION void sky##B(const float* e, const float* x, const float* y, const float* z, std::uint32_t n, \
+                              float* s, float* poly) {                                                     \
+    skyPolynomialsImpl<B>(e, x, y, z, n, s, poly);                                                         \
+  }
+LL_SKY_ENTRY(1)
+LL_SKY_ENTRY(2)
+LL_SKY_ENTRY(3)
+LL_SKY_ENTRY(4)
+#undef LL_SKY_ENTRY
 template <int Bands>
 constexpr SkyFn skyPolynomials = Bands == 1 ? sky1 : Bands == 2 ? sky2 : Bands == 3 ? sky3 : sky4;
 

@@ -14,8 +14,9 @@ namespace {
 constexpr std::size_t kMaxCells = std::size_t(1) << 22;
 }
 
-SurfelLocator::SurfelLocator(const surfels::Surfels& surfels, const scene::Scene& scene, std::size_t raster_budget)
-    : surfel_count_(surfels.size()), raster_budget_(raster_budget) {
+SurfelLocator::SurfelLocator(const surfels::Surfels& surfels, const scene::Scene& scene, std::size_t raster_budget,
+                             bool narrow_raster)
+    : surfel_count_(surfels.size()), raster_budget_(raster_budget), narrow_raster_(narrow_raster) {
   const std::size_t n = surfels.size();
   Aabb box;
   double area = 0.0;
@@ -154,7 +155,7 @@ void SurfelLocator::buildTriangleTables(const surfels::Surfels& surfels, const s
   }
   // Fewer than 65535 surfels (the usual case, nS = 32k): the raster in 16 bits, half the
   // memory that every link ray's owner load reads from (docs/results.md, issue 4 ninth pass).
-  if (surfel_count_ < kNoSurfel16) {
+  if (narrow_raster_ && surfel_count_ < kNoSurfel16) {
     raster16_.resize(raster_.size());
     for (std::size_t k = 0; k < raster_.size(); ++k)
       raster16_[k] = raster_[k] == kNoSurfel ? kNoSurfel16 : static_cast<std::uint16_t>(raster_[k]);

@@ -54,8 +54,10 @@ class SurfelLocator {
 
   // `scene` is the scene the surfels were placed on (hits report its mesh/triangle ids).
   // `raster_budget`: the most raster cells in all (tests lower it to see r shrink).
+  // `narrow_raster`: keep the raster in 16 bits when the surfel ids fit (tests turn it off to
+  // compare the two widths).
   SurfelLocator(const surfels::Surfels& surfels, const scene::Scene& scene,
-                std::size_t raster_budget = kRasterBudget);
+                std::size_t raster_budget = kRasterBudget, bool narrow_raster = true);
 
   // The owner of a hit on triangle `triangle` of mesh `mesh` at p with visible-side normal n.
   // (u, v): the hit's barycentrics on that triangle (Embree's convention, as Hit::u/v).
@@ -105,6 +107,8 @@ class SurfelLocator {
   // Raster cells over all triangles (1 for each small one), and r (raster cells per
   // big-triangle cell and side): for tests and the benchmark's report.
   std::size_t rasterCellCount() const { return raster16_.empty() ? raster_.size() : raster16_.size(); }
+  // Bytes per raster cell: 2 when the raster is kept in 16 bits, else 4.
+  std::size_t rasterCellBytes() const { return raster16_.empty() ? 4 : 2; }
   std::uint32_t rasterFactor() const { return raster_factor_; }
   // Surfels it was built over (link generation checks them against the tree).
   std::size_t surfelCount() const { return surfel_count_; }
@@ -172,6 +176,7 @@ class SurfelLocator {
   std::vector<RasterRef> raster_ref_;
   std::uint32_t raster_factor_ = kRaster;
   std::size_t raster_budget_ = kRasterBudget;
+  bool narrow_raster_ = true;
   void buildRasters(const scene::Scene& scene, const std::vector<std::uint32_t>& big_mesh,
                     const std::vector<std::uint32_t>& big_triangle);
   const BigTriangle* bigTriangle(std::uint32_t mesh, std::uint32_t triangle) const;  // null for a small one

@@ -177,6 +177,27 @@ TEST(SurfelLocator, RasterHoldsTheNearestCandidateInTheDemoScene) {
   EXPECT_GT(double(traced.same), 0.7 * double(traced.on_rasters));
 }
 
+TEST(SurfelLocator, SixteenBitRasterAnswersAsTheThirtyTwoBitOne) {
+  // Under 65,535 surfels the raster is kept in 16 bits; every answer must be the same.
+  auto loaded = scene::loadGltf((lightlink::testing::sourceDir() / "clients/demo/cornell_box.gltf").string());
+  ASSERT_TRUE(loaded) << loaded.status().toString();
+  auto placed = surfels::placeSurfels(*loaded, {.count = 8192});
+  ASSERT_TRUE(placed) << placed.status().toString();
+  const SurfelLocator narrow(*placed, *loaded);
+  const SurfelLocator wide(*placed, *loaded, SurfelLocator::kRasterBudget, /*narrow_raster=*/false);
+  EXPECT_EQ(narrow.rasterCellBytes(), 2u);
+  EXPECT_EQ(wide.rasterCellBytes(), 4u);
+  ASSERT_EQ(narrow.rasterCellCount(), wide.rasterCellCount());
+  std::size_t empty = 0;
+  for (std::uint32_t k = 0; k < narrow.rasterCellCount(); ++k) {
+    ASSERT_EQ(narrow.slotOwner(k), wide.slotOwner(k)) << "raster cell " << k;
+    empty += wide.slotOwner(k) == kNoSurfel ? 1 : 0;
+  }
+  // Cells beyond the hypotenuses stay empty: kNoSurfel must survive the narrowing too.
+  EXPECT_GT(empty, 0u);
+  EXPECT_LT(empty, narrow.rasterCellCount());
+}
+
 TEST(SurfelLocator, SmallTrianglesAnswerFromTheirOneCellRasters) {
   // A room split into 6144 triangles with 2048 surfels: most triangles hold one surfel or
   // none (then the surfel nearest their centroid stands for them).
