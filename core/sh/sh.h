@@ -97,7 +97,7 @@ inline constexpr std::array<float, kMaxCoeffs> kBasisScale = {
 // both, so a lane of the vector form gives the scalar form's bits (with no FMA contraction,
 // which lightlink's targets do not enable). out[0] (band 0's polynomial, 1) is not written.
 template <int Bands, typename T>
-inline void evalBasisPolynomialOf(T x, T y, T z, T* out) {
+inline void evalBasisPolynomialOf(const T& x, const T& y, const T& z, T* out) {
   static_assert(Bands >= 1 && Bands <= kMaxBands);
   if constexpr (Bands >= 2) {
     out[1] = y;
