@@ -202,7 +202,7 @@ void linkCache(std::size_t cache, const glm::vec3& p, const glm::vec3& normal, c
   const glm::vec3 n = hemisphere ? glm::normalize(normal) : glm::vec3(0, 0, 1);
   const LinkRays::Directions dirs{s.dir_x.data(), s.dir_y.data(), s.dir_z.data()};
   // Traced as a fan: directions and hits stay in arrays from the generator through Embree's
-  // packets to the loops below (docs/precompute.md, "Ray generation").
+  // packets to the loops below (docs/precompute.md, "Tracing a fan").
   const rt::RayFan fan = pattern.fan(accel, cache, p, normal, dirs);
   const rt::HitArrays hits{s.hit_mesh.data(), s.hit_triangle.data(), s.hit_u.data(), s.hit_v.data(),
                            s.hit_t.data(),    s.hit_ng_x.data(),     s.hit_ng_y.data(), s.hit_ng_z.data()};

@@ -329,8 +329,7 @@ void Accel::intersectFan(const RayFan& fan, const HitArrays& out) const {
     rh.ray.flags[j] = 0;
     rh.hit.instID[0][j] = RTC_INVALID_GEOMETRY_ID;
   }
-  // Locals (and restrict) so that the per-lane loops below are plain array copies and selects
-  // the compiler vectorises, not reloads of the pointers after every store.
+  // The arrays as locals: no reload of the fan's and out's pointers after every store.
   const float* __restrict dx = fan.dir_x;
   const float* __restrict dy = fan.dir_y;
   const float* __restrict dz = fan.dir_z;
@@ -347,28 +346,15 @@ void Accel::intersectFan(const RayFan& fan, const HitArrays& out) const {
   RTCScene scene = impl_->scene.get();
   for (std::size_t base = 0; base < fan.count; base += 16) {
     const std::size_t count = std::min<std::size_t>(16, fan.count - base);
-    if (count == 16) {
-      // A full packet (all but a fan's last when its size is not a multiple of 16): straight
-      // copies the compiler turns into vector moves.
-      for (std::size_t j = 0; j < 16; ++j) {
-        valid[j] = -1;
-        rh.ray.dir_x[j] = dx[base + j];
-        rh.ray.dir_y[j] = dy[base + j];
-        rh.ray.dir_z[j] = dz[base + j];
-        rh.ray.tfar[j] = tfar;
-        rh.hit.geomID[j] = RTC_INVALID_GEOMETRY_ID;
-      }
-    } else {
-      for (std::size_t j = 0; j < 16; ++j) {
-        const bool active = j < count;
-        // Lanes past the end: a harmless ray Embree skips (valid = 0), as in intersect().
-        valid[j] = active ? -1 : 0;
-        rh.ray.dir_x[j] = active ? dx[base + j] : 0.0f;
-        rh.ray.dir_y[j] = active ? dy[base + j] : 0.0f;
-        rh.ray.dir_z[j] = active ? dz[base + j] : 1.0f;
-        rh.ray.tfar[j] = active ? tfar : -1.0f;
-        rh.hit.geomID[j] = RTC_INVALID_GEOMETRY_ID;
-      }
+    for (std::size_t j = 0; j < 16; ++j) {
+      const bool active = j < count;
+      // Lanes past the end: a harmless ray Embree skips (valid = 0), as in intersect().
+      valid[j] = active ? -1 : 0;
+      rh.ray.dir_x[j] = active ? dx[base + j] : 0.0f;
+      rh.ray.dir_y[j] = active ? dy[base + j] : 0.0f;
+      rh.ray.dir_z[j] = active ? dz[base + j] : 1.0f;
+      rh.ray.tfar[j] = active ? tfar : -1.0f;
+      rh.hit.geomID[j] = RTC_INVALID_GEOMETRY_ID;
     }
     rtcIntersect16(valid.data(), scene, &ctx, &rh);
     for (std::size_t j = 0; j < count; ++j) {
