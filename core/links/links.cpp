@@ -13,9 +13,11 @@
 #endif
 
 #include <tbb/enumerable_thread_specific.h>
-#include <tbb/parallel_for.h>
+#include <tbb/parallel_pipeline.h>
+#include <tbb/task_arena.h>
 
 #include "core/common/check.h"
+#include "core/common/memory.h"
 #include "core/common/sampling.h"
 #include "core/links/cut.h"
 #include "core/links/surfel_locator.h"
@@ -95,6 +97,16 @@ struct ChunkResult {
   std::vector<half_bits> solid_angle;
   std::vector<float> sky;
   LinkStats stats;
+  // Empty again, capacity kept: ring slots are reused chunk after chunk.
+  void clear() {
+    count.clear();
+    node.clear();
+    coeffs.clear();
+    direction.clear();
+    solid_angle.clear();
+    sky.clear();
+    stats = {};
+  }
 };
 
 // Sky visibility: sums of the basis polynomials over the escaped rays (escaped[i] is 1 or 0),
@@ -585,7 +597,6 @@ Expected<Links> generateLinks(const scene::Scene& scene, const rt::Accel& accel,
   const auto surfel_bits = std::max<std::uint32_t>(1, static_cast<std::uint32_t>(std::bit_width(surfel_count - 1)));
   const std::size_t n = caches.position.size();
   const std::size_t chunks = (n + kChunk - 1) / kChunk;
-  std::vector<ChunkResult> results(chunks);
   NullProgress null_progress;
   Progress& sink = progress ? *progress : null_progress;
   sink.begin(options.progress_label, n);
@@ -594,63 +605,93 @@ Expected<Links> generateLinks(const scene::Scene& scene, const rt::Accel& accel,
   // thread linked which cache.
   tbb::enumerable_thread_specific<std::vector<std::uint8_t>> seen_by_thread(
       [&] { return std::vector<std::uint8_t>(locator.surfelCount(), 0); });
-  tbb::parallel_for(std::size_t(0), chunks, [&](std::size_t chunk) {
-    thread_local Scratch scratch;
-    std::uint8_t* seen = seen_by_thread.local().data();
-    for (auto* v : {&scratch.hit_mesh, &scratch.hit_triangle}) v->resize(pattern.count());
-    for (auto* v : {&scratch.hit_u, &scratch.hit_v, &scratch.hit_t, &scratch.hit_ng_x, &scratch.hit_ng_y,
-                    &scratch.hit_ng_z})
-      v->resize(pattern.count());
-    scratch.slots.resize(pattern.count());
-    scratch.samples.resize(pattern.count());
-    scratch.sort_buffer.resize(pattern.count());
-    for (auto* v : {&scratch.dir_x, &scratch.dir_y, &scratch.dir_z, &scratch.escaped}) v->resize(skyPadded(pattern.count()));
-    scratch.poly.resize(std::size_t(polyStride(skyPadded(pattern.count()))) * std::size_t(options.bands * options.bands - 1));
-    scratch.coeff_values.resize(std::size_t(options.max_links) * std::size_t(options.bands * options.bands));
-    scratch.solid_values.resize(std::size_t(options.max_links));
-    for (auto* v : {&scratch.link_x, &scratch.link_y, &scratch.link_z}) v->resize(std::size_t(options.max_links));
-    ChunkResult& out = results[chunk];
-    const std::size_t end = std::min(n, (chunk + 1) * kChunk);
-    if (sink.cancelled()) return;
-    // Worst case up front: growing these vectors cost page faults in the profile.
-    const std::size_t most = (end - chunk * kChunk) * static_cast<std::size_t>(options.max_links);
-    out.node.reserve(most);
-    out.coeffs.reserve(most * static_cast<std::size_t>(options.bands * options.bands));
-    out.direction.reserve(most);
-    out.solid_angle.reserve(most);
-    for (std::size_t c = chunk * kChunk; c < end; ++c)
-      link_cache(c, caches.position[c], caches.normal[c], double_sided.data(), accel, cut_tree, locator, options, pattern,
-                 surfel_bits, scratch, seen, out);
-    counter.add(end - chunk * kChunk);
-  });
-  sink.end();
-  if (sink.cancelled()) return Status(Code::kInternal, "link generation cancelled");
 
+  const std::size_t coeffs_per_link = static_cast<std::size_t>(options.bands * options.bands);
   Links links;
   links.bands = options.bands;
+  // Every cache has at most max_links links, so up to kReserveLinks links the arrays are
+  // reserved once for the worst case and filled without a reallocation (a copy into fresh
+  // pages); the part never written is never faulted in. With huge pages asked for, filling
+  // them costs a fault per 2 MiB instead of per 4 KiB (core/common/memory.h).
+  constexpr std::size_t kReserveLinks = std::size_t(1) << 26;
+  const std::size_t reserve = std::min(n * static_cast<std::size_t>(options.max_links), kReserveLinks);
   links.offsets.reserve(n + 1);
   links.offsets.push_back(0);
-  std::size_t total = 0;
-  for (const auto& r : results) total += r.node.size();
-  links.node.reserve(total);
-  links.coeffs.reserve(total * static_cast<std::size_t>(options.bands * options.bands));
-  links.direction.reserve(total);
-  links.solid_angle.reserve(total);
-  links.sky.reserve(n * static_cast<std::size_t>(options.bands * options.bands));
-  for (auto& r : results) {
-    for (std::uint32_t c : r.count) links.offsets.push_back(links.offsets.back() + c);
-    links.node.insert(links.node.end(), r.node.begin(), r.node.end());
-    links.coeffs.insert(links.coeffs.end(), r.coeffs.begin(), r.coeffs.end());
-    links.direction.insert(links.direction.end(), r.direction.begin(), r.direction.end());
-    links.solid_angle.insert(links.solid_angle.end(), r.solid_angle.begin(), r.solid_angle.end());
-    links.sky.insert(links.sky.end(), r.sky.begin(), r.sky.end());
-    links.stats.rays += r.stats.rays;
-    links.stats.front_hits += r.stats.front_hits;
-    links.stats.back_hits += r.stats.back_hits;
-    links.stats.escaped += r.stats.escaped;
-    links.stats.unowned += r.stats.unowned;
-    r = ChunkResult();  // release as we go: peak memory stays ~1x the links
-  }
+  reserveHuge(links.node, reserve);
+  reserveHuge(links.coeffs, reserve * coeffs_per_link);
+  reserveHuge(links.direction, reserve);
+  reserveHuge(links.solid_angle, reserve);
+  reserveHuge(links.sky, n * coeffs_per_link);
+
+  // Chunks go through a pipeline: linked in parallel, appended to `links` in chunk order by
+  // a serial stage. At most `tokens` chunks are in flight, and those are consecutive (the
+  // last stage takes them in order), so chunk c's result lives in ring slot c % tokens and
+  // the ring's buffers are reused, warm, for the whole run. (Keeping every chunk's result
+  // until the end, as before, wrote all links twice into fresh memory: on the Zen 5 VM the
+  // page faults of that took as long as the tracing, docs/results.md, issue 4 tenth pass.)
+  const std::size_t tokens = 4 * static_cast<std::size_t>(std::max(1, tbb::this_task_arena::max_concurrency()));
+  std::vector<ChunkResult> ring(tokens);
+  std::size_t next_chunk = 0;
+  tbb::parallel_pipeline(
+      tokens,
+      tbb::make_filter<void, std::size_t>(tbb::filter_mode::serial_in_order,
+                                          [&](tbb::flow_control& fc) -> std::size_t {
+                                            if (next_chunk == chunks || sink.cancelled()) {
+                                              fc.stop();
+                                              return 0;
+                                            }
+                                            return next_chunk++;
+                                          }) &
+          tbb::make_filter<std::size_t, std::size_t>(
+              tbb::filter_mode::parallel,
+              [&](std::size_t chunk) {
+                thread_local Scratch scratch;
+                std::uint8_t* seen = seen_by_thread.local().data();
+                for (auto* v : {&scratch.hit_mesh, &scratch.hit_triangle}) v->resize(pattern.count());
+                for (auto* v : {&scratch.hit_u, &scratch.hit_v, &scratch.hit_t, &scratch.hit_ng_x, &scratch.hit_ng_y,
+                                &scratch.hit_ng_z})
+                  v->resize(pattern.count());
+                scratch.slots.resize(pattern.count());
+                scratch.samples.resize(pattern.count());
+                scratch.sort_buffer.resize(pattern.count());
+                for (auto* v : {&scratch.dir_x, &scratch.dir_y, &scratch.dir_z, &scratch.escaped})
+                  v->resize(skyPadded(pattern.count()));
+                scratch.poly.resize(std::size_t(polyStride(skyPadded(pattern.count()))) * (coeffs_per_link - 1));
+                scratch.coeff_values.resize(std::size_t(options.max_links) * coeffs_per_link);
+                scratch.solid_values.resize(std::size_t(options.max_links));
+                for (auto* v : {&scratch.link_x, &scratch.link_y, &scratch.link_z})
+                  v->resize(std::size_t(options.max_links));
+                ChunkResult& out = ring[chunk % tokens];
+                out.clear();
+                const std::size_t end = std::min(n, (chunk + 1) * kChunk);
+                // Worst case up front (a no-op once the slot has held a full chunk).
+                const std::size_t most = (end - chunk * kChunk) * static_cast<std::size_t>(options.max_links);
+                out.node.reserve(most);
+                out.coeffs.reserve(most * coeffs_per_link);
+                out.direction.reserve(most);
+                out.solid_angle.reserve(most);
+                for (std::size_t c = chunk * kChunk; c < end; ++c)
+                  link_cache(c, caches.position[c], caches.normal[c], double_sided.data(), accel, cut_tree, locator,
+                             options, pattern, surfel_bits, scratch, seen, out);
+                counter.add(end - chunk * kChunk);
+                return chunk;
+              }) &
+          tbb::make_filter<std::size_t, void>(tbb::filter_mode::serial_in_order, [&](std::size_t chunk) {
+            const ChunkResult& r = ring[chunk % tokens];
+            for (std::uint32_t c : r.count) links.offsets.push_back(links.offsets.back() + c);
+            links.node.insert(links.node.end(), r.node.begin(), r.node.end());
+            links.coeffs.insert(links.coeffs.end(), r.coeffs.begin(), r.coeffs.end());
+            links.direction.insert(links.direction.end(), r.direction.begin(), r.direction.end());
+            links.solid_angle.insert(links.solid_angle.end(), r.solid_angle.begin(), r.solid_angle.end());
+            links.sky.insert(links.sky.end(), r.sky.begin(), r.sky.end());
+            links.stats.rays += r.stats.rays;
+            links.stats.front_hits += r.stats.front_hits;
+            links.stats.back_hits += r.stats.back_hits;
+            links.stats.escaped += r.stats.escaped;
+            links.stats.unowned += r.stats.unowned;
+          }));
+  sink.end();
+  if (sink.cancelled()) return Status(Code::kInternal, "link generation cancelled");
   links.seen.assign(locator.surfelCount(), 0);
   for (const auto& part : seen_by_thread)
     for (std::size_t i = 0; i < part.size(); ++i) links.seen[i] |= part[i];

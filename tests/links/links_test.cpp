@@ -1,6 +1,8 @@
 #include "core/links/links.h"
 
+#include <algorithm>
 #include <array>
+#include <atomic>
 #include <cmath>
 #include <numbers>
 #include <string>
@@ -235,6 +237,66 @@ TEST(Links, SeenSurfelsAreThoseTheRaysWereCreditedTo) {
 
 // The precompute builds the owner lookup once and links the lightmap and the grid caches over
 // it: the same links as building one per call, and a lookup over other surfels is refused.
+// More chunks than the pipeline keeps in flight (its ring of chunk results wraps many
+// times): the caches' links come out in cache order. A cache's rays depend on its index, so
+// the reference for the first L caches is a run over just those L: a run of two chunks
+// (no wrap), and longer ones on one thread (another ring size, 4 slots instead of 8).
+TEST(Links, ManyChunksComeOutInCacheOrder) {
+  Scene s;
+  addBox(s, {0, 0, 0}, {2, 2, 2}, true);
+  addBox(s, {0.5f, 0, 0.5f}, {1.0f, 0.8f, 1.0f}, false);
+  const LinkFixture fixture = LinkFixture::make(std::move(s), 512);
+  std::vector<glm::vec3> p, n;
+  for (int i = 0; i < 1200; ++i) {
+    p.push_back({0.1f + 0.0015f * i, 1.2f + 0.0003f * (i % 7), 1.5f});
+    n.push_back(i % 3 ? glm::vec3(0, 1, 0) : glm::vec3(0));
+  }
+  const LinkOptions opt{.rays = 64, .max_links = 16};
+  const Links all = [&] {
+    tbb::global_control limit(tbb::global_control::max_allowed_parallelism, 2);
+    return fixture.link(p, n, opt);
+  }();
+  ASSERT_EQ(all.cacheCount(), p.size());
+  const std::size_t q = 9;  // SH coefficients at the default 3 bands
+  for (const std::size_t prefix : {std::size_t(33), std::size_t(517), std::size_t(1199)}) {
+    tbb::global_control limit(tbb::global_control::max_allowed_parallelism, prefix == 33 ? 2 : 1);
+    const Links part = fixture.link({p.begin(), p.begin() + prefix}, {n.begin(), n.begin() + prefix}, opt);
+    ASSERT_EQ(part.cacheCount(), prefix);
+    const std::size_t links = part.linkCount();
+    ASSERT_EQ(all.offsets[prefix], links);
+    EXPECT_TRUE(std::equal(part.offsets.begin(), part.offsets.end(), all.offsets.begin())) << prefix;
+    EXPECT_TRUE(std::equal(part.node.begin(), part.node.end(), all.node.begin())) << prefix;
+    EXPECT_TRUE(std::equal(part.direction.begin(), part.direction.end(), all.direction.begin())) << prefix;
+    EXPECT_TRUE(std::equal(part.solid_angle.begin(), part.solid_angle.end(), all.solid_angle.begin())) << prefix;
+    EXPECT_TRUE(std::equal(part.coeffs.begin(), part.coeffs.end(), all.coeffs.begin())) << prefix;
+    EXPECT_TRUE(std::equal(part.sky.begin(), part.sky.end(), all.sky.begin())) << prefix;
+    EXPECT_EQ(part.coeffs.size(), links * q);
+  }
+  // Neighbouring caches differ, so a chunk's links in another chunk's place would show.
+  EXPECT_NE(std::vector<std::uint32_t>(all.node.begin() + all.offsets[0], all.node.begin() + all.offsets[1]),
+            std::vector<std::uint32_t>(all.node.begin() + all.offsets[600], all.node.begin() + all.offsets[601]));
+}
+
+// A caller that cancels (a closed client, a deadline) stops link generation between chunks,
+// and gets an error, not partial links.
+TEST(Links, CancelledRunReturnsAnError) {
+  Scene s;
+  addBox(s, {0, 0, 0}, {2, 2, 2}, true);
+  const LinkFixture fixture = LinkFixture::make(std::move(s), 512);
+  std::vector<glm::vec3> p(2000, glm::vec3(1.0f, 1.0f, 1.0f)), n(2000, glm::vec3(0));
+  struct CancelAfterFirstUpdate final : Progress {
+    std::atomic<bool> stop{false};
+    void begin(std::string_view, std::size_t) override {}
+    void update(std::size_t) override { stop = true; }
+    void end() override {}
+    bool cancelled() const override { return stop; }
+  } cancel;
+  auto r = generateLinks(fixture.scene, fixture.accel, fixture.surfels, fixture.tree, {p, n},
+                         {.rays = 64, .max_links = 16}, &cancel);
+  ASSERT_FALSE(r);
+  EXPECT_NE(r.status().message().find("cancelled"), std::string::npos) << r.status().message();
+}
+
 TEST(Links, SharedOwnerLookupGivesTheSameLinks) {
   Scene s;
   addBox(s, {0, 0, 0}, {2, 2, 2}, true);
