@@ -68,22 +68,40 @@ struct Scratch {
 // result equals a sort by (surfel, ray). Two or three passes over ~1k keys beat a
 // comparison sort by 4-5x here (the sort runs once per cache). `keys` and `buffer` hold n
 // keys each; returns the one that holds the sorted keys.
+// Each pass counts and scatters the two halves of the keys with counters of their own (the
+// second half's bucket b starts where the first half's ends: the same stable order).
+// Neighbouring rays mostly hit the same surfel, so with one set of counters every key's
+// bucket increment waited on the previous key's; two halves make two chains that overlap
+// (sortSamples' share of the perf samples against chooseCut's: 0.42 -> 0.35-0.37, Zen 5 VM).
 Sample* sortSamples(Sample* keys, Sample* buffer, std::size_t n, std::uint32_t surfel_bits) {
   const std::uint32_t passes = std::max<std::uint32_t>(1, (surfel_bits + 10) / 11);
   const std::uint32_t bits = (surfel_bits + passes - 1) / passes;
   const std::uint32_t buckets = 1u << bits;
-  std::uint32_t count[1u << 11];
+  std::uint32_t count_a[1u << 11], count_b[1u << 11];
+  const std::size_t half = n / 2;  // the second half, [half, n), has the odd key
   for (std::uint32_t pass = 0; pass < passes; ++pass) {
     const std::uint32_t shift = 32 + pass * bits;
-    std::fill(count, count + buckets, 0u);
-    for (std::size_t i = 0; i < n; ++i) ++count[(keys[i] >> shift) & (buckets - 1)];
+    auto bucket = [&](Sample k) { return static_cast<std::uint32_t>(k >> shift) & (buckets - 1); };
+    std::fill(count_a, count_a + buckets, 0u);
+    std::fill(count_b, count_b + buckets, 0u);
+    for (std::size_t i = 0; i < half; ++i) {
+      ++count_a[bucket(keys[i])];
+      ++count_b[bucket(keys[half + i])];
+    }
+    if (n > 2 * half) ++count_b[bucket(keys[n - 1])];
     std::uint32_t sum = 0;
     for (std::uint32_t b = 0; b < buckets; ++b) {
-      const std::uint32_t c = count[b];
-      count[b] = sum;
-      sum += c;
+      const std::uint32_t a = count_a[b], c = count_b[b];
+      count_a[b] = sum;
+      count_b[b] = sum + a;
+      sum += a + c;
     }
-    for (std::size_t i = 0; i < n; ++i) buffer[count[(keys[i] >> shift) & (buckets - 1)]++] = keys[i];
+    for (std::size_t i = 0; i < half; ++i) {
+      const Sample ka = keys[i], kb = keys[half + i];
+      buffer[count_a[bucket(ka)]++] = ka;
+      buffer[count_b[bucket(kb)]++] = kb;
+    }
+    if (n > 2 * half) buffer[count_b[bucket(keys[n - 1])]++] = keys[n - 1];
     std::swap(keys, buffer);
   }
   return keys;
