@@ -151,29 +151,35 @@ typedef float Lanes8 __attribute__((vector_size(32)));
 typedef int Mask8 __attribute__((vector_size(32)));
 static_assert(kSkyLanes == 8);
 
+// Two 8-float vectors shuffled into one (lane i of the result: lane m_i of a:b, 0-15).
+// GCC and clang spell it differently.
+#if defined(__clang__)
+#define LL_SHUFFLE8(a, b, ...) __builtin_shufflevector(a, b, __VA_ARGS__)
+#else
+#define LL_SHUFFLE8(a, b, ...) __builtin_shuffle(a, b, Mask8{__VA_ARGS__})
+#endif
+
 // r[k][l] -> r[l][k]: 8 rays' vectors of one coefficient each into 8 vectors of one ray's
 // coefficients each (the unpack / shuffle / 128-bit permute transpose, 24 shuffles).
 __attribute__((always_inline)) inline void transpose8(Lanes8* r) {
-  const Mask8 lo{0, 8, 1, 9, 4, 12, 5, 13}, hi{2, 10, 3, 11, 6, 14, 7, 15};
-  const Mask8 pair_lo{0, 1, 8, 9, 4, 5, 12, 13}, pair_hi{2, 3, 10, 11, 6, 7, 14, 15};
-  const Mask8 half_lo{0, 1, 2, 3, 8, 9, 10, 11}, half_hi{4, 5, 6, 7, 12, 13, 14, 15};
   Lanes8 t[8], u[8];
   for (int k = 0; k < 8; k += 2) {
-    t[k] = __builtin_shuffle(r[k], r[k + 1], lo);
-    t[k + 1] = __builtin_shuffle(r[k], r[k + 1], hi);
+    t[k] = LL_SHUFFLE8(r[k], r[k + 1], 0, 8, 1, 9, 4, 12, 5, 13);
+    t[k + 1] = LL_SHUFFLE8(r[k], r[k + 1], 2, 10, 3, 11, 6, 14, 7, 15);
   }
   // u[0..3]: rows 0-3 of rays (0, 4), (1, 5), (2, 6), (3, 7); u[4..7]: rows 4-7 of the same.
   for (int g = 0; g < 8; g += 4) {
-    u[g + 0] = __builtin_shuffle(t[g + 0], t[g + 2], pair_lo);
-    u[g + 1] = __builtin_shuffle(t[g + 0], t[g + 2], pair_hi);
-    u[g + 2] = __builtin_shuffle(t[g + 1], t[g + 3], pair_lo);
-    u[g + 3] = __builtin_shuffle(t[g + 1], t[g + 3], pair_hi);
+    u[g + 0] = LL_SHUFFLE8(t[g + 0], t[g + 2], 0, 1, 8, 9, 4, 5, 12, 13);
+    u[g + 1] = LL_SHUFFLE8(t[g + 0], t[g + 2], 2, 3, 10, 11, 6, 7, 14, 15);
+    u[g + 2] = LL_SHUFFLE8(t[g + 1], t[g + 3], 0, 1, 8, 9, 4, 5, 12, 13);
+    u[g + 3] = LL_SHUFFLE8(t[g + 1], t[g + 3], 2, 3, 10, 11, 6, 7, 14, 15);
   }
   for (int k = 0; k < 4; ++k) {
-    r[k] = __builtin_shuffle(u[k], u[k + 4], half_lo);
-    r[k + 4] = __builtin_shuffle(u[k], u[k + 4], half_hi);
+    r[k] = LL_SHUFFLE8(u[k], u[k + 4], 0, 1, 2, 3, 8, 9, 10, 11);
+    r[k + 4] = LL_SHUFFLE8(u[k], u[k + 4], 4, 5, 6, 7, 12, 13, 14, 15);
   }
 }
+#undef LL_SHUFFLE8
 
 template <int Bands>
 __attribute__((always_inline)) inline void skyPolynomialsImpl(const float* __restrict escaped, const float* __restrict x,
