@@ -136,7 +136,7 @@ struct ChunkResult {
 // The same pass keeps every ray's polynomials (q >= 1) in `poly`, ray by ray: the links'
 // projection sums them over each link's hits instead of evaluating them again per hit
 // (docs/results.md, issue 4 ninth pass), one 8-float vector add per hit and 8 coefficients
-// (tenth pass; kept one array per coefficient, that was 8 scalar loads and adds).
+// (tenth pass: with one array per coefficient, as before, a hit was 8 scalar loads and adds).
 constexpr std::uint32_t kSkyLanes = 8;
 // Rays rounded up to whole groups of lanes: the length of the sky pass's arrays.
 constexpr std::uint32_t skyPadded(std::uint32_t rays) { return (rays + kSkyLanes - 1) / kSkyLanes * kSkyLanes; }
