@@ -12,6 +12,7 @@
 // Usage: precompute_bench [--scene F] [--subdivide N] [--surfels N] [--links N] [--bands B]
 //                         [--rays N] [--resolution R] [--hierarchy hac|fast] [--pairs N] [--json OUT]
 #include <algorithm>
+#include <array>
 #include <chrono>
 #include <cstdio>
 #include <cstring>
@@ -157,6 +158,8 @@ int main(int argc, char** argv) {
   const double locator_s = seconds(t0);
   nlohmann::ordered_json pair_rows = nlohmann::ordered_json::array();
   std::vector<double> pair_ratios, pair_api_ratios;
+  // Link generation's phases summed over the pairs (ticks: only their shares are reported).
+  std::array<std::uint64_t, links::kLinkPhases> pair_phase_ticks{};
   for (int k = 0; k < args.pairs; ++k) {
     auto l = links::generateLinks(*scene, *accel, locator, p->tree, {sampled_position, sampled_normal}, lo);
     if (!l) {
@@ -168,12 +171,20 @@ int main(int argc, char** argv) {
     const double arps = bench::measureThroughput(*accel, rays, to).raysPerSecond();
     pair_ratios.push_back(rrps > 0 ? lrps / rrps : 0.0);
     pair_api_ratios.push_back(arps > 0 ? lrps / arps : 0.0);
+    for (int q = 0; q < links::kLinkPhases; ++q) pair_phase_ticks[q] += l->stats.phase_ticks[q];
     pair_rows.push_back({{"link_rays_per_second", lrps},
                          {"raw_rays_per_second", rrps},
                          {"ratio", pair_ratios.back()},
                          {"raw_ray_api_rays_per_second", arps},
                          {"ratio_to_ray_api", pair_api_ratios.back()}});
   }
+  double phase_total = 0.0;
+  for (const std::uint64_t t : pair_phase_ticks) phase_total += double(t);
+  nlohmann::ordered_json pair_phase_share = nlohmann::ordered_json::object();
+  for (int q = 0; q < links::kLinkPhases; ++q)
+    pair_phase_share[links::kLinkPhaseNames[q]] = phase_total > 0 ? double(pair_phase_ticks[q]) / phase_total : 0.0;
+  const double pair_trace = double(pair_phase_ticks[links::kPhaseTrace]);
+  const double pair_own_work = pair_trace > 0 ? (phase_total - pair_trace) / pair_trace : 0.0;
   const double median_ratio = bench::median(pair_ratios);
   const double median_api_ratio = bench::median(pair_api_ratios);
 
@@ -205,6 +216,8 @@ int main(int argc, char** argv) {
                                         {"pairs", pair_rows},
                                         {"median_pair_ratio", median_ratio},
                                         {"median_pair_ratio_to_ray_api", median_api_ratio},
+                                        {"pair_phase_share", pair_phase_share},
+                                        {"pair_own_work_per_trace", pair_own_work},
                                         // What "raw" is: the very call link generation makes
                                         // per cache, with nothing else around it.
                                         {"baseline", "rt::Accel::intersectFan (rtcIntersect16 packets of 16 "
@@ -239,6 +252,9 @@ int main(int argc, char** argv) {
     fmt::print("back-to-back runs (links, raw fans, raw ray records):");
     for (std::size_t k = 0; k < pair_ratios.size(); ++k) fmt::print(" {:.2f} ({:.2f})", pair_ratios[k], pair_api_ratios[k]);
     fmt::print(": median ratio {:.2f} ({:.2f} to ray records)\n", median_ratio, median_api_ratio);
+    fmt::print("link phases over the pairs:");
+    for (const auto& [phase, share] : pair_phase_share.items()) fmt::print(" {} {:.1f} %", phase, 100.0 * share.get<double>());
+    fmt::print("; own work per unit of tracing {:.2f}\n", pair_own_work);
   }
   fmt::print("owner lookup: {} raster cells of {} bytes ({} per cell side), built in {:.3f} s (stage \"owners\", not in "
              "the link time)\n",

@@ -6,6 +6,10 @@
 #include <cstddef>
 #include <cmath>
 #include <cstring>
+
+#if defined(__x86_64__) || defined(__i386__)
+#include <x86intrin.h>
+#endif
 #include <numbers>
 
 #if defined(__SSE2__)
@@ -261,12 +265,38 @@ void octahedralCodes(const float* __restrict x, const float* __restrict y, const
   for (std::uint32_t i = 0; i < count; ++i) out[i] = octahedralCode(x[i], y[i], z[i]);
 }
 
+// Laps of linkCache's phases into LinkStats::phase_ticks. The timestamp counter costs ~25
+// cycles a read, 9 reads per cache of ~100k cycles: it stays on in every build.
+class PhaseClock {
+ public:
+  explicit PhaseClock(std::array<std::uint64_t, kLinkPhases>& ticks) : ticks_(ticks), last_(now()) {}
+  void lap(LinkPhase phase) {
+    const std::uint64_t t = now();
+    ticks_[phase] += t - last_;
+    last_ = t;
+  }
+
+ private:
+  static std::uint64_t now() {
+#if defined(__x86_64__) || defined(__i386__)
+    return __rdtsc();
+#else
+    return static_cast<std::uint64_t>(std::chrono::duration_cast<std::chrono::nanoseconds>(
+                                          std::chrono::steady_clock::now().time_since_epoch())
+                                          .count());
+#endif
+  }
+  std::array<std::uint64_t, kLinkPhases>& ticks_;
+  std::uint64_t last_;
+};
+
 template <int Bands>
 void linkCache(std::size_t cache, const glm::vec3& p, const glm::vec3& normal, const std::uint8_t* double_sided,
                const rt::Accel& accel, const CutTree& cut_tree, const SurfelLocator& locator,
                const LinkOptions& options, const LinkRays& pattern, std::uint32_t surfel_bits, Scratch& s,
                std::uint8_t* seen, ChunkResult& out) {
   constexpr int kCoeffs = Bands * Bands;
+  PhaseClock clock(out.stats.phase_ticks);
   const bool hemisphere = glm::dot(normal, normal) > 0.0f;
   const std::uint32_t count = pattern.count();
   const glm::vec3 n = hemisphere ? glm::normalize(normal) : glm::vec3(0, 0, 1);
@@ -276,7 +306,9 @@ void linkCache(std::size_t cache, const glm::vec3& p, const glm::vec3& normal, c
   const rt::RayFan fan = pattern.fan(accel, cache, p, normal, dirs);
   const rt::HitArrays hits{s.hit_mesh.data(), s.hit_triangle.data(), s.hit_u.data(), s.hit_v.data(),
                            s.hit_t.data(),    s.hit_ng_x.data(),     s.hit_ng_y.data(), s.hit_ng_z.data()};
+  clock.lap(kPhaseRays);
   accel.intersectFan(fan, hits);
+  clock.lap(kPhaseTrace);
 
   const float omega = hemisphere ? 2.0f * kPi : 4.0f * kPi;
   const float w = omega / static_cast<float>(count) / kPi;  // per-ray weight of V/pi
@@ -314,6 +346,7 @@ void linkCache(std::size_t cache, const glm::vec3& p, const glm::vec3& normal, c
   // every hit (seen in the loop's assembly). No speed-up beyond noise was measured (link
   // rays/s +3 %, -0.5 %, +3 % on three scenes, docs/results.md, issue 4 eighth pass); it is
   // the simpler loop.
+  clock.lap(kPhaseClassify);
   Sample* samples = s.samples.data();  // `count` long (Scratch)
   std::size_t sampled = 0;
   std::uint64_t back_hits = 0, unowned = 0;
@@ -343,6 +376,7 @@ void linkCache(std::size_t cache, const glm::vec3& p, const glm::vec3& normal, c
     seen[owner] = 1;
     samples[sampled++] = makeSample(owner, i);
   }
+  clock.lap(kPhaseOwner);
   out.stats.rays += count;
   out.stats.escaped += escaped;
   out.stats.back_hits += back_hits;
@@ -354,8 +388,11 @@ void linkCache(std::size_t cache, const glm::vec3& p, const glm::vec3& normal, c
   sky_poly[0] = static_cast<float>(escaped);
   float sky[kCoeffs];
   for (int q = 0; q < kCoeffs; ++q) sky[q] = w * sh::kBasisScale[q] * sky_poly[q];
+  clock.lap(kPhaseSky);
   const Sample* sorted = sortSamples(samples, s.sort_buffer.data(), sampled, surfel_bits);
+  clock.lap(kPhaseSort);
   chooseCut(cut_tree, std::span<const Sample>(sorted, sampled), options.max_links, s.cut_scratch, s.cut);
+  clock.lap(kPhaseCut);
 
   // Each link's SH is w * sum over its hits of Y_q(dir) = w * kBasisScale[q] * (sum of the
   // basis polynomials): a few multiplies per hit instead of one per coefficient. Values go
@@ -391,6 +428,7 @@ void linkCache(std::size_t cache, const glm::vec3& p, const glm::vec3& normal, c
     s.link_z[links] = d.z;
     ++links;
   }
+  clock.lap(kPhaseProject);
   const std::size_t direction_at = out.direction.size();
   out.direction.resize(direction_at + links);
   octahedralCodes(s.link_x.data(), s.link_y.data(), s.link_z.data(), static_cast<std::uint32_t>(links),
@@ -403,6 +441,7 @@ void linkCache(std::size_t cache, const glm::vec3& p, const glm::vec3& normal, c
   toHalfSaturating(std::span<const float>(solid_values, links), out.solid_angle.data() + solid_at);
   out.count.push_back(static_cast<std::uint32_t>(s.cut.size()));
   out.sky.insert(out.sky.end(), sky, sky + kCoeffs);
+  clock.lap(kPhaseOutput);
 }
 
 using LinkCacheFn = decltype(&linkCache<1>);
@@ -754,6 +793,7 @@ Expected<Links> generateLinks(const scene::Scene& scene, const rt::Accel& accel,
             links.stats.back_hits += r.stats.back_hits;
             links.stats.escaped += r.stats.escaped;
             links.stats.unowned += r.stats.unowned;
+            for (int k = 0; k < kLinkPhases; ++k) links.stats.phase_ticks[k] += r.stats.phase_ticks[k];
           }));
   sink.end();
   if (sink.cancelled()) return Status(Code::kInternal, "link generation cancelled");

@@ -27,6 +27,7 @@
 // bit-identical for any thread count.
 #pragma once
 
+#include <array>
 #include <cstdint>
 #include <span>
 #include <vector>
@@ -60,6 +61,14 @@ struct CacheQuery {
   std::span<const glm::vec3> normal;
 };
 
+// The phases of linking one cache, in order: where link generation's time goes. "trace" is
+// Embree alone, so (sum - trace) / trace is link generation's own work per unit of tracing,
+// the figure the ratio to raw Embree depends on (docs/precompute.md).
+enum LinkPhase : int { kPhaseRays, kPhaseTrace, kPhaseClassify, kPhaseOwner, kPhaseSky, kPhaseSort, kPhaseCut,
+                       kPhaseProject, kPhaseOutput, kLinkPhases };
+inline constexpr std::array<const char*, kLinkPhases> kLinkPhaseNames = {
+    "rays", "trace", "classify", "owner", "sky", "sort", "cut", "project", "output"};
+
 struct LinkStats {
   std::uint64_t rays = 0;           // traced
   std::uint64_t front_hits = 0;     // credited to a surfel
@@ -67,6 +76,9 @@ struct LinkStats {
   std::uint64_t escaped = 0;        // sky
   std::uint64_t unowned = 0;        // front hits with no surfel near (not credited)
   double seconds = 0.0;
+  // Per LinkPhase: ticks summed over all threads (x86: the timestamp counter; elsewhere
+  // steady_clock nanoseconds). Their unit varies by machine; their shares do not.
+  std::array<std::uint64_t, kLinkPhases> phase_ticks{};
 };
 
 // Read-only view of link arrays, wherever they live (a Links in memory, or an artifact

@@ -277,6 +277,18 @@ TEST(Links, ManyChunksComeOutInCacheOrder) {
             std::vector<std::uint32_t>(all.node.begin() + all.offsets[600], all.node.begin() + all.offsets[601]));
 }
 
+// Every phase of linking a cache is timed (the report's phase shares and the benchmark's
+// "own work per unit of tracing" come from these), and the trace is one of them.
+TEST(Links, EveryPhaseIsTimed) {
+  Scene s;
+  addBox(s, {0, 0, 0}, {2, 2, 2}, true);
+  addBox(s, {0.5f, 0, 0.5f}, {1.0f, 0.8f, 1.0f}, false);
+  const LinkFixture fixture = LinkFixture::make(std::move(s), 512);
+  std::vector<glm::vec3> p(64, glm::vec3(1.2f, 1.2f, 1.5f)), n(64, glm::vec3(0));
+  const Links links = fixture.link(p, n, {.rays = 256, .max_links = 16});
+  for (int k = 0; k < kLinkPhases; ++k) EXPECT_GT(links.stats.phase_ticks[k], 0u) << kLinkPhaseNames[k];
+}
+
 // A caller that cancels (a closed client, a deadline) stops link generation between chunks,
 // and gets an error, not partial links.
 TEST(Links, CancelledRunReturnsAnError) {
