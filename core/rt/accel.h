@@ -45,6 +45,10 @@ struct Ray {
   float tfar = std::numeric_limits<float>::infinity();  // hits with t > tfar are ignored
 };
 
+// True when a ray along ray_dir strikes the side opposite to the geometric normal ng (the
+// back face of the triangle). Hit::backFacing, and the same test on a fan's hit arrays.
+inline bool backFacing(const glm::vec3& ng, const glm::vec3& ray_dir) { return glm::dot(ng, ray_dir) > 0.0f; }
+
 struct Hit {
   std::uint32_t mesh = kNoHit;  // index into Scene::meshes, kNoHit for a miss
   std::uint32_t triangle = 0;   // index into that mesh's triangles (indices / 3)
@@ -55,7 +59,7 @@ struct Hit {
 
   bool hit() const { return mesh != kNoHit; }
   // True when the ray struck the side opposite to ng (the back face of the triangle).
-  bool backFacing(const glm::vec3& ray_dir) const { return glm::dot(ng, ray_dir) > 0.0f; }
+  bool backFacing(const glm::vec3& ray_dir) const { return rt::backFacing(ng, ray_dir); }
 };
 
 struct AccelOptions {

@@ -163,28 +163,39 @@ TEST(SurfelLocator, RasterHoldsTheNearestCandidateFarFromTheOrigin) {
   EXPECT_GT(double(traced.same), 0.7 * double(traced.on_rasters));
 }
 
-TEST(SurfelLocator, RasterHoldsTheNearestCandidateInTheDemoScene) {
+// The bundled demo scene with `count` surfels placed on it.
+struct DemoSurfels {
+  scene::Scene scene;
+  surfels::Surfels surfels;
+};
+DemoSurfels demoWithSurfels(std::uint32_t count) {
   auto loaded = scene::loadGltf((lightlink::testing::sourceDir() / "clients/demo/cornell_box.gltf").string());
-  ASSERT_TRUE(loaded) << loaded.status().toString();
+  EXPECT_TRUE(loaded) << loaded.status().toString();
+  if (!loaded) return {};
+  auto placed = surfels::placeSurfels(*loaded, {.count = count});
+  EXPECT_TRUE(placed) << placed.status().toString();
+  if (!placed) return {std::move(loaded).value(), {}};
+  return {std::move(loaded).value(), std::move(placed).value()};
+}
+
+TEST(SurfelLocator, RasterHoldsTheNearestCandidateInTheDemoScene) {
   // The "medium" preset's surfel count: the configuration the benchmark times.
-  auto placed = surfels::placeSurfels(*loaded, {.count = 32768});
-  ASSERT_TRUE(placed) << placed.status().toString();
-  const SurfelLocator locator(*placed, *loaded);
+  const DemoSurfels demo = demoWithSurfels(32768);
+  ASSERT_GT(demo.surfels.size(), 0u);
+  const SurfelLocator locator(demo.surfels, demo.scene);
   EXPECT_GT(locator.rasterCellCount(), 200000u);
-  expectRasterIsTheScanAtCellCentres(*loaded, locator);
-  const Traced traced = expectRasterBoundOnTracedHits(*loaded, *placed, locator, 300000, 3);
+  expectRasterIsTheScanAtCellCentres(demo.scene, locator);
+  const Traced traced = expectRasterBoundOnTracedHits(demo.scene, demo.surfels, locator, 300000, 3);
   EXPECT_GT(traced.on_rasters, 200000u);
   EXPECT_GT(double(traced.same), 0.7 * double(traced.on_rasters));
 }
 
 TEST(SurfelLocator, SixteenBitRasterAnswersAsTheThirtyTwoBitOne) {
   // Under 65,535 surfels the raster is kept in 16 bits; every answer must be the same.
-  auto loaded = scene::loadGltf((lightlink::testing::sourceDir() / "clients/demo/cornell_box.gltf").string());
-  ASSERT_TRUE(loaded) << loaded.status().toString();
-  auto placed = surfels::placeSurfels(*loaded, {.count = 8192});
-  ASSERT_TRUE(placed) << placed.status().toString();
-  const SurfelLocator narrow(*placed, *loaded);
-  const SurfelLocator wide(*placed, *loaded, SurfelLocator::kRasterBudget, /*narrow_raster=*/false);
+  const DemoSurfels demo = demoWithSurfels(8192);
+  ASSERT_GT(demo.surfels.size(), 0u);
+  const SurfelLocator narrow(demo.surfels, demo.scene);
+  const SurfelLocator wide(demo.surfels, demo.scene, SurfelLocator::kRasterBudget, /*narrow_raster=*/false);
   EXPECT_EQ(narrow.rasterCellBytes(), 2u);
   EXPECT_EQ(wide.rasterCellBytes(), 4u);
   ASSERT_EQ(narrow.rasterCellCount(), wide.rasterCellCount());
