@@ -62,7 +62,7 @@ struct Scratch {
   std::vector<std::uint32_t> slots;     // per ray: owner raster slot or ray class
   std::vector<float> dir_x, dir_y, dir_z;  // per ray, padded to a multiple of kSkyLanes
   std::vector<float> escaped;           // per ray: 1 escaped, 0 not (0 in the padding)
-  std::vector<float> poly;              // per ray (padded): its basis polynomials q >= 1 (polyFloats each)
+  std::vector<float> poly;              // per SH coefficient q >= 1, per ray (padded): the basis polynomial
   std::vector<float> coeff_values;      // per link of the cache: its SH in float, then fp16
   std::vector<float> solid_values;
   std::vector<float> link_x, link_y, link_z;  // per link of the cache: the direction to encode
@@ -76,7 +76,8 @@ struct Scratch {
 // second half's bucket b starts where the first half's ends: the same stable order).
 // Neighbouring rays mostly hit the same surfel, so with one set of counters every key's
 // bucket increment waited on the previous key's; two halves make two chains that overlap
-// (sortSamples' share of the perf samples against chooseCut's: 0.42 -> 0.35-0.37, Zen 5 VM).
+// (the sort's share of link time, precompute_bench's phase timers on CornellBox-Original:
+// 5.9-6.5 % -> 5.2-5.3 %, Zen 5 VM; docs/results.md, issue 4 tenth pass).
 Sample* sortSamples(Sample* keys, Sample* buffer, std::size_t n, std::uint32_t surfel_bits) {
   const std::uint32_t passes = std::max<std::uint32_t>(1, (surfel_bits + 10) / 11);
   const std::uint32_t bits = (surfel_bits + passes - 1) / passes;
@@ -137,53 +138,22 @@ struct ChunkResult {
 // bits; a plain reduction would not vectorise without reassociating. Most rays of an open
 // scene escape (ShadowsDirectional: 82 %); there the hit loop with the sky projected ray by
 // ray took 0.23 Gcycles, this pass and the owner rasters 0.10 (docs/results.md).
-// The same pass keeps every ray's polynomials (q >= 1) in `poly`, ray by ray: the links'
-// projection sums them over each link's hits instead of evaluating them again per hit
-// (docs/results.md, issue 4 ninth pass), one 8-float vector add per hit and 8 coefficients
-// (tenth pass: with one array per coefficient, as before, a hit was 8 scalar loads and adds).
+// The same pass keeps every ray's polynomials (q >= 1) in `poly`, one array of `count`
+// floats per q: the links' projection sums them over each link's hits instead of evaluating
+// them again per hit (docs/results.md, issue 4 ninth pass).
 constexpr std::uint32_t kSkyLanes = 8;
 // Rays rounded up to whole groups of lanes: the length of the sky pass's arrays.
 constexpr std::uint32_t skyPadded(std::uint32_t rays) { return (rays + kSkyLanes - 1) / kSkyLanes * kSkyLanes; }
-// 8-float vectors per ray that hold its polynomials q = 1 .. bands^2 - 1 (zero padded).
-constexpr std::uint32_t polyVectors(int bands) { return static_cast<std::uint32_t>(bands * bands - 1 + 7) / 8; }
-constexpr std::uint32_t polyFloats(int bands) { return 8 * polyVectors(bands); }
+// Distance between the polynomial arrays of consecutive q: one cache line more than the
+// padded ray count, so that ray i's 8 or 15 polynomials do not all fall into one L1 set
+// (4 KiB apart at 1024 rays, they would).
+constexpr std::uint32_t polyStride(std::uint32_t padded) { return padded + 16; }
 
 // Eight floats as one GCC vector: the sky pass below is written on it so that it stays
 // vectorised while it also stores every ray's polynomials (written on scalars with those
 // stores added, GCC 12 turned it into scalar code, and link generation got 10 % slower).
 typedef float Lanes8 __attribute__((vector_size(32)));
-typedef int Mask8 __attribute__((vector_size(32)));
 static_assert(kSkyLanes == 8);
-
-// Two 8-float vectors shuffled into one (lane i of the result: lane m_i of a:b, 0-15).
-// GCC and clang spell it differently.
-#if defined(__clang__)
-#define LL_SHUFFLE8(a, b, ...) __builtin_shufflevector(a, b, __VA_ARGS__)
-#else
-#define LL_SHUFFLE8(a, b, ...) __builtin_shuffle(a, b, Mask8{__VA_ARGS__})
-#endif
-
-// r[k][l] -> r[l][k]: 8 rays' vectors of one coefficient each into 8 vectors of one ray's
-// coefficients each (the unpack / shuffle / 128-bit permute transpose, 24 shuffles).
-__attribute__((always_inline)) inline void transpose8(Lanes8* r) {
-  Lanes8 t[8], u[8];
-  for (int k = 0; k < 8; k += 2) {
-    t[k] = LL_SHUFFLE8(r[k], r[k + 1], 0, 8, 1, 9, 4, 12, 5, 13);
-    t[k + 1] = LL_SHUFFLE8(r[k], r[k + 1], 2, 10, 3, 11, 6, 14, 7, 15);
-  }
-  // u[0..3]: rows 0-3 of rays (0, 4), (1, 5), (2, 6), (3, 7); u[4..7]: rows 4-7 of the same.
-  for (int g = 0; g < 8; g += 4) {
-    u[g + 0] = LL_SHUFFLE8(t[g + 0], t[g + 2], 0, 1, 8, 9, 4, 5, 12, 13);
-    u[g + 1] = LL_SHUFFLE8(t[g + 0], t[g + 2], 2, 3, 10, 11, 6, 7, 14, 15);
-    u[g + 2] = LL_SHUFFLE8(t[g + 1], t[g + 3], 0, 1, 8, 9, 4, 5, 12, 13);
-    u[g + 3] = LL_SHUFFLE8(t[g + 1], t[g + 3], 2, 3, 10, 11, 6, 7, 14, 15);
-  }
-  for (int k = 0; k < 4; ++k) {
-    r[k] = LL_SHUFFLE8(u[k], u[k + 4], 0, 1, 2, 3, 8, 9, 10, 11);
-    r[k + 4] = LL_SHUFFLE8(u[k], u[k + 4], 4, 5, 6, 7, 12, 13, 14, 15);
-  }
-}
-#undef LL_SHUFFLE8
 
 template <int Bands>
 __attribute__((always_inline)) inline void skyPolynomialsImpl(const float* __restrict escaped, const float* __restrict x,
@@ -191,7 +161,7 @@ __attribute__((always_inline)) inline void skyPolynomialsImpl(const float* __res
                                                               std::uint32_t count, float* __restrict sums,
                                                               float* __restrict poly_out) {
   constexpr int kCoeffs = Bands * Bands;
-  constexpr std::uint32_t kVectors = polyVectors(Bands);
+  const std::size_t stride = polyStride(count);
   Lanes8 acc[kCoeffs] = {};
   for (std::uint32_t i0 = 0; i0 < count; i0 += kSkyLanes) {
     Lanes8 e, vx, vy, vz;  // unaligned loads (memcpy: no vector-typed function returns)
@@ -201,18 +171,9 @@ __attribute__((always_inline)) inline void skyPolynomialsImpl(const float* __res
     std::memcpy(&vz, z + i0, sizeof vz);
     Lanes8 poly[kCoeffs];
     sh::evalBasisPolynomialOf<Bands, Lanes8>(vx, vy, vz, poly);
-    for (int q = 1; q < kCoeffs; ++q) acc[q] += e * poly[q];
-    if constexpr (kVectors > 0) {
-      // Ray by ray: rows[v * 8 + l] is, after the transposes, ray i0 + l's vector v. (No
-      // "= {}" on the array: GCC zeroed it with a rep stos per group, a third of the pass.)
-      Lanes8 rows[kVectors * 8];
-      for (int q = 1; q < kCoeffs; ++q) rows[q - 1] = poly[q];
-      for (std::uint32_t k = kCoeffs - 1; k < kVectors * 8; ++k) rows[k] = Lanes8{};
-      for (std::uint32_t v = 0; v < kVectors; ++v) {
-        transpose8(rows + v * 8);
-        for (std::uint32_t l = 0; l < 8; ++l)
-          std::memcpy(poly_out + (std::size_t(i0) + l) * (kVectors * 8) + v * 8, &rows[v * 8 + l], sizeof(Lanes8));
-      }
+    for (int q = 1; q < kCoeffs; ++q) {
+      acc[q] += e * poly[q];
+      std::memcpy(poly_out + std::size_t(q - 1) * stride + i0, &poly[q], sizeof(Lanes8));
     }
   }
   for (int q = 1; q < kCoeffs; ++q) {
@@ -224,7 +185,7 @@ __attribute__((always_inline)) inline void skyPolynomialsImpl(const float* __res
 
 // One multiversioned entry per band count (target_clones does not apply to templates).
 // `count` is a multiple of kSkyLanes (the arrays are padded, escaped = 0 there); `poly`
-// holds count * polyFloats(bands) floats.
+// holds (bands^2 - 1) * polyStride(count) floats.
 using SkyFn = void (*)(const float*, const float*, const float*, const float*, std::uint32_t, float*, float*);
 #define LL_SKY_ENTRY(B)                                                                                   \
   LL_MULTIVERSION void sky##B(const float* e, const float* x, const float* y, const float* z, std::uint32_t n, \
@@ -382,7 +343,7 @@ void linkCache(std::size_t cache, const glm::vec3& p, const glm::vec3& normal, c
   out.stats.unowned += unowned;
   out.stats.front_hits += sampled;
   float sky_poly[kCoeffs];  // sums of the basis polynomials over the escaped rays
-  float* const poly = s.poly.data();  // ray i's Y_q polynomial at [i * polyFloats(Bands) + q - 1]
+  float* const poly = s.poly.data();  // ray i's Y_q polynomial at [(q - 1) * polyStride(padded) + i]
   skyPolynomials<Bands>(escaped_mask, dirs.x, dirs.y, dirs.z, padded, sky_poly, poly);
   sky_poly[0] = static_cast<float>(escaped);
   float sky[kCoeffs];
@@ -400,21 +361,14 @@ void linkCache(std::size_t cache, const glm::vec3& p, const glm::vec3& normal, c
   float* solid_values = s.solid_values.data();
   std::size_t links = 0;
   for (const CutEntry& e : s.cut) {
-    constexpr std::uint32_t kVectors = polyVectors(Bands);
-    Lanes8 sums[kVectors + 1] = {};  // (+1: no zero-length array at one band)
+    float m[kCoeffs] = {};
     glm::vec3 sum_dir(0.0f);
     for (std::uint32_t k = e.first; k < e.first + e.count; ++k) {
       const std::uint32_t ray = rayOf(sorted[k]);
-      for (std::uint32_t v = 0; v < kVectors; ++v) {
-        Lanes8 p;
-        std::memcpy(&p, poly + std::size_t(ray) * (kVectors * 8) + v * 8, sizeof p);
-        sums[v] += p;
-      }
+      for (int q = 1; q < kCoeffs; ++q) m[q] += poly[std::size_t(q - 1) * polyStride(padded) + ray];
       if constexpr (Bands < 2) sum_dir += glm::vec3(dirs.x[ray], dirs.y[ray], dirs.z[ray]);
     }
-    float m[kCoeffs];
     m[0] = static_cast<float>(e.count);
-    for (int q = 1; q < kCoeffs; ++q) m[q] = sums[(q - 1) / 8][(q - 1) % 8];
     if constexpr (Bands >= 2) sum_dir = glm::vec3(m[3], m[1], m[2]);  // the band-1 polynomials are y, z, x
     for (int q = 0; q < kCoeffs; ++q) coeff_values[links * kCoeffs + q] = w * sh::kBasisScale[q] * m[q];
     solid_values[links] = w * static_cast<float>(e.count);
@@ -759,7 +713,7 @@ Expected<Links> generateLinks(const scene::Scene& scene, const rt::Accel& accel,
                 scratch.sort_buffer.resize(pattern.count());
                 for (auto* v : {&scratch.dir_x, &scratch.dir_y, &scratch.dir_z, &scratch.escaped})
                   v->resize(skyPadded(pattern.count()));
-                scratch.poly.resize(std::size_t(skyPadded(pattern.count())) * polyFloats(options.bands));
+                scratch.poly.resize(std::size_t(polyStride(skyPadded(pattern.count()))) * (coeffs_per_link - 1));
                 scratch.coeff_values.resize(std::size_t(options.max_links) * coeffs_per_link);
                 scratch.solid_values.resize(std::size_t(options.max_links));
                 for (auto* v : {&scratch.link_x, &scratch.link_y, &scratch.link_z})
@@ -799,7 +753,6 @@ Expected<Links> generateLinks(const scene::Scene& scene, const rt::Accel& accel,
   links.seen.assign(locator.surfelCount(), 0);
   for (const auto& part : seen_by_thread)
     for (std::size_t i = 0; i < part.size(); ++i) links.seen[i] |= part[i];
-
   links.stats.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   return links;
 }
