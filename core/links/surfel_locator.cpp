@@ -125,8 +125,7 @@ void SurfelLocator::buildTriangleTables(const surfels::Surfels& surfels, const s
   // Every triangle's raster reference: a big triangle's raster, or a 1 x 1 raster holding a
   // small triangle's surfel. A triangle too small to hold one of its own (its area went into
   // a neighbour's slice) is represented by the surfel nearest to its centroid.
-  raster_of_tri_.assign(tris, kNoSurfel);
-  raster_ref_.reserve(tris);
+  raster_ref_.assign(tris, RasterRef{});
   for (std::size_t m = 0; m < meshes; ++m) {
     const auto& mesh = scene.meshes[m];
     for (std::uint32_t tri = 0; tri < mesh.triangleCount(); ++tri) {
@@ -149,8 +148,7 @@ void SurfelLocator::buildTriangleTables(const surfels::Surfels& surfels, const s
         ref.first = static_cast<std::uint32_t>(raster_.size());
         raster_.push_back(s);
       }
-      raster_of_tri_[t] = static_cast<std::uint32_t>(raster_ref_.size());
-      raster_ref_.push_back(ref);
+      raster_ref_[t] = ref;
     }
   }
   // Fewer than 65535 surfels (the usual case, nS = 32k): the raster in 16 bits, half the

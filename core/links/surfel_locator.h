@@ -75,8 +75,8 @@ class SurfelLocator {
   // surfel in a slot (kNoSurfel for a slot beyond a hypotenuse: ask ownerOfHit).
   std::uint32_t rasterSlot(std::uint32_t mesh, std::uint32_t triangle, float u, float v) const {
     const std::uint32_t t = globalTriangle(mesh, triangle);
-    if (t == kNoSurfel || raster_of_tri_[t] == kNoSurfel) return kNoSurfel;
-    return rasterIndex(raster_ref_[raster_of_tri_[t]], u, v);
+    if (t == kNoSurfel || raster_ref_[t].first == kNoSurfel) return kNoSurfel;
+    return rasterIndex(raster_ref_[t], u, v);
   }
   std::uint32_t slotOwner(std::uint32_t slot) const {
     if (!raster16_.empty()) return raster16_[slot] == kNoSurfel16 ? kNoSurfel : raster16_[slot];
@@ -148,7 +148,7 @@ class SurfelLocator {
   };
   // What a hit reads to find its raster cell: 16 bytes per triangle.
   struct RasterRef {
-    std::uint32_t first = 0;  // into raster_
+    std::uint32_t first = kNoSurfel;  // into raster_; kNoSurfel: the triangle has no raster
     std::uint32_t size = 1;   // cells per side (g r; 1 for a one-entry triangle)
     float size_f = 1.0f;
     float max_f = 0.0f;       // size - 1, as float: the clamp of a raster coordinate
@@ -172,7 +172,8 @@ class SurfelLocator {
   // surfels; raster_ is then emptied.
   static constexpr std::uint16_t kNoSurfel16 = 0xffff;
   std::vector<std::uint16_t> raster16_;
-  std::vector<std::uint32_t> raster_of_tri_;  // global triangle -> index into raster_ref_, or kNoSurfel
+  // Per global triangle, indexed directly (an index table in between was one more dependent
+  // load per hit).
   std::vector<RasterRef> raster_ref_;
   std::uint32_t raster_factor_ = kRaster;
   std::size_t raster_budget_ = kRasterBudget;
