@@ -24,6 +24,7 @@
 #include "core/common/memory.h"
 #include "core/common/sampling.h"
 #include "core/links/cut.h"
+#include "core/links/hit_credit.h"
 #include "core/links/surfel_locator.h"
 #include "core/sh/sh.h"
 
@@ -226,7 +227,7 @@ void octahedralCodes(const float* __restrict x, const float* __restrict y, const
   for (std::uint32_t i = 0; i < count; ++i) out[i] = octahedralCode(x[i], y[i], z[i]);
 }
 
-// Laps of linkCache's phases into LinkStats::phase_ticks: 9 counter reads per cache, against
+// Laps of linkCache's phases into LinkStats::phase_ticks: 8 counter reads per cache, against
 // ~110k ticks of work per cache on CornellBox-Original, so it stays on in every build.
 class PhaseClock {
  public:
@@ -252,7 +253,7 @@ class PhaseClock {
 };
 
 template <int Bands>
-void linkCache(std::size_t cache, const glm::vec3& p, const glm::vec3& normal, const std::uint8_t* double_sided,
+void linkCache(std::size_t cache, const glm::vec3& p, const glm::vec3& normal, const std::uint32_t* double_sided,
                const rt::Accel& accel, const CutTree& cut_tree, const SurfelLocator& locator,
                const LinkOptions& options, const LinkRays& pattern, std::uint32_t surfel_bits, Scratch& s,
                std::uint8_t* seen, ChunkResult& out) {
@@ -273,74 +274,19 @@ void linkCache(std::size_t cache, const glm::vec3& p, const glm::vec3& normal, c
 
   const float omega = hemisphere ? 2.0f * kPi : 4.0f * kPi;
   const float w = omega / static_cast<float>(count) / kPi;  // per-ray weight of V/pi
-  std::uint32_t escaped = 0;
   float* escaped_mask = s.escaped.data();  // 1 for a ray that escaped, else 0
   // The sky pass reads whole groups of kSkyLanes: the padding counts nothing.
   const std::uint32_t padded = skyPadded(count);
   for (std::uint32_t i = count; i < padded; ++i) escaped_mask[i] = dirs.x[i] = dirs.y[i] = dirs.z[i] = 0.0f;
-  // Classify every ray first and start the raster loads of its hits (the owner rasters are
-  // MiBs and every hit lands on another line: without the prefetch this classification was
-  // 12 % slower on the Cornell box and zdm2); then read the owners.
-  // Slots hold a raster slot, or one of these for rays that need no raster load.
-  constexpr std::uint32_t kEscaped = 0xffffffffu, kBlocked = 0xfffffffeu, kAskLocator = 0xfffffffdu;
-  std::uint32_t* slot = s.slots.data();
-  for (std::uint32_t i = 0; i < count; ++i) {
-    const std::uint32_t mesh = hits.mesh[i];
-    escaped_mask[i] = mesh != rt::kNoHit ? 0.0f : 1.0f;
-    if (mesh == rt::kNoHit) {
-      slot[i] = kEscaped;
-      continue;
-    }
-    const bool back = rt::backFacing(glm::vec3(hits.ng_x[i], hits.ng_y[i], hits.ng_z[i]),
-                                     glm::vec3(dirs.x[i], dirs.y[i], dirs.z[i]));
-    if (back && !double_sided[mesh]) {
-      slot[i] = kBlocked;
-      continue;
-    }
-    const std::uint32_t k = locator.rasterSlot(mesh, hits.triangle[i], hits.u[i], hits.v[i]);
-    slot[i] = k == kNoSurfel ? kAskLocator : k;
-    if (k != kNoSurfel) __builtin_prefetch(locator.slotAddress(k));
-  }
-  // Counts and the sample cursor in locals: the byte stores to `seen` may alias anything, so
-  // counters in `out` and the samples vector's own pointers were reloaded and stored back for
-  // every hit (seen in the loop's assembly). No speed-up beyond noise was measured (link
-  // rays/s +3 %, -0.5 %, +3 % on three scenes, docs/results.md, issue 4 eighth pass); it is
-  // the simpler loop.
-  clock.lap(kPhaseClassify);
-  Sample* samples = s.samples.data();  // `count` long (Scratch)
-  std::size_t sampled = 0;
-  std::uint64_t back_hits = 0, unowned = 0;
-  for (std::uint32_t i = 0; i < count; ++i) {
-    if (slot[i] == kEscaped) {
-      ++escaped;
-      continue;
-    }
-    if (slot[i] == kBlocked) {
-      ++back_hits;
-      continue;
-    }
-    std::uint32_t owner = slot[i] == kAskLocator ? kNoSurfel : locator.slotOwner(slot[i]);
-    if (owner == kNoSurfel) {
-      // Stray hits (a raster cell beyond a hypotenuse, a triangle without a surfel to stand
-      // for it): the full lookup. The visible side's normal faces the cache (left
-      // unnormalised: the locator only needs it when it falls back to its grid).
-      const glm::vec3 dir(dirs.x[i], dirs.y[i], dirs.z[i]);
-      const glm::vec3 ng(hits.ng_x[i], hits.ng_y[i], hits.ng_z[i]);
-      owner = locator.ownerOfHit(hits.mesh[i], hits.triangle[i], hits.u[i], hits.v[i], fan.origin + hits.t[i] * dir,
-                                 rt::backFacing(ng, dir) ? -ng : ng);
-    }
-    if (owner == kNoSurfel) {
-      ++unowned;
-      continue;
-    }
-    seen[owner] = 1;
-    samples[sampled++] = makeSample(owner, i);
-  }
-  clock.lap(kPhaseOwner);
+  const HitCredit credited = creditHits(fan, hits, double_sided, locator, s.slots.data(), escaped_mask,
+                                       s.samples.data(), seen);
+  const std::size_t sampled = credited.sampled;
+  const std::uint32_t escaped = credited.escaped;
+  clock.lap(kPhaseCredit);
   out.stats.rays += count;
   out.stats.escaped += escaped;
-  out.stats.back_hits += back_hits;
-  out.stats.unowned += unowned;
+  out.stats.back_hits += credited.back_hits;
+  out.stats.unowned += credited.unowned;
   out.stats.front_hits += sampled;
   float sky_poly[kCoeffs];  // sums of the basis polynomials over the escaped rays
   float* const poly = s.poly.data();  // ray i's Y_q polynomial at [(q - 1) * polyStride(padded) + i]
@@ -349,7 +295,7 @@ void linkCache(std::size_t cache, const glm::vec3& p, const glm::vec3& normal, c
   float sky[kCoeffs];
   for (int q = 0; q < kCoeffs; ++q) sky[q] = w * sh::kBasisScale[q] * sky_poly[q];
   clock.lap(kPhaseSky);
-  const Sample* sorted = sortSamples(samples, s.sort_buffer.data(), sampled, surfel_bits);
+  const Sample* sorted = sortSamples(s.samples.data(), s.sort_buffer.data(), sampled, surfel_bits);
   clock.lap(kPhaseSort);
   chooseCut(cut_tree, std::span<const Sample>(sorted, sampled), options.max_links, s.cut_scratch, s.cut);
   clock.lap(kPhaseCut);
@@ -645,9 +591,10 @@ Expected<Links> generateLinks(const scene::Scene& scene, const rt::Accel& accel,
   const LinkCacheFn link_cache = linkCacheFor(options.bands);
   const LinkRays pattern(options);
   const CutTree cut_tree = cutTree(tree);
-  // Per mesh: are back faces visible (double-sided material)? One byte per hit instead of
-  // a walk through the mesh and material records.
-  std::vector<std::uint8_t> double_sided(scene.meshes.size());
+  // Per mesh: are back faces visible (double-sided material)? One load per hit instead of
+  // a walk through the mesh and material records; a word, so the AVX-512 hit credit can
+  // gather it.
+  std::vector<std::uint32_t> double_sided(scene.meshes.size());
   for (std::size_t m = 0; m < scene.meshes.size(); ++m)
     double_sided[m] = scene.materialOf(scene.meshes[m]).double_sided ? 1 : 0;
   const std::size_t surfel_count = std::max<std::size_t>(1, locator.surfelCount());
@@ -710,7 +657,7 @@ Expected<Links> generateLinks(const scene::Scene& scene, const rt::Accel& accel,
                                 &scratch.hit_ng_z})
                   v->resize(pattern.count());
                 scratch.slots.resize(pattern.count());
-                scratch.samples.resize(pattern.count());
+                scratch.samples.resize(pattern.count() + kHitCreditSlack);
                 scratch.sort_buffer.resize(pattern.count());
                 for (auto* v : {&scratch.dir_x, &scratch.dir_y, &scratch.dir_z, &scratch.escaped})
                   v->resize(skyPadded(pattern.count()));

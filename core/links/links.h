@@ -64,10 +64,10 @@ struct CacheQuery {
 // The phases of linking one cache, in order: where link generation's time goes. "trace" is
 // Embree alone, so (sum - trace) / trace is link generation's own work per unit of tracing,
 // the figure the ratio to raw Embree depends on (docs/precompute.md).
-enum LinkPhase : int { kPhaseRays, kPhaseTrace, kPhaseClassify, kPhaseOwner, kPhaseSky, kPhaseSort, kPhaseCut,
-                       kPhaseProject, kPhaseOutput, kLinkPhases };
+enum LinkPhase : int { kPhaseRays, kPhaseTrace, kPhaseCredit, kPhaseSky, kPhaseSort, kPhaseCut, kPhaseProject,
+                       kPhaseOutput, kLinkPhases };
 inline constexpr std::array<const char*, kLinkPhases> kLinkPhaseNames = {
-    "rays", "trace", "classify", "owner", "sky", "sort", "cut", "project", "output"};
+    "rays", "trace", "credit", "sky", "sort", "cut", "project", "output"};
 
 struct LinkStats {
   std::uint64_t rays = 0;           // traced

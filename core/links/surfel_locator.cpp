@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <cstddef>
 
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
@@ -154,11 +155,24 @@ void SurfelLocator::buildTriangleTables(const surfels::Surfels& surfels, const s
   // Fewer than 65535 surfels (the usual case, nS = 32k): the raster in 16 bits, half the
   // memory that every link ray's owner load reads from (docs/results.md, issue 4 ninth pass).
   if (narrow_raster_ && surfel_count_ < kNoSurfel16) {
-    raster16_.resize(raster_.size());
+    raster16_.resize(raster_.size() + 1, kNoSurfel16);
     for (std::size_t k = 0; k < raster_.size(); ++k)
       raster16_[k] = raster_[k] == kNoSurfel ? kNoSurfel16 : static_cast<std::uint16_t>(raster_[k]);
     std::vector<std::uint32_t>().swap(raster_);
   }
+}
+
+SurfelLocator::RasterTables SurfelLocator::rasterTables() const {
+  static_assert(sizeof(RasterRef) == 4 * sizeof(std::uint32_t) && offsetof(RasterRef, size) == 4);
+  RasterTables t;
+  t.mesh_first = mesh_first_.data();
+  t.mesh_first_count = static_cast<std::uint32_t>(mesh_first_.size());
+  t.raster_ref = reinterpret_cast<const std::uint32_t*>(raster_ref_.data());
+  if (raster16_.empty())
+    t.raster32 = raster_.data();
+  else
+    t.raster16 = raster16_.data();
+  return t;
 }
 
 glm::ivec3 SurfelLocator::cellOf(const glm::vec3& p) const {

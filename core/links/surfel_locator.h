@@ -86,6 +86,23 @@ class SurfelLocator {
     return raster16_.empty() ? static_cast<const void*>(raster_.data() + slot) : raster16_.data() + slot;
   }
 
+  // The tables behind rasterSlot and slotOwner, for a caller that reads them for 16 hits at
+  // a time with gathers (hit_credit.cpp): rasterSlot is t = mesh_first[mesh] + triangle
+  // (valid when mesh + 1 < mesh_first_count and t < mesh_first[mesh_first_count - 1]), then
+  // the triangle's raster {first, size} = raster_ref[4 t], raster_ref[4 t + 1] (first
+  // kNoSurfel: none), and the slot as rasterIndex computes it (size_f = float(size),
+  // max_f = float(size - 1)).
+  struct RasterTables {
+    const std::uint32_t* mesh_first = nullptr;
+    std::uint32_t mesh_first_count = 0;
+    const std::uint32_t* raster_ref = nullptr;
+    // One of the two: 16-bit cells (0xffff for kNoSurfel, and one more cell after the last,
+    // so that a 4-byte load of the last cell stays inside) or 32-bit ones.
+    const std::uint16_t* raster16 = nullptr;
+    const std::uint32_t* raster32 = nullptr;
+  };
+  RasterTables rasterTables() const;
+
   // Nearest surfel to p whose normal is within ~60 degrees of n (unit); falls back to a
   // wider search, then to the nearest surfel regardless of normal, then kNoSurfel.
   std::uint32_t owner(const glm::vec3& p, const glm::vec3& n) const;
@@ -106,7 +123,7 @@ class SurfelLocator {
   float cellSize() const { return cell_; }
   // Raster cells over all triangles (1 for each small one), and r (raster cells per
   // big-triangle cell and side): for tests and the benchmark's report.
-  std::size_t rasterCellCount() const { return raster16_.empty() ? raster_.size() : raster16_.size(); }
+  std::size_t rasterCellCount() const { return raster16_.empty() ? raster_.size() : raster16_.size() - 1; }
   // Bytes per raster cell: 2 when the raster is kept in 16 bits, else 4.
   std::size_t rasterCellBytes() const { return raster16_.empty() ? 4 : 2; }
   std::uint32_t rasterFactor() const { return raster_factor_; }
@@ -146,7 +163,7 @@ class SurfelLocator {
     std::uint32_t first_cell = 0;   // into big_cell_begin_
     std::uint32_t first_raster = 0; // into raster_
   };
-  // What a hit reads to find its raster cell: 16 bytes per triangle.
+  // What a hit reads to find its raster cell: 16 bytes per triangle (RasterTables::raster_ref).
   struct RasterRef {
     std::uint32_t first = kNoSurfel;  // into raster_; kNoSurfel: the triangle has no raster
     std::uint32_t size = 1;   // cells per side (g r; 1 for a one-entry triangle)
@@ -169,7 +186,7 @@ class SurfelLocator {
   std::vector<glm::vec3> big_position_;
   std::vector<std::uint32_t> raster_;  // surfel ids, all triangles' rasters in order
   // The same in 16 bits (kNoSurfel16 for kNoSurfel) when there are fewer than 65535
-  // surfels; raster_ is then emptied.
+  // surfels, plus one padding cell (RasterTables); raster_ is then emptied.
   static constexpr std::uint16_t kNoSurfel16 = 0xffff;
   std::vector<std::uint16_t> raster16_;
   // Per global triangle, indexed directly (an index table in between was one more dependent

@@ -1,0 +1,48 @@
+// Hit credit: the step of link generation between the trace and the sort. Every ray of a
+// cache's fan is classed as escaped (sky), blocked (the back of a single-sided surface) or a
+// front hit, and each front hit is credited to the surfel that owns the hit point
+// (SurfelLocator) as a Sample (owner, ray), appended in ray order.
+//
+// Two kernels give the same bits: a scalar one, and on x86-64 CPUs with AVX-512 (F, BW, VL,
+// DQ) one that classes 16 rays per step and reads the raster tables and owners with gathers.
+// With Embree's own AVX-512 kernels, tracing is fast on the Zen 5 VM and this step was 12 %
+// of link generation there with the scalar kernel, 8.5 % with the AVX-512 one
+// (docs/results.md, issue 4 eleventh pass). The kernel is chosen once per process from what
+// the CPU reports; tests run both on the same fans and compare them bit for bit.
+#pragma once
+
+#include <cstddef>
+#include <cstdint>
+
+#include "core/links/cut.h"
+#include "core/rt/accel.h"
+
+namespace lightlink::links {
+
+class SurfelLocator;  // surfel_locator.h
+
+struct HitCredit {
+  std::uint32_t sampled = 0;    // front hits credited (samples written)
+  std::uint32_t escaped = 0;    // rays that hit nothing
+  std::uint32_t back_hits = 0;  // rays blocked by the back of a single-sided surface
+  std::uint32_t unowned = 0;    // front hits no surfel owns
+};
+
+enum class HitCreditKernel { kBest, kScalar, kAvx512 };
+
+// Whether this CPU (and this build) can run the AVX-512 kernel.
+bool hitCreditHasAvx512();
+
+// Samples the kernels may write past the last credited one (whole vectors are stored).
+inline constexpr std::size_t kHitCreditSlack = 16;
+
+// Credits the fan's hits: `samples` receives (owner, ray) for every credited hit in ray
+// order (it must hold fan.count + kHitCreditSlack) and `escaped` 1.0 for a ray that escaped, else 0.0 (both fan.count long), and
+// seen[owner] is set to 1. `double_sided` holds one word per mesh, non-zero where back
+// faces are visible. `slots` is scratch of fan.count words. kAvx512 on a CPU without it
+// runs the scalar kernel.
+HitCredit creditHits(const rt::RayFan& fan, const rt::HitArrays& hits, const std::uint32_t* double_sided,
+                     const SurfelLocator& locator, std::uint32_t* slots, float* escaped, Sample* samples,
+                     std::uint8_t* seen, HitCreditKernel kernel = HitCreditKernel::kBest);
+
+}  // namespace lightlink::links

@@ -1,0 +1,143 @@
+// Hit credit: the AVX-512 kernel against the scalar one, bit for bit, on fans traced in a
+// scene with every kind of ray (escaped, blocked by a single-sided back face, a double-sided
+// back face credited, hits on big and on small triangles, stray hits that need the
+// locator's full lookup), for ray counts that are and are not multiples of 16, over both
+// raster widths. On a CPU without AVX-512 there is nothing to compare: the test says so.
+#include "core/links/hit_credit.h"
+
+#include <cstring>
+#include <vector>
+
+#include <gtest/gtest.h>
+
+#include "core/common/sampling.h"
+#include "core/links/links.h"
+#include "core/links/surfel_locator.h"
+#include "core/surfels/surfels.h"
+#include "tests/common/scene_builders.h"
+
+namespace lightlink::links {
+namespace {
+
+using lightlink::testing::addMaterial;
+using lightlink::testing::addQuad;
+
+// A room without a ceiling and without one wall (rays escape), a single-sided panel inside
+// (its back blocks rays), a double-sided panel (its back is credited), and one wall split
+// into 8 x 8 small quads (triangles with one surfel or none).
+scene::Scene mixedRoom() {
+  scene::Scene s;
+  const int one_sided = addMaterial(s, glm::vec3(0.5f));
+  const int two_sided = addMaterial(s, glm::vec3(0.5f), glm::vec3(0.0f), /*double_sided=*/true);
+  const float w = 4.0f;
+  addQuad(s, {0, 0, 0}, {w, 0, 0}, {w, 0, w}, {0, 0, w}, one_sided);  // floor, facing +y
+  addQuad(s, {0, 0, 0}, {0, 0, w}, {0, w, w}, {0, w, 0}, one_sided);  // x = 0 wall, facing +x
+  addQuad(s, {w, 0, 0}, {w, w, 0}, {w, w, w}, {w, 0, w}, one_sided);  // x = w wall, facing -x
+  for (int i = 0; i < 8; ++i) {  // z = 0 wall, facing +z, in small quads
+    for (int j = 0; j < 8; ++j) {
+      const float x0 = w * float(i) / 8.0f, x1 = w * float(i + 1) / 8.0f;
+      const float y0 = w * float(j) / 8.0f, y1 = w * float(j + 1) / 8.0f;
+      addQuad(s, {x0, y0, 0}, {x1, y0, 0}, {x1, y1, 0}, {x0, y1, 0}, one_sided);
+    }
+  }
+  addQuad(s, {1.5f, 0.5f, 1.0f}, {1.5f, 0.5f, 3.0f}, {1.5f, 2.5f, 3.0f}, {1.5f, 2.5f, 1.0f}, one_sided);
+  addQuad(s, {2.5f, 0.5f, 1.0f}, {2.5f, 2.5f, 1.0f}, {2.5f, 2.5f, 3.0f}, {2.5f, 0.5f, 3.0f}, two_sided);
+  lightlink::testing::finishScene(s);
+  return s;
+}
+
+struct Outcome {
+  HitCredit credit;
+  std::vector<Sample> samples;
+  std::vector<float> escaped;
+  std::vector<std::uint8_t> seen;
+};
+
+TEST(HitCredit, Avx512KernelGivesTheScalarKernelsBits) {
+  if (!hitCreditHasAvx512()) GTEST_SKIP() << "this CPU (or build) has no AVX-512: only the scalar kernel runs";
+  const scene::Scene scene = mixedRoom();
+  auto accel = rt::Accel::build(scene);
+  ASSERT_TRUE(accel) << accel.status().toString();
+  auto placed = surfels::placeSurfels(scene, {.count = 4096});
+  ASSERT_TRUE(placed) << placed.status().toString();
+  std::vector<std::uint32_t> double_sided(scene.meshes.size());
+  for (std::size_t m = 0; m < scene.meshes.size(); ++m)
+    double_sided[m] = scene.materialOf(scene.meshes[m]).double_sided ? 1 : 0;
+
+  HitCredit kinds;  // over all fans, to show the test saw every kind of ray
+  std::size_t stray = 0, fans = 0;
+  // The two raster widths, and rasters of one cell per big-triangle cell (a budget too small
+  // for more).
+  struct Config {
+    bool narrow;
+    std::size_t budget;
+  };
+  for (const Config config : {Config{true, SurfelLocator::kRasterBudget}, Config{false, SurfelLocator::kRasterBudget},
+                              Config{true, 1}}) {
+    const bool narrow = config.narrow;
+    const SurfelLocator locator(*placed, scene, config.budget, narrow);
+    ASSERT_EQ(locator.rasterCellBytes(), narrow ? 2u : 4u);
+    for (int rays : {1024, 1000, 9}) {
+      const LinkRays pattern({.rays = rays});
+      const std::uint32_t count = pattern.count();
+      std::vector<float> dx(count), dy(count), dz(count);
+      std::vector<std::uint32_t> mesh(count), triangle(count), slots(count);
+      std::vector<float> u(count), v(count), t(count), nx(count), ny(count), nz(count);
+      const rt::HitArrays hits{mesh.data(), triangle.data(), u.data(), v.data(), t.data(), nx.data(), ny.data(), nz.data()};
+      for (std::uint32_t cache = 0; cache < 60; ++cache) {
+        // Lightmap-like caches on the floor and the panels' sides, and sphere caches in the air.
+        std::uint64_t state = mixBits(cache * 7919u + static_cast<std::uint64_t>(rays));
+        auto uniform = [&] { return unitFloat(state = mixBits(state + 1)); };
+        glm::vec3 p(0.2f + 3.6f * uniform(), 0.05f + 3.0f * uniform(), 0.2f + 3.6f * uniform());
+        glm::vec3 n(0.0f);
+        if (cache % 3 == 0) n = glm::vec3(0, 1, 0), p.y = 0.01f;
+        if (cache % 3 == 1) n = glm::vec3(cache % 2 ? 1.0f : -1.0f, 0, 0);
+        const LinkRays::Directions dirs{dx.data(), dy.data(), dz.data()};
+        const rt::RayFan fan = pattern.fan(*accel, cache, p, n, dirs);
+        accel->intersectFan(fan, hits);
+        // Traced hits almost never land on a raster cell wholly beyond a hypotenuse (those
+        // hold no owner; the locator's full lookup answers a hit there): move every 7th hit
+        // of some fans there, so that steps with such a stray hit are compared too.
+        if (cache % 4 == 3)
+          for (std::uint32_t i = 0; i < count; i += 7) u[i] = v[i] = 0.97f;
+        Outcome out[2];
+        for (int k = 0; k < 2; ++k) {
+          out[k].samples.assign(count + kHitCreditSlack, 0);
+          out[k].escaped.assign(count, -1.0f);
+          out[k].seen.assign(locator.surfelCount(), 0);
+          out[k].credit = creditHits(fan, hits, double_sided.data(), locator, slots.data(), out[k].escaped.data(),
+                                     out[k].samples.data(), out[k].seen.data(),
+                                     k == 0 ? HitCreditKernel::kScalar : HitCreditKernel::kAvx512);
+          out[k].samples.resize(out[k].credit.sampled);
+        }
+        const std::string where = "rays " + std::to_string(count) + ", cache " + std::to_string(cache) +
+                                  (narrow ? ", 16-bit raster" : ", 32-bit raster") + ", r " +
+                                  std::to_string(locator.rasterFactor());
+        EXPECT_EQ(out[0].credit.sampled, out[1].credit.sampled) << where;
+        EXPECT_EQ(out[0].credit.escaped, out[1].credit.escaped) << where;
+        EXPECT_EQ(out[0].credit.back_hits, out[1].credit.back_hits) << where;
+        EXPECT_EQ(out[0].credit.unowned, out[1].credit.unowned) << where;
+        EXPECT_EQ(out[0].samples, out[1].samples) << where;
+        EXPECT_EQ(0, std::memcmp(out[0].escaped.data(), out[1].escaped.data(), count * sizeof(float))) << where;
+        EXPECT_EQ(out[0].seen, out[1].seen) << where;
+        kinds.sampled += out[0].credit.sampled;
+        kinds.escaped += out[0].credit.escaped;
+        kinds.back_hits += out[0].credit.back_hits;
+        for (std::uint32_t i = 0; i < count; ++i) {
+          if (mesh[i] == rt::kNoHit) continue;
+          const std::uint32_t slot = locator.rasterSlot(mesh[i], triangle[i], u[i], v[i]);
+          stray += (slot == kNoSurfel || locator.slotOwner(slot) == kNoSurfel) ? 1 : 0;
+        }
+        ++fans;
+      }
+    }
+  }
+  EXPECT_EQ(fans, 3u * 3u * 60u);
+  EXPECT_GT(kinds.sampled, 0u);
+  EXPECT_GT(kinds.escaped, 0u);
+  EXPECT_GT(kinds.back_hits, 0u);
+  EXPECT_GT(stray, 0u) << "no hit took the locator's full lookup: the fallback path went untested";
+}
+
+}  // namespace
+}  // namespace lightlink::links
