@@ -116,6 +116,15 @@ HitCredit creditScalar(const rt::RayFan& fan, const rt::HitArrays& hits, const s
 // docs/results.md, issue 4 eleventh pass). A step with a stray hit (the locator's full
 // lookup) finishes in the scalar credit() over its 16 rays, which keeps the samples in ray
 // order.
+// RasterRef's axis() for 16 lanes: w * size clamped to [0, size - 1] (NaN -> size - 1), then
+// truncated. A function of its own, not a lambda: clang gives a lambda no target attribute.
+LL_AVX512_FN inline __m512i rasterAxis(const float* w, __mmask16 lanes, __m512 size_f, __m512 max_f) {
+  __m512 x = _mm512_mul_ps(_mm512_maskz_loadu_ps(lanes, w), size_f);
+  x = _mm512_mask_blend_ps(_mm512_cmp_ps_mask(x, max_f, _CMP_LT_OQ), max_f, x);  // NaN -> max_f
+  x = _mm512_mask_blend_ps(_mm512_cmp_ps_mask(x, _mm512_setzero_ps(), _CMP_GT_OQ), _mm512_setzero_ps(), x);
+  return _mm512_cvttps_epu32(x);
+}
+
 LL_AVX512_FN HitCredit creditAvx512(const rt::RayFan& fan, const rt::HitArrays& hits,
                                     const std::uint32_t* double_sided, const SurfelLocator& locator,
                                     std::uint32_t* slots, float* escaped, Sample* samples, std::uint8_t* seen) {
@@ -169,13 +178,8 @@ LL_AVX512_FN HitCredit creditAvx512(const rt::RayFan& fan, const rt::HitArrays& 
     // RasterRef's size_f and max_f, which are these conversions (exact: sizes are < 2^24).
     const __m512 size_f = _mm512_cvtepu32_ps(size);
     const __m512 max_f = _mm512_cvtepu32_ps(_mm512_sub_epi32(size, _mm512_set1_epi32(1)));
-    auto axis = [&](const float* w) {
-      __m512 x = _mm512_mul_ps(_mm512_maskz_loadu_ps(rastered, w + i0), size_f);
-      x = _mm512_mask_blend_ps(_mm512_cmp_ps_mask(x, max_f, _CMP_LT_OQ), max_f, x);  // NaN -> max_f
-      x = _mm512_mask_blend_ps(_mm512_cmp_ps_mask(x, zero_f, _CMP_GT_OQ), zero_f, x);
-      return _mm512_cvttps_epu32(x);
-    };
-    __m512i slot = _mm512_add_epi32(_mm512_add_epi32(first, _mm512_mullo_epi32(axis(hits.v), size)), axis(hits.u));
+    __m512i slot = _mm512_add_epi32(_mm512_add_epi32(first, _mm512_mullo_epi32(rasterAxis(hits.v + i0, rastered, size_f, max_f), size)),
+                                    rasterAxis(hits.u + i0, rastered, size_f, max_f));
     slot = _mm512_mask_blend_epi32(rastered, _mm512_mask_blend_epi32(tri_ok, tri, _mm512_set1_epi32(static_cast<int>(kAskLocator))), slot);
     _mm512_mask_storeu_epi32(slots + i0, lanes, slot);
     // The raster loads started for all 16 lanes (slot 0 for a lane without one): a loop over
