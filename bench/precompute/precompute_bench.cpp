@@ -11,6 +11,9 @@
 //  - the owner lookup's build time and raster size (links::SurfelLocator).
 // Usage: precompute_bench [--scene F] [--subdivide N] [--surfels N] [--links N] [--bands B]
 //                         [--rays N] [--resolution R] [--hierarchy hac|fast] [--pairs N] [--json OUT]
+//                         [--hit-credit best|scalar]
+// --hit-credit scalar makes the pairs' link generation use the scalar hit-credit kernel on a
+// CPU with AVX-512 too: the two kernels timed with one binary (docs/results.md).
 #include <algorithm>
 #include <array>
 #include <chrono>
@@ -40,6 +43,7 @@ struct Args {
   std::string json;
   int subdivide = 0;
   int pairs = 3;  // interleaved (link generation, raw Embree) pairs after the precompute
+  links::HitCreditKernel hit_credit = links::HitCreditKernel::kBest;  // for the pairs
   precompute::PrecomputeOptions options;
 };
 
@@ -54,6 +58,8 @@ bool parse(int argc, char** argv, Args& a) {
     else if (k == "--json") a.json = v;
     else if (k == "--subdivide") a.subdivide = std::stoi(v);
     else if (k == "--pairs") a.pairs = std::max(0, std::stoi(v));
+    else if (k == "--hit-credit" && (std::strcmp(v, "best") == 0 || std::strcmp(v, "scalar") == 0))
+      a.hit_credit = std::strcmp(v, "scalar") == 0 ? links::HitCreditKernel::kScalar : links::HitCreditKernel::kBest;
     else if (k == "--surfels") a.options.surfels = static_cast<std::uint32_t>(std::stoul(v));
     else if (k == "--links") a.options.links = std::stoi(v);
     else if (k == "--bands") a.options.bands = std::stoi(v);
@@ -66,6 +72,11 @@ bool parse(int argc, char** argv, Args& a) {
   return true;
 }
 
+// The kernel the pairs' link generation runs.
+const char* hitCreditName(links::HitCreditKernel k) {
+  return k != links::HitCreditKernel::kScalar && links::hitCreditHasAvx512() ? "avx512" : "scalar";
+}
+
 double seconds(std::chrono::steady_clock::time_point t0) {
   return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
 }
@@ -76,7 +87,8 @@ int main(int argc, char** argv) {
   Args args;
   if (!parse(argc, argv, args)) {
     std::fprintf(stderr, "usage: precompute_bench [--scene F] [--subdivide N] [--surfels N] [--links N] "
-                         "[--bands B] [--rays N] [--resolution R] [--hierarchy hac|fast] [--pairs N] [--json OUT]\n");
+                         "[--bands B] [--rays N] [--resolution R] [--hierarchy hac|fast] [--pairs N] [--json OUT] "
+                         "[--hit-credit best|scalar]\n");
     return 1;
   }
   auto scene = scene::loadGltf(args.scene);
@@ -102,7 +114,8 @@ int main(int argc, char** argv) {
   constexpr std::size_t kBlock = 32;
   auto accel = rt::Accel::build(*scene);
   const links::LinkOptions lo{.rays = args.options.rays, .max_links = args.options.links,
-                              .bands = args.options.bands, .seed = args.options.seed};
+                              .bands = args.options.bands, .seed = args.options.seed,
+                              .hit_credit = args.hit_credit};
   const links::LinkRays pattern(lo);
   const std::uint32_t per_cache = pattern.count();
   const std::size_t caches = p->lightmap.size();
@@ -202,6 +215,7 @@ int main(int argc, char** argv) {
   nlohmann::ordered_json j;
   j["machine"] = {{"cpu", bench::cpuModel()}, {"threads", tbb::info::default_concurrency()}};
   j["scene"] = args.scene;
+  j["pair_hit_credit_kernel"] = hitCreditName(args.hit_credit);
   j["subdivide"] = args.subdivide;
   j["triangles"] = triangles;
   j["precompute"] = report;
@@ -252,7 +266,7 @@ int main(int argc, char** argv) {
     fmt::print("back-to-back runs (links, raw fans, raw ray records):");
     for (std::size_t k = 0; k < pair_ratios.size(); ++k) fmt::print(" {:.2f} ({:.2f})", pair_ratios[k], pair_api_ratios[k]);
     fmt::print(": median ratio {:.2f} ({:.2f} to ray records)\n", median_ratio, median_api_ratio);
-    fmt::print("link phases over the pairs:");
+    fmt::print("link phases over the pairs (hit credit {}):", hitCreditName(args.hit_credit));
     for (const auto& [phase, share] : pair_phase_share.items()) fmt::print(" {} {:.1f} %", phase, 100.0 * share.get<double>());
     fmt::print("; own work per unit of tracing {:.2f}\n", pair_own_work);
   }

@@ -145,8 +145,7 @@ LL_AVX512_FN HitCredit creditAvx512(const rt::RayFan& fan, const rt::HitArrays& 
     const __mmask16 lanes = n - i0 >= 16 ? __mmask16(0xffff) : __mmask16((1u << (n - i0)) - 1u);
     const __m512i mesh = _mm512_maskz_loadu_epi32(lanes, hits.mesh + i0);
     const __mmask16 hit = _mm512_mask_cmpneq_epu32_mask(lanes, mesh, _mm512_set1_epi32(static_cast<int>(rt::kNoHit)));
-    if (lanes == 0xffff) _mm512_storeu_ps(escaped + i0, _mm512_mask_blend_ps(hit, one_f, zero_f));
-    else _mm512_mask_storeu_ps(escaped + i0, lanes, _mm512_mask_blend_ps(hit, one_f, zero_f));
+    _mm512_mask_storeu_ps(escaped + i0, lanes, _mm512_mask_blend_ps(hit, one_f, zero_f));
     // rt::backFacing: dot(ng, dir) > 0, summed in glm's order (x + y) + z.
     const __m512 dot = _mm512_add_ps(
         _mm512_add_ps(_mm512_mul_ps(_mm512_maskz_loadu_ps(hit, hits.ng_x + i0), _mm512_maskz_loadu_ps(hit, fan.dir_x + i0)),

@@ -279,7 +279,7 @@ void linkCache(std::size_t cache, const glm::vec3& p, const glm::vec3& normal, c
   const std::uint32_t padded = skyPadded(count);
   for (std::uint32_t i = count; i < padded; ++i) escaped_mask[i] = dirs.x[i] = dirs.y[i] = dirs.z[i] = 0.0f;
   const HitCredit credited = creditHits(fan, hits, double_sided, locator, s.slots.data(), escaped_mask,
-                                       s.samples.data(), seen);
+                                       s.samples.data(), seen, options.hit_credit);
   const std::size_t sampled = credited.sampled;
   const std::uint32_t escaped = credited.escaped;
   clock.lap(kPhaseCredit);

@@ -38,6 +38,7 @@
 #include "core/common/progress.h"
 #include "core/common/status.h"
 #include "core/hierarchy/tree.h"
+#include "core/links/hit_credit.h"
 #include "core/rt/accel.h"
 #include "core/scene/scene.h"
 #include "core/surfels/surfels.h"
@@ -52,6 +53,9 @@ struct LinkOptions {
   int bands = 3;         // SH bands of the projected form, 1..4
   std::uint64_t seed = 0x5eed;
   const char* progress_label = "links";  // stage name shown by a Progress
+  // Which hit-credit kernel runs: the best this CPU has, or the scalar one (both give the
+  // same bits; precompute_bench --hit-credit scalar times the difference).
+  HitCreditKernel hit_credit = HitCreditKernel::kBest;
 };
 
 // The caches to link: positions, and a unit normal for a hemisphere (lightmap) cache or a
