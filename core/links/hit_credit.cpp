@@ -109,11 +109,12 @@ HitCredit creditScalar(const rt::RayFan& fan, const rt::HitArrays& hits, const s
 // 16 rays per step, in three passes over the fan. The table reads are gathers, and each
 // pass makes at most one gather per step that depends on another pass's data: pass 1 the
 // triangle's global index (from the mesh), pass 2 its raster reference and the slot (and it
-// starts the owner loads), pass 3 the owners. Written as one pass, each step waited on a
-// chain of four gathers (mesh, triangle, reference, owner; ~30 cycles each on the Zen 5
-// VM) and steps hardly overlapped: 12 % of link time, no better than the scalar kernel;
-// as three, 8.3-8.5 % against the scalar kernel's 11.8-12.1 % (CornellBox-Original,
-// docs/results.md, issue 4 eleventh pass). A step with a stray hit (the locator's full
+// starts the owner loads), pass 3 the owners. A one-pass version (an experiment, not kept)
+// made each step wait on a chain of four dependent gathers (mesh, triangle, reference,
+// owner), steps hardly overlapped and it was no faster than the scalar kernel. The three
+// passes take 8.1-8.3 % of link time against the scalar kernel's 11.6-11.9 %
+// (CornellBox-Original, `precompute_bench --pairs 5 --hit-credit best|scalar`, alternated;
+// docs/results.md, issue 4 twelfth pass). A step with a stray hit (the locator's full
 // lookup) finishes in the scalar credit() over its 16 rays, which keeps the samples in ray
 // order.
 // RasterRef's axis() for 16 lanes: w * size clamped to [0, size - 1] (NaN -> size - 1), then
