@@ -171,7 +171,9 @@ int main(int argc, char** argv) {
   const double locator_s = seconds(t0);
   nlohmann::ordered_json pair_rows = nlohmann::ordered_json::array();
   std::vector<double> pair_ratios, pair_api_ratios;
-  // Link generation's phases summed over the pairs (ticks: only their shares are reported).
+  // Link generation's phases summed over the pairs: shares, and timer ticks per cache (rdtsc
+  // on x86: a phase's own cost, steadier between runs than its share, which moves with the
+  // tracing's noise; for A/B runs of one phase).
   std::array<std::uint64_t, links::kLinkPhases> pair_phase_ticks{};
   for (int k = 0; k < args.pairs; ++k) {
     auto l = links::generateLinks(*scene, *accel, locator, p->tree, {sampled_position, sampled_normal}, lo);
@@ -196,6 +198,10 @@ int main(int argc, char** argv) {
   nlohmann::ordered_json pair_phase_share = nlohmann::ordered_json::object();
   for (int q = 0; q < links::kLinkPhases; ++q)
     pair_phase_share[links::kLinkPhaseNames[q]] = phase_total > 0 ? double(pair_phase_ticks[q]) / phase_total : 0.0;
+  nlohmann::ordered_json pair_phase_ticks_per_cache = nlohmann::ordered_json::object();
+  const double pair_caches = double(args.pairs) * double(sampled_position.size());
+  for (int q = 0; q < links::kLinkPhases; ++q)
+    pair_phase_ticks_per_cache[links::kLinkPhaseNames[q]] = pair_caches > 0 ? double(pair_phase_ticks[q]) / pair_caches : 0.0;
   const double pair_trace = double(pair_phase_ticks[links::kPhaseTrace]);
   const double pair_own_work = pair_trace > 0 ? (phase_total - pair_trace) / pair_trace : 0.0;
   const double median_ratio = bench::median(pair_ratios);
@@ -231,6 +237,7 @@ int main(int argc, char** argv) {
                                         {"median_pair_ratio", median_ratio},
                                         {"median_pair_ratio_to_ray_api", median_api_ratio},
                                         {"pair_phase_share", pair_phase_share},
+                                        {"pair_phase_ticks_per_cache", pair_phase_ticks_per_cache},
                                         {"pair_own_work_per_trace", pair_own_work},
                                         // What "raw" is: the very call link generation makes
                                         // per cache, with nothing else around it.
@@ -269,6 +276,9 @@ int main(int argc, char** argv) {
     fmt::print("link phases over the pairs (hit credit {}):", hitCreditName(args.hit_credit));
     for (const auto& [phase, share] : pair_phase_share.items()) fmt::print(" {} {:.1f} %", phase, 100.0 * share.get<double>());
     fmt::print("; own work per unit of tracing {:.2f}\n", pair_own_work);
+    fmt::print("link phases, timer ticks per cache:");
+    for (const auto& [phase, ticks] : pair_phase_ticks_per_cache.items()) fmt::print(" {} {:.0f}", phase, ticks.get<double>());
+    fmt::print("\n");
   }
   fmt::print("owner lookup: {} raster cells of {} bytes ({} per cell side), built in {:.3f} s (stage \"owners\", not in "
              "the link time)\n",
