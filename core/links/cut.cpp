@@ -26,6 +26,11 @@ inline std::uint64_t openKey(std::uint32_t count, std::uint32_t node) {
   return (std::uint64_t(count) << 32) | std::uint32_t(~node);
 }
 
+// The entry being placed is held in registers while the hole moves and written once, where
+// it lands. Written to its start slot first and read back from there, every push and
+// replacement read back as one load what two smaller stores had just written, which the
+// CPU cannot forward (perf put samples on the instructions after those loads; worth 1-2 %
+// of the cut).
 class OpenHeap {
  public:
   explicit OpenHeap(std::vector<OpenEntry>& storage) : h_(storage) { h_.clear(); }
@@ -33,24 +38,21 @@ class OpenHeap {
   std::size_t size() const { return h_.size(); }
   const OpenEntry& top() const { return h_[0]; }
   void push(OpenEntry e) {
-    h_.push_back(e);
-    siftUp(h_.size() - 1);
+    h_.emplace_back();
+    siftUp(h_.size() - 1, e);
   }
   // Replaces the top (with a key no larger than it had: a child of the popped node).
-  void replaceTop(OpenEntry e) {
-    h_[0] = e;
-    siftDown(0);
-  }
+  void replaceTop(OpenEntry e) { siftDown(0, e); }
   void popTop() {
-    h_[0] = h_.back();
+    const OpenEntry last = h_.back();
     h_.pop_back();
-    if (!h_.empty()) siftDown(0);
+    if (!h_.empty()) siftDown(0, last);
   }
   const std::vector<OpenEntry>& entries() const { return h_; }
 
  private:
-  void siftUp(std::size_t i) {
-    const OpenEntry e = h_[i];
+  // Places e in the hole at i, moving the hole up past smaller parents.
+  void siftUp(std::size_t i, const OpenEntry e) {
     while (i > 0) {
       const std::size_t parent = (i - 1) / 2;
       if (h_[parent].key >= e.key) break;
@@ -59,8 +61,8 @@ class OpenHeap {
     }
     h_[i] = e;
   }
-  void siftDown(std::size_t i) {
-    const OpenEntry e = h_[i];
+  // Places e in the hole at i, moving the hole down past larger children.
+  void siftDown(std::size_t i, const OpenEntry e) {
     const std::size_t n = h_.size();
     for (;;) {
       std::size_t c = 2 * i + 1;
@@ -75,18 +77,23 @@ class OpenHeap {
   std::vector<OpenEntry>& h_;
 };
 
-// First position in sorted [first, first + n) whose key is >= key. Branch-free: the loop runs
-// ceil(log2 n) times whatever the data, and the select compiles to a conditional move (a
-// profile of the old cut had its samples on std::lower_bound's branches and the heap's).
+// First position in sorted [first, first + n) whose key is >= key. Branch-free: halving
+// steps (the select compiles to a conditional move; a profile of the old cut had its samples
+// on std::lower_bound's branches) until at most kLinearCount keys are left, which are then
+// counted. Each halving step waits on its load; the count's loads are independent. With the
+// heap below, the cut went from 6.2 to 5.9 us per cache (cut_bench, CornellBox-Original;
+// docs/results.md, issue 4 twelfth pass); counting 8 gained no more, 16 lost.
+inline constexpr std::uint32_t kLinearCount = 4;
 inline std::uint32_t lowerBound(const Sample* first, std::uint32_t n, Sample key) {
-  if (n == 0) return 0;
   const Sample* base = first;
-  while (n > 1) {
+  while (n > kLinearCount) {
     const std::uint32_t half = n / 2;
     base = base[half] < key ? base + half : base;
     n -= half;
   }
-  return static_cast<std::uint32_t>(base - first) + (*base < key ? 1u : 0u);
+  std::uint32_t below = 0;
+  for (std::uint32_t i = 0; i < n; ++i) below += base[i] < key ? 1u : 0u;
+  return static_cast<std::uint32_t>(base - first) + below;
 }
 
 }  // namespace
