@@ -59,6 +59,7 @@ struct CutScratch {
   std::vector<OpenEntry> open;          // the open nodes (a max-heap)
   std::vector<CutEntry> ordered;
   std::vector<std::uint32_t> at_first;  // per sample: the cut entry starting there
+  std::vector<std::uint64_t> starts;    // per sample, one bit: a cut entry starts there
 };
 
 // Chooses the cut of at most max_links (>= 1) nodes over `samples`, sorted ascending (by
