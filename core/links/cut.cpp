@@ -92,8 +92,11 @@ inline std::uint32_t lowerBound(const Sample* first, std::uint32_t n, Sample key
     base = base[half] < key ? base + half : base;
     n -= half;
   }
+  // n is 1..4 here (a node in the heap has samples): always four compares, the ones past n
+  // reading the last key and not counted, so no loop exit to mispredict.
   std::uint32_t below = 0;
-  for (std::uint32_t i = 0; i < n; ++i) below += base[i] < key ? 1u : 0u;
+  for (std::uint32_t i = 0; i < kLinearCount; ++i)
+    below += (i < n && base[std::min(i, n - 1)] < key) ? 1u : 0u;
   return static_cast<std::uint32_t>(base - first) + below;
 }
 
