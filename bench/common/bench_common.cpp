@@ -1,6 +1,7 @@
 #include "bench/common/bench_common.h"
 
 #include <algorithm>
+#include <cstring>
 
 #include <glm/geometric.hpp>
 
@@ -12,6 +13,18 @@ double median(std::vector<double> v) {
   if (v.empty()) return 0.0;
   std::sort(v.begin(), v.end());
   return v[v.size() / 2];
+}
+
+bool parsePrecomputeFlag(const std::string& flag, const char* value, precompute::PrecomputeOptions& options) {
+  if (flag == "--surfels") options.surfels = static_cast<std::uint32_t>(std::stoul(value));
+  else if (flag == "--links") options.links = std::stoi(value);
+  else if (flag == "--bands") options.bands = std::stoi(value);
+  else if (flag == "--rays") options.rays = std::stoi(value);
+  else if (flag == "--resolution") options.lightmap_resolution = std::stoi(value);
+  else if (flag == "--hierarchy")
+    options.builder = std::strcmp(value, "fast") == 0 ? hierarchy::Builder::kKdMedian : hierarchy::Builder::kAgglomerative;
+  else return false;
+  return true;
 }
 
 relight::LightSet lightsOrSun(const scene::Scene& scene) {

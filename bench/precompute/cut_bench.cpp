@@ -7,7 +7,7 @@
 // does), then chooseCut runs over all of them on one thread, `repeats` times: the median
 // time per cache (each cache's samples hot in cache, as the sort leaves them), against the
 // time to stream the same samples from memory once, plus what the cut did (links per cache).
-// Usage: cut_bench [--scene F] [--surfels N] [--links N] [--rays N] [--resolution R]
+// Usage: cut_bench [--scene F] [--surfels N] [--links N] [--bands B] [--rays N] [--resolution R] [--hierarchy hac|fast]
 //                  [--caches N] [--repeats N] [--json OUT]
 #include <algorithm>
 #include <cstdio>
@@ -40,6 +40,7 @@ struct Args {
 };
 
 bool parse(int argc, char** argv, Args& a) {
+  a.options.lightmap_resolution = bench::kMediumResolution;  // as precompute_bench
   for (int i = 1; i < argc; ++i) {
     const std::string k = argv[i];
     if (i + 1 >= argc) return false;
@@ -48,11 +49,7 @@ bool parse(int argc, char** argv, Args& a) {
     else if (k == "--json") a.json = v;
     else if (k == "--caches") a.caches = std::max<std::size_t>(1, std::stoul(v));
     else if (k == "--repeats") a.repeats = std::max(1, std::stoi(v));
-    else if (k == "--surfels") a.options.surfels = static_cast<std::uint32_t>(std::stoul(v));
-    else if (k == "--links") a.options.links = std::stoi(v);
-    else if (k == "--rays") a.options.rays = std::stoi(v);
-    else if (k == "--resolution") a.options.lightmap_resolution = std::stoi(v);
-    else return false;
+    else if (!bench::parsePrecomputeFlag(k, v, a.options)) return false;
   }
   return true;
 }
@@ -62,33 +59,23 @@ bool parse(int argc, char** argv, Args& a) {
 int main(int argc, char** argv) {
   Args args;
   if (!parse(argc, argv, args)) {
-    std::fprintf(stderr, "usage: cut_bench [--scene F] [--surfels N] [--links N] [--rays N] [--resolution R] "
+    std::fprintf(stderr, "usage: cut_bench [--scene F] [--surfels N] [--links N] [--bands B] [--rays N] [--resolution R] "
+                         "[--hierarchy hac|fast] "
                          "[--caches N] [--repeats N] [--json OUT]\n");
     return 1;
   }
   auto scene = scene::loadGltf(args.scene);
-  if (!scene) {
-    std::fprintf(stderr, "%s\n", scene.status().toString().c_str());
-    return 2;
-  }
+  if (bench::failed(scene)) return 2;
   auto p = precompute::run(*scene, args.options);
-  if (!p) {
-    std::fprintf(stderr, "%s\n", p.status().toString().c_str());
-    return 2;
-  }
+  if (bench::failed(p)) return 2;
   auto accel = rt::Accel::build(*scene);
-  if (!accel) {
-    std::fprintf(stderr, "%s\n", accel.status().toString().c_str());
-    return 2;
-  }
+  if (bench::failed(accel)) return 2;
   const links::SurfelLocator locator(p->surfels, *scene);
   const links::LinkOptions lo{.rays = args.options.rays, .max_links = args.options.links,
                               .bands = args.options.bands, .seed = args.options.seed};
   const links::LinkRays pattern(lo);
   const std::uint32_t n = pattern.count();
-  std::vector<std::uint32_t> double_sided(scene->meshes.size());
-  for (std::size_t m = 0; m < scene->meshes.size(); ++m)
-    double_sided[m] = scene->materialOf(scene->meshes[m]).double_sided ? 1 : 0;
+  const std::vector<std::uint32_t> double_sided = links::doubleSidedByMesh(*scene);
 
   // Every cache's samples, sorted by (surfel, ray) as link generation's radix sort leaves
   // them (the keys are unique, so any sort gives the same order).

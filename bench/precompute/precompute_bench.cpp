@@ -49,7 +49,7 @@ struct Args {
 
 bool parse(int argc, char** argv, Args& a) {
   a.scene = std::string(LIGHTLINK_SOURCE_DIR) + "/clients/demo/cornell_box.gltf";
-  a.options.lightmap_resolution = 128;  // "medium": ~10k lightmap caches on the shared scenes
+  a.options.lightmap_resolution = bench::kMediumResolution;
   for (int i = 1; i < argc; ++i) {
     const std::string k = argv[i];
     if (i + 1 >= argc) return false;
@@ -60,14 +60,7 @@ bool parse(int argc, char** argv, Args& a) {
     else if (k == "--pairs") a.pairs = std::max(0, std::stoi(v));
     else if (k == "--hit-credit" && (std::strcmp(v, "best") == 0 || std::strcmp(v, "scalar") == 0))
       a.hit_credit = std::strcmp(v, "scalar") == 0 ? links::HitCreditKernel::kScalar : links::HitCreditKernel::kBest;
-    else if (k == "--surfels") a.options.surfels = static_cast<std::uint32_t>(std::stoul(v));
-    else if (k == "--links") a.options.links = std::stoi(v);
-    else if (k == "--bands") a.options.bands = std::stoi(v);
-    else if (k == "--rays") a.options.rays = std::stoi(v);
-    else if (k == "--resolution") a.options.lightmap_resolution = std::stoi(v);
-    else if (k == "--hierarchy")
-      a.options.builder = std::strcmp(v, "fast") == 0 ? hierarchy::Builder::kKdMedian : hierarchy::Builder::kAgglomerative;
-    else return false;
+    else if (!bench::parsePrecomputeFlag(k, v, a.options)) return false;
   }
   return true;
 }
@@ -92,17 +85,11 @@ int main(int argc, char** argv) {
     return 1;
   }
   auto scene = scene::loadGltf(args.scene);
-  if (!scene) {
-    std::fprintf(stderr, "%s\n", scene.status().toString().c_str());
-    return 2;
-  }
+  if (bench::failed(scene)) return 2;
   scene::subdivide(*scene, args.subdivide);
   const std::size_t triangles = scene->triangleCount();
   auto p = precompute::run(*scene, args.options);
-  if (!p) {
-    std::fprintf(stderr, "%s\n", p.status().toString().c_str());
-    return 2;
-  }
+  if (bench::failed(p)) return 2;
   auto report = p->report();
 
   // Raw Embree on the same rays: the rays the lightmap links traced, 16-ray packets, all
@@ -177,10 +164,7 @@ int main(int argc, char** argv) {
   std::array<std::uint64_t, links::kLinkPhases> pair_phase_ticks{};
   for (int k = 0; k < args.pairs; ++k) {
     auto l = links::generateLinks(*scene, *accel, locator, p->tree, {sampled_position, sampled_normal}, lo);
-    if (!l) {
-      std::fprintf(stderr, "%s\n", l.status().toString().c_str());
-      return 2;
-    }
+    if (bench::failed(l)) return 2;
     const double lrps = l->stats.seconds > 0 ? double(l->stats.rays) / l->stats.seconds : 0.0;
     const double rrps = bench::measureFanThroughput(*accel, fans, to).raysPerSecond();
     const double arps = bench::measureThroughput(*accel, rays, to).raysPerSecond();

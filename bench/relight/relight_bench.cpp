@@ -47,21 +47,16 @@ struct Args {
 
 bool parse(int argc, char** argv, Args& a) {
   a.scene = std::string(LIGHTLINK_SOURCE_DIR) + "/clients/demo/cornell_box.gltf";
-  a.options.lightmap_resolution = 128;
+  a.options.lightmap_resolution = bench::kMediumResolution;
   for (int i = 1; i < argc; ++i) {
     const std::string k = argv[i];
     if (i + 1 >= argc) return false;
     const char* v = argv[++i];
     if (k == "--scene") a.scene = v;
     else if (k == "--json") a.json = v;
-    else if (k == "--surfels") a.options.surfels = static_cast<std::uint32_t>(std::stoul(v));
-    else if (k == "--links") a.options.links = std::stoi(v);
-    else if (k == "--bands") a.options.bands = std::stoi(v);
-    else if (k == "--rays") a.options.rays = std::stoi(v);
-    else if (k == "--resolution") a.options.lightmap_resolution = std::stoi(v);
     else if (k == "--repeats") a.repeats = std::max(1, std::stoi(v));
     else if (k == "--sky") a.sky = std::stof(v);
-    else return false;
+    else if (!bench::parsePrecomputeFlag(k, v, a.options)) return false;
   }
   return true;
 }

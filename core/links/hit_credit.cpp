@@ -245,6 +245,13 @@ bool hitCreditHasAvx512() {
 #endif
 }
 
+std::vector<std::uint32_t> doubleSidedByMesh(const scene::Scene& scene) {
+  std::vector<std::uint32_t> double_sided(scene.meshes.size());
+  for (std::size_t m = 0; m < scene.meshes.size(); ++m)
+    double_sided[m] = scene.materialOf(scene.meshes[m]).double_sided ? 1 : 0;
+  return double_sided;
+}
+
 HitCredit creditHits(const rt::RayFan& fan, const rt::HitArrays& hits, const std::uint32_t* double_sided,
                      const SurfelLocator& locator, std::uint32_t* slots, float* escaped, Sample* samples,
                      std::uint8_t* seen, HitCreditKernel kernel) {

@@ -14,9 +14,11 @@
 
 #include <cstddef>
 #include <cstdint>
+#include <vector>
 
 #include "core/links/cut.h"
 #include "core/rt/accel.h"
+#include "core/scene/scene.h"
 
 namespace lightlink::links {
 
@@ -36,6 +38,11 @@ bool hitCreditHasAvx512();
 
 // Samples the kernels may write past the last credited one (whole vectors are stored).
 inline constexpr std::size_t kHitCreditSlack = 16;
+
+// Per mesh of the scene, whether back faces are visible (a double-sided material): what
+// creditHits reads as `double_sided`. One load per hit instead of a walk through the mesh
+// and material records; a word, so the AVX-512 kernel can gather it.
+std::vector<std::uint32_t> doubleSidedByMesh(const scene::Scene& scene);
 
 // Credits the fan's hits: `samples` receives (owner, ray) for every credited hit in ray
 // order (it must hold fan.count + kHitCreditSlack) and `escaped` 1.0 for a ray that escaped, else 0.0 (both fan.count long), and

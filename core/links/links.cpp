@@ -591,12 +591,7 @@ Expected<Links> generateLinks(const scene::Scene& scene, const rt::Accel& accel,
   const LinkCacheFn link_cache = linkCacheFor(options.bands);
   const LinkRays pattern(options);
   const CutTree cut_tree = cutTree(tree);
-  // Per mesh: are back faces visible (double-sided material)? One load per hit instead of
-  // a walk through the mesh and material records; a word, so the AVX-512 hit credit can
-  // gather it.
-  std::vector<std::uint32_t> double_sided(scene.meshes.size());
-  for (std::size_t m = 0; m < scene.meshes.size(); ++m)
-    double_sided[m] = scene.materialOf(scene.meshes[m]).double_sided ? 1 : 0;
+  const std::vector<std::uint32_t> double_sided = doubleSidedByMesh(scene);
   const std::size_t surfel_count = std::max<std::size_t>(1, locator.surfelCount());
   const auto surfel_bits = std::max<std::uint32_t>(1, static_cast<std::uint32_t>(std::bit_width(surfel_count - 1)));
   const std::size_t n = caches.position.size();

@@ -95,9 +95,7 @@ TEST(HitCredit, EveryKernelCreditsAsTheLocatorRayByRay) {
   ASSERT_TRUE(accel) << accel.status().toString();
   auto placed = surfels::placeSurfels(scene, {.count = 4096});
   ASSERT_TRUE(placed) << placed.status().toString();
-  std::vector<std::uint32_t> double_sided(scene.meshes.size());
-  for (std::size_t m = 0; m < scene.meshes.size(); ++m)
-    double_sided[m] = scene.materialOf(scene.meshes[m]).double_sided ? 1 : 0;
+  const std::vector<std::uint32_t> double_sided = doubleSidedByMesh(scene);
 
   HitCredit kinds;  // over all fans, to show the test saw every kind of ray
   std::size_t stray = 0, fans = 0;
