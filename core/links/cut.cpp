@@ -82,7 +82,7 @@ class OpenHeap {
 // steps (the select compiles to a conditional move; a profile of the old cut had its samples
 // on std::lower_bound's branches) until at most kLinearCount keys are left, which are then
 // counted. Each halving step waits on its load; the count's loads are independent. With the
-// heap below, the cut went from 6.2 to 5.9 us per cache (cut_bench, CornellBox-Original;
+// heap's change above, the cut went from 6.2 to 5.9 us per cache (cut_bench, CornellBox-Original;
 // docs/results.md, issue 4 twelfth pass); counting 8 gained no more, 16 lost.
 inline constexpr std::uint32_t kLinearCount = 4;
 inline std::uint32_t lowerBound(const Sample* first, std::uint32_t n, Sample key) {
