@@ -67,7 +67,7 @@ bool parse(int argc, char** argv, Args& a) {
 
 // The kernel the pairs' link generation runs.
 const char* hitCreditName(links::HitCreditKernel k) {
-  return k != links::HitCreditKernel::kScalar && links::hitCreditHasAvx512() ? "avx512" : "scalar";
+  return links::hitCreditKernelRun(k) == links::HitCreditKernel::kAvx512 ? "avx512" : "scalar";
 }
 
 double seconds(std::chrono::steady_clock::time_point t0) {

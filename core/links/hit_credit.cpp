@@ -252,11 +252,16 @@ std::vector<std::uint32_t> doubleSidedByMesh(const scene::Scene& scene) {
   return double_sided;
 }
 
+HitCreditKernel hitCreditKernelRun(HitCreditKernel requested) {
+  return requested != HitCreditKernel::kScalar && hitCreditHasAvx512() ? HitCreditKernel::kAvx512
+                                                                        : HitCreditKernel::kScalar;
+}
+
 HitCredit creditHits(const rt::RayFan& fan, const rt::HitArrays& hits, const std::uint32_t* double_sided,
                      const SurfelLocator& locator, std::uint32_t* slots, float* escaped, Sample* samples,
                      std::uint8_t* seen, HitCreditKernel kernel) {
 #if LL_HIT_CREDIT_AVX512
-  if (kernel != HitCreditKernel::kScalar && hitCreditHasAvx512())
+  if (hitCreditKernelRun(kernel) == HitCreditKernel::kAvx512)
     return creditAvx512(fan, hits, double_sided, locator, slots, escaped, samples, seen);
 #else
   (void)kernel;

@@ -36,6 +36,9 @@ enum class HitCreditKernel { kBest, kScalar, kAvx512 };
 // Whether this CPU (and this build) can run the AVX-512 kernel.
 bool hitCreditHasAvx512();
 
+// The kernel creditHits runs when asked for `requested`: kAvx512 or kScalar.
+HitCreditKernel hitCreditKernelRun(HitCreditKernel requested);
+
 // Samples the kernels may write past the last credited one (whole vectors are stored).
 inline constexpr std::size_t kHitCreditSlack = 16;
 
