@@ -30,8 +30,8 @@ inline std::uint64_t openKey(std::uint32_t count, std::uint32_t node) {
 // The entry being placed is held in registers while the hole moves and written once, where
 // it lands. Written to its start slot first and read back from there, every push and
 // replacement read back as one load what two smaller stores had just written, which the
-// CPU cannot forward (perf put samples on the instructions after those loads; worth 1-2 %
-// of the cut).
+// CPU cannot forward (perf put samples on the instructions after those loads). Measured
+// together with lowerBound's counted tail below (docs/results.md, issue 4 twelfth pass).
 class OpenHeap {
  public:
   explicit OpenHeap(std::vector<OpenEntry>& storage) : h_(storage) { h_.clear(); }
