@@ -183,8 +183,7 @@ int main(int argc, char** argv) {
   if (a.hidden_mode) {
     // Surfels no lightmap cache sees (no link ray of any valid cache ends on them): their
     // light reaches caches only averaged into coarse cut nodes. Share of the surfel flux.
-    const links::LinkOptions lo{.rays = opt->rays, .max_links = opt->links, .bands = opt->bands, .seed = opt->seed};
-    const links::LinkRays pattern(lo);
+    const links::LinkRays pattern(opt->linkOptions());
     const links::SurfelLocator locator(p->surfels, *scene);
     std::vector<std::uint8_t> seen(p->surfels.size(), 0);
     std::vector<rt::Ray> rays(pattern.count());
@@ -232,8 +231,7 @@ int main(int argc, char** argv) {
   for (std::uint32_t c : pick) pos.push_back(lm.position[c]), nrm.push_back(lm.normal[c]);
 
   const int bands = baked->bands, nc = bands * bands;
-  const links::LinkOptions lo{.rays = opt->rays, .max_links = opt->links, .bands = opt->bands, .seed = opt->seed};
-  const links::LinkRays pattern(lo);
+    const links::LinkRays pattern(opt->linkOptions());
   const links::SurfelLocator locator(p->surfels, *scene);
   std::vector<rt::Ray> rays(pattern.count());
   // Owned area per surfel: area-uniform points on the static triangles, credited to their owner

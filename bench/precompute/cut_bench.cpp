@@ -71,9 +71,7 @@ int main(int argc, char** argv) {
   auto accel = rt::Accel::build(*scene);
   if (bench::failed(accel)) return 2;
   const links::SurfelLocator locator(p->surfels, *scene);
-  const links::LinkOptions lo{.rays = args.options.rays, .max_links = args.options.links,
-                              .bands = args.options.bands, .seed = args.options.seed};
-  const links::LinkRays pattern(lo);
+  const links::LinkRays pattern(args.options.linkOptions());
   const std::uint32_t n = pattern.count();
   const std::vector<std::uint32_t> double_sided = links::doubleSidedByMesh(*scene);
 

@@ -100,9 +100,8 @@ int main(int argc, char** argv) {
   constexpr std::size_t kMaxRawRays = std::size_t(1) << 26;
   constexpr std::size_t kBlock = 32;
   auto accel = rt::Accel::build(*scene);
-  const links::LinkOptions lo{.rays = args.options.rays, .max_links = args.options.links,
-                              .bands = args.options.bands, .seed = args.options.seed,
-                              .hit_credit = args.hit_credit};
+  links::LinkOptions lo = args.options.linkOptions();
+  lo.hit_credit = args.hit_credit;
   const links::LinkRays pattern(lo);
   const std::uint32_t per_cache = pattern.count();
   const std::size_t caches = p->lightmap.size();

@@ -270,8 +270,7 @@ Expected<Precomputation> run(scene::Scene& scene, const PrecomputeOptions& optio
   });
   if (!s) return s;
 
-  const links::LinkOptions link_options{
-      .rays = options.rays, .max_links = options.links, .bands = options.bands, .seed = options.seed};
+  const links::LinkOptions link_options = options.linkOptions();
   s = stage("links", [&]() -> Status {
     links::LinkOptions lm_options = link_options;
     lm_options.progress_label = "links lightmap";

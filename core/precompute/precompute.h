@@ -53,6 +53,11 @@ struct PrecomputeOptions {
   // Every option that changes the result, in a fixed order, and kGeneratorRevision: part of
   // the cache key.
   std::string canonical() const;
+  // The link generation these options ask for (rays, budget, bands, seed): what run() links
+  // with, and what a benchmark must use to link the same way.
+  links::LinkOptions linkOptions() const {
+    return {.rays = rays, .max_links = links, .bands = bands, .seed = seed};
+  }
 };
 
 // Bumped whenever the same scene and options give different artifact contents (not a format
