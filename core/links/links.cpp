@@ -63,7 +63,9 @@ struct Scratch {
   std::vector<std::uint32_t> slots;     // per ray: owner raster slot or ray class
   std::vector<float> dir_x, dir_y, dir_z;  // per ray, padded to a multiple of kSkyLanes
   std::vector<float> escaped;           // per ray: 1 escaped, 0 not (0 in the padding)
-  std::vector<float> poly;              // per SH coefficient q >= 1, per ray (padded): the basis polynomial
+  std::vector<float> poly;              // per ray (padded), polyRows(bands) rows of 8: the basis polynomials q >= 1
+  std::vector<float> link_sums;         // per link of the cache, polyRows(bands) rows of 8: sums of those
+  std::vector<std::uint8_t> starts;     // per sample: 1 for a link's first hit, else 0
   std::vector<float> coeff_values;      // per link of the cache: its SH in float, then fp16
   std::vector<float> solid_values;
   std::vector<float> link_x, link_y, link_z;  // per link of the cache: the direction to encode
@@ -139,22 +141,62 @@ struct ChunkResult {
 // bits; a plain reduction would not vectorise without reassociating. Most rays of an open
 // scene escape (ShadowsDirectional: 82 %); there the hit loop with the sky projected ray by
 // ray took 0.23 Gcycles, this pass and the owner rasters 0.10 (docs/results.md).
-// The same pass keeps every ray's polynomials (q >= 1) in `poly`, one array of `count`
-// floats per q: the links' projection sums them over each link's hits instead of evaluating
-// them again per hit (docs/results.md, issue 4 ninth pass).
+// The same pass keeps every ray's polynomials (q >= 1) for the links' projection, which sums
+// them over each link's hits instead of evaluating them again per hit (docs/results.md,
+// issue 4 ninth pass). They are kept ray by ray (polyRows rows of 8 floats per ray,
+// transposed from the pass's 8-ray vectors in registers), so that adding a hit to its link
+// is one 8-float load and add per row, where one array per coefficient made it 8 or 15
+// scalar loads and adds (docs/results.md, issue 4 thirteenth pass).
 constexpr std::uint32_t kSkyLanes = 8;
 // Rays rounded up to whole groups of lanes: the length of the sky pass's arrays.
 constexpr std::uint32_t skyPadded(std::uint32_t rays) { return (rays + kSkyLanes - 1) / kSkyLanes * kSkyLanes; }
-// Distance between the polynomial arrays of consecutive q: one cache line more than the
-// padded ray count, so that ray i's 8 or 15 polynomials do not all fall into one L1 set
-// (4 KiB apart at 1024 rays, they would).
-constexpr std::uint32_t polyStride(std::uint32_t padded) { return padded + 16; }
+// Rows of 8 floats that hold one ray's polynomials q = 1 .. bands^2 - 1 (the last row padded
+// with zeros): 0, 1, 1, 2 for 1..4 bands.
+constexpr int polyRows(int bands) { return (bands * bands - 1 + 7) / 8; }
 
 // Eight floats as one GCC vector: the sky pass below is written on it so that it stays
 // vectorised while it also stores every ray's polynomials (written on scalars with those
 // stores added, GCC 12 turned it into scalar code, and link generation got 10 % slower).
 typedef float Lanes8 __attribute__((vector_size(32)));
+typedef std::int32_t Ints8 __attribute__((vector_size(32)));
 static_assert(kSkyLanes == 8);
+
+// r[j] lane i -> dst[i * stride + j]: the 8x8 transpose in three rounds of two-input
+// shuffles (unpack, shufps, 128-bit moves under AVX2), each row stored as it is formed (an
+// array of the rows was spilled and copied back out by GCC). Moves bits only, so every
+// build agrees.
+__attribute__((always_inline)) inline void transpose8(const Lanes8* r, float* dst, std::size_t stride) {
+#define LL_LO(a, b) __builtin_shufflevector(a, b, 0, 8, 1, 9, 4, 12, 5, 13)
+#define LL_HI(a, b) __builtin_shufflevector(a, b, 2, 10, 3, 11, 6, 14, 7, 15)
+#define LL_PAIRS_LO(a, b) __builtin_shufflevector(a, b, 0, 1, 8, 9, 4, 5, 12, 13)
+#define LL_PAIRS_HI(a, b) __builtin_shufflevector(a, b, 2, 3, 10, 11, 6, 7, 14, 15)
+#define LL_HALVES_LO(a, b) __builtin_shufflevector(a, b, 0, 1, 2, 3, 8, 9, 10, 11)
+#define LL_HALVES_HI(a, b) __builtin_shufflevector(a, b, 4, 5, 6, 7, 12, 13, 14, 15)
+  const Lanes8 t0 = LL_LO(r[0], r[1]), t1 = LL_HI(r[0], r[1]);
+  const Lanes8 t2 = LL_LO(r[2], r[3]), t3 = LL_HI(r[2], r[3]);
+  const Lanes8 t4 = LL_LO(r[4], r[5]), t5 = LL_HI(r[4], r[5]);
+  const Lanes8 t6 = LL_LO(r[6], r[7]), t7 = LL_HI(r[6], r[7]);
+  const Lanes8 u0 = LL_PAIRS_LO(t0, t2), u1 = LL_PAIRS_HI(t0, t2);
+  const Lanes8 u2 = LL_PAIRS_LO(t1, t3), u3 = LL_PAIRS_HI(t1, t3);
+  const Lanes8 u4 = LL_PAIRS_LO(t4, t6), u5 = LL_PAIRS_HI(t4, t6);
+  const Lanes8 u6 = LL_PAIRS_LO(t5, t7), u7 = LL_PAIRS_HI(t5, t7);
+  const Lanes8 o[8] = {LL_HALVES_LO(u0, u4), LL_HALVES_LO(u1, u5), LL_HALVES_LO(u2, u6), LL_HALVES_LO(u3, u7),
+                       LL_HALVES_HI(u0, u4), LL_HALVES_HI(u1, u5), LL_HALVES_HI(u2, u6), LL_HALVES_HI(u3, u7)};
+#undef LL_LO
+#undef LL_HI
+#undef LL_PAIRS_LO
+#undef LL_PAIRS_HI
+#undef LL_HALVES_LO
+#undef LL_HALVES_HI
+  std::memcpy(dst + 0 * stride, &o[0], sizeof(Lanes8));
+  std::memcpy(dst + 1 * stride, &o[1], sizeof(Lanes8));
+  std::memcpy(dst + 2 * stride, &o[2], sizeof(Lanes8));
+  std::memcpy(dst + 3 * stride, &o[3], sizeof(Lanes8));
+  std::memcpy(dst + 4 * stride, &o[4], sizeof(Lanes8));
+  std::memcpy(dst + 5 * stride, &o[5], sizeof(Lanes8));
+  std::memcpy(dst + 6 * stride, &o[6], sizeof(Lanes8));
+  std::memcpy(dst + 7 * stride, &o[7], sizeof(Lanes8));
+}
 
 template <int Bands>
 __attribute__((always_inline)) inline void skyPolynomialsImpl(const float* __restrict escaped, const float* __restrict x,
@@ -162,7 +204,7 @@ __attribute__((always_inline)) inline void skyPolynomialsImpl(const float* __res
                                                               std::uint32_t count, float* __restrict sums,
                                                               float* __restrict poly_out) {
   constexpr int kCoeffs = Bands * Bands;
-  const std::size_t stride = polyStride(count);
+  constexpr int kRows = polyRows(Bands);
   Lanes8 acc[kCoeffs] = {};
   for (std::uint32_t i0 = 0; i0 < count; i0 += kSkyLanes) {
     Lanes8 e, vx, vy, vz;  // unaligned loads (memcpy: no vector-typed function returns)
@@ -172,9 +214,14 @@ __attribute__((always_inline)) inline void skyPolynomialsImpl(const float* __res
     std::memcpy(&vz, z + i0, sizeof vz);
     Lanes8 poly[kCoeffs];
     sh::evalBasisPolynomialOf<Bands, Lanes8>(vx, vy, vz, poly);
-    for (int q = 1; q < kCoeffs; ++q) {
-      acc[q] += e * poly[q];
-      std::memcpy(poly_out + std::size_t(q - 1) * stride + i0, &poly[q], sizeof(Lanes8));
+    for (int q = 1; q < kCoeffs; ++q) acc[q] += e * poly[q];
+    for (int row = 0; row < kRows; ++row) {
+      Lanes8 in[8];
+      for (int j = 0; j < 8; ++j) {
+        const int q = 1 + 8 * row + j;
+        in[j] = q < kCoeffs ? poly[q < kCoeffs ? q : 0] : Lanes8{};
+      }
+      transpose8(in, poly_out + (std::size_t(i0) * kRows + row) * 8, std::size_t(kRows) * 8);
     }
   }
   for (int q = 1; q < kCoeffs; ++q) {
@@ -186,7 +233,7 @@ __attribute__((always_inline)) inline void skyPolynomialsImpl(const float* __res
 
 // One multiversioned entry per band count (target_clones does not apply to templates).
 // `count` is a multiple of kSkyLanes (the arrays are padded, escaped = 0 there); `poly`
-// holds (bands^2 - 1) * polyStride(count) floats.
+// holds count * polyRows(bands) * 8 floats.
 using SkyFn = void (*)(const float*, const float*, const float*, const float*, std::uint32_t, float*, float*);
 #define LL_SKY_ENTRY(B)                                                                                   \
   LL_MULTIVERSION void sky##B(const float* e, const float* x, const float* y, const float* z, std::uint32_t n, \
@@ -200,6 +247,63 @@ LL_SKY_ENTRY(4)
 #undef LL_SKY_ENTRY
 template <int Bands>
 constexpr SkyFn skyPolynomials = Bands == 1 ? sky1 : Bands == 2 ? sky2 : Bands == 3 ? sky3 : sky4;
+
+// The links' polynomial sums: link l's row r at sums[(l * polyRows + r) * 8], each the sum of
+// its hits' rows in sample order, from zero: the same additions in the same order as a loop
+// per link, so the same bits. One flat loop over the samples instead, with no branch: the
+// entry starting at a sample (`starts[k]` is 1) moves the output to the next link and
+// clears the running sums; every sample stores them, the link's last one leaving its
+// total. A loop per link ended on a data-dependent branch for each of ~125 links per cache.
+// The samples are walked as two chains, [0, mid) and [mid, n) (mid the first sample of link
+// `link_mid`), one step of each in turn, so that one chain's adds do not wait on the other's.
+template <int Bands>
+__attribute__((always_inline)) inline void linkSumsImpl(const Sample* __restrict sorted, std::uint32_t n,
+                                                        const std::uint8_t* __restrict starts, std::uint32_t mid,
+                                                        std::uint32_t link_mid, const float* __restrict poly,
+                                                        float* __restrict sums) {
+  constexpr int kRows = polyRows(Bands);
+  struct Chain {
+    Lanes8 acc[kRows];
+    std::uint32_t link;
+  };
+  // The mask that keeps the running sums, and the one that clears them (a load, where
+  // broadcasting the start flag took three instructions).
+  alignas(32) static constexpr std::int32_t kKeep[2][8] = {{-1, -1, -1, -1, -1, -1, -1, -1}, {}};
+  auto step = [&](Chain& c, std::uint32_t k) {
+    const std::uint32_t start = starts[k];
+    c.link += start;
+    Ints8 keep;
+    std::memcpy(&keep, kKeep[start], sizeof keep);
+    const float* row = poly + std::size_t(rayOf(sorted[k])) * (kRows * 8);
+    for (int r = 0; r < kRows; ++r) {
+      Lanes8 v;
+      std::memcpy(&v, row + r * 8, sizeof v);
+      c.acc[r] = reinterpret_cast<Lanes8>(reinterpret_cast<Ints8>(c.acc[r]) & keep) + v;
+      std::memcpy(sums + (std::size_t(c.link) * kRows + r) * 8, &c.acc[r], sizeof(Lanes8));
+    }
+  };
+  Chain a{{}, ~0u}, b{{}, link_mid - 1};  // sample 0 and sample mid each start a link
+  const std::uint32_t both = std::min(mid, n - mid);
+  for (std::uint32_t i = 0; i < both; ++i) {
+    step(a, i);
+    step(b, mid + i);
+  }
+  for (std::uint32_t k = both; k < mid; ++k) step(a, k);
+  for (std::uint32_t k = mid + both; k < n; ++k) step(b, k);
+}
+using LinkSumsFn = void (*)(const Sample*, std::uint32_t, const std::uint8_t*, std::uint32_t, std::uint32_t,
+                            const float*, float*);
+#define LL_SUMS_ENTRY(B)                                                                                \
+  LL_MULTIVERSION void linkSums##B(const Sample* sorted, std::uint32_t n, const std::uint8_t* starts,         \
+                                   std::uint32_t mid, std::uint32_t link_mid, const float* poly, float* sums) { \
+    linkSumsImpl<B>(sorted, n, starts, mid, link_mid, poly, sums);                                        \
+  }
+LL_SUMS_ENTRY(2)
+LL_SUMS_ENTRY(3)
+LL_SUMS_ENTRY(4)
+#undef LL_SUMS_ENTRY
+template <int Bands>
+constexpr LinkSumsFn linkSums = Bands == 2 ? linkSums2 : Bands == 3 ? linkSums3 : linkSums4;
 
 // One octahedral code (encodeOctahedral's formula; the same operations in the same order as
 // before, so the same bits).
@@ -289,7 +393,7 @@ void linkCache(std::size_t cache, const glm::vec3& p, const glm::vec3& normal, c
   out.stats.unowned += credited.unowned;
   out.stats.front_hits += sampled;
   float sky_poly[kCoeffs];  // sums of the basis polynomials over the escaped rays
-  float* const poly = s.poly.data();  // ray i's Y_q polynomial at [(q - 1) * polyStride(padded) + i]
+  float* const poly = s.poly.data();  // ray i's Y_q polynomial at [i * polyRows * 8 + q - 1]
   skyPolynomials<Bands>(escaped_mask, dirs.x, dirs.y, dirs.z, padded, sky_poly, poly);
   sky_poly[0] = static_cast<float>(escaped);
   float sky[kCoeffs];
@@ -305,27 +409,44 @@ void linkCache(std::size_t cache, const glm::vec3& p, const glm::vec3& normal, c
   // to scratch first and to fp16 in two batches (8 per instruction with F16C).
   float* coeff_values = s.coeff_values.data();
   float* solid_values = s.solid_values.data();
-  std::size_t links = 0;
-  for (const CutEntry& e : s.cut) {
-    float m[kCoeffs] = {};
-    glm::vec3 sum_dir(0.0f);
-    for (std::uint32_t k = e.first; k < e.first + e.count; ++k) {
-      const std::uint32_t ray = rayOf(sorted[k]);
-      for (int q = 1; q < kCoeffs; ++q) m[q] += poly[std::size_t(q - 1) * polyStride(padded) + ray];
-      if constexpr (Bands < 2) sum_dir += glm::vec3(dirs.x[ray], dirs.y[ray], dirs.z[ray]);
+  const std::size_t links = s.cut.size();
+  float* const link_sums = s.link_sums.data();  // link l's polynomial q at [l * polyRows * 8 + q - 1]
+  if constexpr (Bands >= 2) {
+    if (links > 0) {
+      std::fill(s.starts.begin(), s.starts.begin() + sampled, std::uint8_t(0));
+      for (const CutEntry& e : s.cut) s.starts[e.first] = 1;
+      const auto link_mid = static_cast<std::uint32_t>(links / 2);
+      linkSums<Bands>(sorted, static_cast<std::uint32_t>(sampled), s.starts.data(), s.cut[link_mid].first, link_mid,
+                      poly, link_sums);
     }
-    m[0] = static_cast<float>(e.count);
-    if constexpr (Bands >= 2) sum_dir = glm::vec3(m[3], m[1], m[2]);  // the band-1 polynomials are y, z, x
-    for (int q = 0; q < kCoeffs; ++q) coeff_values[links * kCoeffs + q] = w * sh::kBasisScale[q] * m[q];
-    solid_values[links] = w * static_cast<float>(e.count);
-    out.node.push_back(e.node);
+  }
+  float scale[kCoeffs];
+  for (int q = 0; q < kCoeffs; ++q) scale[q] = w * sh::kBasisScale[q];
+  constexpr std::size_t kRowFloats = std::size_t(polyRows(Bands)) * 8;
+  const std::size_t node_at = out.node.size();
+  out.node.resize(node_at + links);
+  for (std::size_t l = 0; l < links; ++l) {
+    const CutEntry& e = s.cut[l];
+    const float* m = link_sums + l * kRowFloats;  // polynomial q at m[q - 1]
+    glm::vec3 sum_dir(0.0f);
+    if constexpr (Bands >= 2) {
+      sum_dir = glm::vec3(m[2], m[0], m[1]);  // the band-1 polynomials are y, z, x
+    } else {
+      for (std::uint32_t k = e.first; k < e.first + e.count; ++k) {
+        const std::uint32_t ray = rayOf(sorted[k]);
+        sum_dir += glm::vec3(dirs.x[ray], dirs.y[ray], dirs.z[ray]);
+      }
+    }
+    coeff_values[l * kCoeffs] = scale[0] * static_cast<float>(e.count);
+    for (int q = 1; q < kCoeffs; ++q) coeff_values[l * kCoeffs + q] = scale[q] * m[q - 1];
+    solid_values[l] = w * static_cast<float>(e.count);
+    out.node[node_at + l] = e.node;
     // The octahedral map divides by the L1 norm, so the sum needs no normalising.
     const float l1 = std::abs(sum_dir.x) + std::abs(sum_dir.y) + std::abs(sum_dir.z);
     const glm::vec3 d = l1 > 0.0f ? sum_dir : n;
-    s.link_x[links] = d.x;
-    s.link_y[links] = d.y;
-    s.link_z[links] = d.z;
-    ++links;
+    s.link_x[l] = d.x;
+    s.link_y[l] = d.y;
+    s.link_z[l] = d.z;
   }
   clock.lap(kPhaseProject);
   const std::size_t direction_at = out.direction.size();
@@ -656,7 +777,9 @@ Expected<Links> generateLinks(const scene::Scene& scene, const rt::Accel& accel,
                 scratch.sort_buffer.resize(pattern.count());
                 for (auto* v : {&scratch.dir_x, &scratch.dir_y, &scratch.dir_z, &scratch.escaped})
                   v->resize(skyPadded(pattern.count()));
-                scratch.poly.resize(std::size_t(polyStride(skyPadded(pattern.count()))) * (coeffs_per_link - 1));
+                scratch.poly.resize(std::size_t(skyPadded(pattern.count())) * polyRows(options.bands) * 8);
+                scratch.link_sums.resize(std::size_t(options.max_links) * polyRows(options.bands) * 8);
+                scratch.starts.resize(pattern.count());
                 scratch.coeff_values.resize(std::size_t(options.max_links) * coeffs_per_link);
                 scratch.solid_values.resize(std::size_t(options.max_links));
                 for (auto* v : {&scratch.link_x, &scratch.link_y, &scratch.link_z})
