@@ -702,6 +702,10 @@ void projectRuntimeLink(const glm::vec3& direction, float omega_over_pi, int ban
 
 std::uint32_t encodeOctahedral(const glm::vec3& d) { return octahedralCode(d.x, d.y, d.z); }
 
+void encodeOctahedral(const float* x, const float* y, const float* z, std::uint32_t count, std::uint32_t* out) {
+  octahedralCodes(x, y, z, count, out);
+}
+
 glm::vec3 decodeOctahedral(std::uint32_t packed) {
   const float x = static_cast<float>(static_cast<std::int16_t>(packed & 0xffffu)) / 32767.0f;
   const float y = static_cast<float>(static_cast<std::int16_t>(packed >> 16)) / 32767.0f;

@@ -183,5 +183,8 @@ void projectRuntimeLink(const glm::vec3& direction, float omega_over_pi, int ban
 // divides by the L1 norm, so `dir` may have any non-zero length.
 std::uint32_t encodeOctahedral(const glm::vec3& dir);
 glm::vec3 decodeOctahedral(std::uint32_t packed);
+// encodeOctahedral of (x[i], y[i], z[i]) for i < count into out[i], bit for bit, eight
+// directions per step where the CPU has vectors (what link generation calls per cache).
+void encodeOctahedral(const float* x, const float* y, const float* z, std::uint32_t count, std::uint32_t* out);
 
 }  // namespace lightlink::links
