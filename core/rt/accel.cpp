@@ -4,6 +4,7 @@
 #include <array>
 #include <cfloat>
 #include <cmath>
+#include <cstring>
 #include <mutex>
 #include <utility>
 #include <vector>
@@ -154,6 +155,8 @@ struct Accel::Impl {
   DeviceHandle device;
   SceneHandle scene;  // released before the device (reverse declaration order)
   std::vector<std::uint32_t> geom_to_mesh;
+  // geom_to_mesh followed by kNoHit: indexed by min(geomID, geometries), a miss reads kNoHit.
+  std::vector<std::uint32_t> mesh_or_miss;
   Aabb bounds;
   float scale = 0.0f;
   float epsilon = 0.0f;
@@ -260,6 +263,8 @@ Expected<Accel> Accel::build(const scene::Scene& scene, const AccelOptions& opti
   }
   rtcCommitScene(rtc_scene);
   if (Status status = impl->errors.first(); !status.isOk()) return status;
+  impl->mesh_or_miss = impl->geom_to_mesh;
+  impl->mesh_or_miss.push_back(kNoHit);
 
   impl->bounds = bounds;
   impl->scale = scale;
@@ -312,6 +317,62 @@ void Accel::Impl::intersectPackets(std::span<const Ray> rays, std::span<Hit> hit
   }
 }
 
+// x86-64 with GCC: the fan's packet copies are compiled for AVX2 and for the baseline, and
+// the loader picks one (function multi-versioning). They move bits only.
+#if defined(__x86_64__) && defined(__GNUC__) && !defined(__clang__)
+#define LL_RT_MULTIVERSION __attribute__((target_clones("avx2", "default")))
+#else
+#define LL_RT_MULTIVERSION
+#endif
+
+namespace {
+
+// Eight lanes per GCC vector: on 64-byte vectors GCC 12's AVX2 clone turned the compare
+// into scalar code.
+typedef std::int32_t Ints8 __attribute__((vector_size(32)));
+
+// A whole packet (16 active lanes) in and out of Embree's record as vector moves: the
+// directions in, and every hit field out with the lanes that missed zeroed by a mask. Lane by
+// lane, with a select per field, these copies took ~14 % of the fan's time on the Zen 5 VM
+// (perf: intersectFan's own samples against Embree's; docs/results.md, issue 4 thirteenth
+// pass).
+LL_RT_MULTIVERSION void fanPacketIn(RTCRayHit16& rh, const float* dx, const float* dy, const float* dz, float tfar) {
+  std::memcpy(rh.ray.dir_x, dx, sizeof rh.ray.dir_x);
+  std::memcpy(rh.ray.dir_y, dy, sizeof rh.ray.dir_y);
+  std::memcpy(rh.ray.dir_z, dz, sizeof rh.ray.dir_z);
+  for (std::size_t j = 0; j < 16; ++j) {
+    rh.ray.tfar[j] = tfar;
+    rh.hit.geomID[j] = RTC_INVALID_GEOMETRY_ID;
+  }
+}
+
+LL_RT_MULTIVERSION void fanPacketOut(const RTCRayHit16& rh, const std::uint32_t* mesh_or_miss, std::uint32_t geometries,
+                                     std::size_t base, const HitArrays& out) {
+  const Ints8 invalid = Ints8{} + static_cast<std::int32_t>(RTC_INVALID_GEOMETRY_ID);
+  for (std::size_t half = 0; half < 16; half += 8) {
+    Ints8 geom;
+    std::memcpy(&geom, rh.hit.geomID + half, sizeof geom);
+    const Ints8 hit = geom != invalid;  // -1 where the lane hit
+    auto masked = [&](const void* src, void* dst) {
+      Ints8 v;
+      std::memcpy(&v, src, sizeof v);
+      v &= hit;
+      std::memcpy(dst, &v, sizeof v);
+    };
+    masked(rh.hit.primID + half, out.triangle + base + half);
+    masked(rh.hit.u + half, out.u + base + half);
+    masked(rh.hit.v + half, out.v + base + half);
+    masked(rh.hit.Ng_x + half, out.ng_x + base + half);
+    masked(rh.hit.Ng_y + half, out.ng_y + base + half);
+    masked(rh.hit.Ng_z + half, out.ng_z + base + half);
+  }
+  std::memcpy(out.t + base, rh.ray.tfar, sizeof rh.ray.tfar);
+  for (std::size_t j = 0; j < 16; ++j)
+    out.mesh[base + j] = mesh_or_miss[std::min<std::uint32_t>(rh.hit.geomID[j], geometries)];
+}
+
+}  // namespace
+
 void Accel::intersectFan(const RayFan& fan, const HitArrays& out) const {
   RTCIntersectContext ctx = makeContext(Coherence::kCoherent);
   alignas(64) RTCRayHit16 rh;
@@ -319,6 +380,7 @@ void Accel::intersectFan(const RayFan& fan, const HitArrays& out) const {
   // What every packet shares is written once. Embree writes only tfar and the hit fields,
   // and of those instID only for instances (there are none).
   for (std::size_t j = 0; j < 16; ++j) {
+    valid[j] = -1;
     rh.ray.org_x[j] = fan.origin.x;
     rh.ray.org_y[j] = fan.origin.y;
     rh.ray.org_z[j] = fan.origin.z;
@@ -329,46 +391,41 @@ void Accel::intersectFan(const RayFan& fan, const HitArrays& out) const {
     rh.ray.flags[j] = 0;
     rh.hit.instID[0][j] = RTC_INVALID_GEOMETRY_ID;
   }
-  // The arrays as locals: no reload of the fan's and out's pointers after every store.
-  const float* __restrict dx = fan.dir_x;
-  const float* __restrict dy = fan.dir_y;
-  const float* __restrict dz = fan.dir_z;
-  std::uint32_t* __restrict mesh = out.mesh;
-  std::uint32_t* __restrict triangle = out.triangle;
-  float* __restrict u = out.u;
-  float* __restrict v = out.v;
-  float* __restrict t = out.t;
-  float* __restrict nx = out.ng_x;
-  float* __restrict ny = out.ng_y;
-  float* __restrict nz = out.ng_z;
-  const std::uint32_t* geom_to_mesh = impl_->geom_to_mesh.data();
+  const std::uint32_t* mesh_or_miss = impl_->mesh_or_miss.data();
+  const auto geometries = static_cast<std::uint32_t>(impl_->geom_to_mesh.size());
   const float tfar = fan.tfar;
   RTCScene scene = impl_->scene.get();
-  for (std::size_t base = 0; base < fan.count; base += 16) {
-    const std::size_t count = std::min<std::size_t>(16, fan.count - base);
-    for (std::size_t j = 0; j < 16; ++j) {
-      const bool active = j < count;
-      // Lanes past the end: a harmless ray Embree skips (valid = 0), as in intersect().
-      valid[j] = active ? -1 : 0;
-      rh.ray.dir_x[j] = active ? dx[base + j] : 0.0f;
-      rh.ray.dir_y[j] = active ? dy[base + j] : 0.0f;
-      rh.ray.dir_z[j] = active ? dz[base + j] : 1.0f;
-      rh.ray.tfar[j] = active ? tfar : -1.0f;
-      rh.hit.geomID[j] = RTC_INVALID_GEOMETRY_ID;
-    }
+  const std::size_t whole = fan.count / 16 * 16;
+  for (std::size_t base = 0; base < whole; base += 16) {
+    fanPacketIn(rh, fan.dir_x + base, fan.dir_y + base, fan.dir_z + base, tfar);
     rtcIntersect16(valid.data(), scene, &ctx, &rh);
-    for (std::size_t j = 0; j < count; ++j) {
-      const unsigned g = rh.hit.geomID[j];
-      const bool hit = g != RTC_INVALID_GEOMETRY_ID;
-      mesh[base + j] = hit ? geom_to_mesh[g] : kNoHit;
-      triangle[base + j] = hit ? rh.hit.primID[j] : 0u;
-      u[base + j] = hit ? rh.hit.u[j] : 0.0f;
-      v[base + j] = hit ? rh.hit.v[j] : 0.0f;
-      t[base + j] = rh.ray.tfar[j];
-      nx[base + j] = hit ? rh.hit.Ng_x[j] : 0.0f;
-      ny[base + j] = hit ? rh.hit.Ng_y[j] : 0.0f;
-      nz[base + j] = hit ? rh.hit.Ng_z[j] : 0.0f;
-    }
+    fanPacketOut(rh, mesh_or_miss, geometries, base, out);
+  }
+  if (whole == fan.count) return;
+  // The last, partial packet lane by lane. Lanes past the end: a harmless ray Embree skips
+  // (valid = 0), as in intersect().
+  const std::size_t base = whole, count = fan.count - whole;
+  for (std::size_t j = 0; j < 16; ++j) {
+    const bool active = j < count;
+    valid[j] = active ? -1 : 0;
+    rh.ray.dir_x[j] = active ? fan.dir_x[base + j] : 0.0f;
+    rh.ray.dir_y[j] = active ? fan.dir_y[base + j] : 0.0f;
+    rh.ray.dir_z[j] = active ? fan.dir_z[base + j] : 1.0f;
+    rh.ray.tfar[j] = active ? tfar : -1.0f;
+    rh.hit.geomID[j] = RTC_INVALID_GEOMETRY_ID;
+  }
+  rtcIntersect16(valid.data(), scene, &ctx, &rh);
+  for (std::size_t j = 0; j < count; ++j) {
+    const unsigned g = rh.hit.geomID[j];
+    const bool hit = g != RTC_INVALID_GEOMETRY_ID;
+    out.mesh[base + j] = mesh_or_miss[std::min<std::uint32_t>(g, geometries)];
+    out.triangle[base + j] = hit ? rh.hit.primID[j] : 0u;
+    out.u[base + j] = hit ? rh.hit.u[j] : 0.0f;
+    out.v[base + j] = hit ? rh.hit.v[j] : 0.0f;
+    out.t[base + j] = rh.ray.tfar[j];
+    out.ng_x[base + j] = hit ? rh.hit.Ng_x[j] : 0.0f;
+    out.ng_y[base + j] = hit ? rh.hit.Ng_y[j] : 0.0f;
+    out.ng_z[base + j] = hit ? rh.hit.Ng_z[j] : 0.0f;
   }
 }
 
