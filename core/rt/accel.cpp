@@ -157,6 +157,7 @@ struct Accel::Impl {
   std::vector<std::uint32_t> geom_to_mesh;
   // geom_to_mesh followed by kNoHit: indexed by min(geomID, geometries), a miss reads kNoHit.
   std::vector<std::uint32_t> mesh_or_miss;
+  bool geometry_is_mesh = false;  // geom_to_mesh[g] == g for every g
   Aabb bounds;
   float scale = 0.0f;
   float epsilon = 0.0f;
@@ -265,6 +266,9 @@ Expected<Accel> Accel::build(const scene::Scene& scene, const AccelOptions& opti
   if (Status status = impl->errors.first(); !status.isOk()) return status;
   impl->mesh_or_miss = impl->geom_to_mesh;
   impl->mesh_or_miss.push_back(kNoHit);
+  impl->geometry_is_mesh = true;
+  for (std::size_t g = 0; g < impl->geom_to_mesh.size(); ++g)
+    impl->geometry_is_mesh = impl->geometry_is_mesh && impl->geom_to_mesh[g] == g;
 
   impl->bounds = bounds;
   impl->scale = scale;
@@ -367,6 +371,13 @@ LL_RT_MULTIVERSION void fanPacketOut(const RTCRayHit16& rh, const std::uint32_t*
     masked(rh.hit.Ng_z + half, out.ng_z + base + half);
   }
   std::memcpy(out.t + base, rh.ray.tfar, sizeof rh.ray.tfar);
+  // Geometry g holds mesh g unless a mesh without triangles was skipped; a miss's geomID is
+  // already kNoHit then.
+  static_assert(RTC_INVALID_GEOMETRY_ID == kNoHit);
+  if (mesh_or_miss == nullptr) {
+    std::memcpy(out.mesh + base, rh.hit.geomID, sizeof rh.hit.geomID);
+    return;
+  }
   for (std::size_t j = 0; j < 16; ++j)
     out.mesh[base + j] = mesh_or_miss[std::min<std::uint32_t>(rh.hit.geomID[j], geometries)];
 }
@@ -399,7 +410,7 @@ void Accel::intersectFan(const RayFan& fan, const HitArrays& out) const {
   for (std::size_t base = 0; base < whole; base += 16) {
     fanPacketIn(rh, fan.dir_x + base, fan.dir_y + base, fan.dir_z + base, tfar);
     rtcIntersect16(valid.data(), scene, &ctx, &rh);
-    fanPacketOut(rh, mesh_or_miss, geometries, base, out);
+    fanPacketOut(rh, impl_->geometry_is_mesh ? nullptr : mesh_or_miss, geometries, base, out);
   }
   if (whole == fan.count) return;
   // The last, partial packet lane by lane. Lanes past the end: a harmless ray Embree skips

@@ -277,10 +277,21 @@ TEST(AccelBatch, BatchedEqualsSingleForEveryCountAndCoherence) {
 // A fan (one origin, direction arrays) gives the hits of the same rays as rt::Ray records
 // through the coherent batch call, bit for bit (the same packets), for fan sizes that do and
 // do not fill the last packet; a miss reads mesh = kNoHit, t = tfar and zeros.
+// mixedScene behind a mesh without triangles: geometry g then holds mesh g + 1.
+scene::Scene mixedSceneWithEmptyMesh() {
+  scene::Scene s = mixedScene();
+  scene::MeshInstance empty;
+  empty.name = "empty";
+  s.meshes.insert(s.meshes.begin(), empty);
+  return s;
+}
+
 TEST(AccelBatch, FanEqualsTheCoherentBatchBitForBit) {
-  const Accel accel = buildOrDie(mixedScene());
+ for (const bool shifted : {false, true}) {
+  SCOPED_TRACE(shifted ? "geometry g holds mesh g + 1" : "geometry g holds mesh g");
+  const Accel accel = buildOrDie(shifted ? mixedSceneWithEmptyMesh() : mixedScene());
   std::mt19937 rng(5);
-  std::size_t hits_seen = 0, misses_seen = 0;
+  std::size_t hits_seen = 0, misses_seen = 0, first_mesh_hits = 0;
   for (std::size_t count : {std::size_t{1024}, std::size_t{1000}, std::size_t{17}, std::size_t{16},
                             std::size_t{1}, std::size_t{0}}) {
     for (const vec3 origin : {vec3(0.1f, 0.2f, 0.3f), vec3(10.0f, 1.0f, -2.0f)}) {  // inside, outside the box
@@ -314,12 +325,18 @@ TEST(AccelBatch, FanEqualsTheCoherentBatchBitForBit) {
         EXPECT_EQ(nz[i], h.ng.z) << "ray " << i;
         hits_seen += h.hit() ? 1 : 0;
         misses_seen += h.hit() ? 0 : 1;
+        first_mesh_hits += h.mesh == (shifted ? 1u : 0u) ? 1 : 0;
+        if (shifted) {
+          ASSERT_NE(h.mesh, 0u) << "ray " << i << " hit the mesh without triangles";
+        }
       }
     }
   }
   EXPECT_GT(hits_seen, 100u);
   EXPECT_GT(misses_seen, 100u);
+  EXPECT_GT(first_mesh_hits, 0u);
   EXPECT_TRUE(accel.deviceStatus().isOk());
+ }
 }
 
 TEST(AccelBatch, ParallelBatchesEqualSerial) {
