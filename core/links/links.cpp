@@ -364,7 +364,7 @@ LL_MULTIVERSION void octahedralCodes(const float* __restrict x, const float* __r
 }
 
 // Laps of linkCache's phases into LinkStats::phase_ticks: 8 counter reads per cache, against
-// ~110k ticks of work per cache on CornellBox-Original, so it stays on in every build.
+// ~72k ticks of work per cache on CornellBox-Original, so it stays on in every build.
 class PhaseClock {
  public:
   explicit PhaseClock(std::array<std::uint64_t, kLinkPhases>& ticks) : ticks_(ticks), last_(now()) {}
