@@ -22,21 +22,17 @@
 
 #include "core/common/check.h"
 #include "core/common/memory.h"
+#include "core/common/multiversion.h"
 #include "core/common/sampling.h"
 #include "core/links/cut.h"
 #include "core/links/hit_credit.h"
 #include "core/links/surfel_locator.h"
 #include "core/sh/sh.h"
 
-// x86-64: the row kernel is compiled twice, for AVX2 and for the baseline (SSE2), and the
-// loader picks one (GCC function multi-versioning). Both are plain loops the compiler
-// vectorises; neither version may use FMA, so every lane rounds exactly as the scalar code
-// did and the rays are bit-identical on every machine (the artifact depends on them).
-#if defined(__x86_64__) && defined(__GNUC__) && !defined(__clang__)
-#define LL_MULTIVERSION __attribute__((target_clones("avx2", "default")))
-#else
-#define LL_MULTIVERSION
-#endif
+// The row kernel, the sky pass, the link sums and the octahedral codes are LL_MULTIVERSION
+// (core/common/multiversion.h): AVX2 and baseline builds, the same bits. The row kernel is
+// plain loops the compiler vectorises; without FMA every lane rounds exactly as the scalar
+// code did, so the rays are bit-identical on every machine (the artifact depends on them).
 
 namespace lightlink::links {
 namespace {

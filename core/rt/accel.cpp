@@ -12,6 +12,7 @@
 #include <embree3/rtcore.h>
 
 #include "core/common/check.h"
+#include "core/common/multiversion.h"
 
 namespace lightlink::rt {
 namespace {
@@ -321,13 +322,7 @@ void Accel::Impl::intersectPackets(std::span<const Ray> rays, std::span<Hit> hit
   }
 }
 
-// x86-64 with GCC: the fan's packet copies are compiled for AVX2 and for the baseline, and
-// the loader picks one (function multi-versioning). They move bits only.
-#if defined(__x86_64__) && defined(__GNUC__) && !defined(__clang__)
-#define LL_RT_MULTIVERSION __attribute__((target_clones("avx2", "default")))
-#else
-#define LL_RT_MULTIVERSION
-#endif
+// The fan's packet copies are LL_MULTIVERSION (AVX2 and baseline builds); they move bits only.
 
 namespace {
 
@@ -340,7 +335,7 @@ typedef std::int32_t Ints8 __attribute__((vector_size(32)));
 // lane, with a select per field, these copies took ~14 % of the fan's time on the Zen 5 VM
 // (perf: intersectFan's own samples against Embree's; docs/results.md, issue 4 thirteenth
 // pass).
-LL_RT_MULTIVERSION void fanPacketIn(RTCRayHit16& rh, const float* dx, const float* dy, const float* dz, float tfar) {
+LL_MULTIVERSION void fanPacketIn(RTCRayHit16& rh, const float* dx, const float* dy, const float* dz, float tfar) {
   std::memcpy(rh.ray.dir_x, dx, sizeof rh.ray.dir_x);
   std::memcpy(rh.ray.dir_y, dy, sizeof rh.ray.dir_y);
   std::memcpy(rh.ray.dir_z, dz, sizeof rh.ray.dir_z);
@@ -350,7 +345,7 @@ LL_RT_MULTIVERSION void fanPacketIn(RTCRayHit16& rh, const float* dx, const floa
   }
 }
 
-LL_RT_MULTIVERSION void fanPacketOut(const RTCRayHit16& rh, const std::uint32_t* mesh_or_miss, std::uint32_t geometries,
+LL_MULTIVERSION void fanPacketOut(const RTCRayHit16& rh, const std::uint32_t* mesh_or_miss, std::uint32_t geometries,
                                      std::size_t base, const HitArrays& out) {
   const Ints8 invalid = Ints8{} + static_cast<std::int32_t>(RTC_INVALID_GEOMETRY_ID);
   for (std::size_t half = 0; half < 16; half += 8) {
