@@ -99,20 +99,26 @@ TEST(Links, LargeQuadAboveGivesItsAnalyticSolidAngle) {
   addQuad(s, {-1, 1, -1}, {1, 1, -1}, {1, 1, 1}, {-1, 1, 1});
   addQuad(s, {-3, 0, -3}, {-3, 0, 3}, {3, 0, 3}, {3, 0, -3});
   const LinkFixture fixture = LinkFixture::make(std::move(s));
-  const Links links = fixture.link({{0, 0, 0}}, {{0, 1, 0}}, {.rays = 4096});
-  const float a = 1.0f, b = 1.0f, h = 1.0f;
-  const float omega = 4.0f * std::atan(a * b / (h * std::sqrt(h * h + a * a + b * b)));  // 2 pi / 3
-  EXPECT_NEAR(linkSolidAngle(links, 0), omega, 0.01f * omega);
-  // Links and sky together are the whole visible hemisphere, coefficient by coefficient.
-  float hemisphere[9];
-  projectRuntimeLink({0, 1, 0}, 2.0f, 3, hemisphere);
-  for (int i = 0; i < 9; ++i) {
-    float sum = links.sky[i];
-    for (std::uint32_t k = 0; k < links.linkCount(); ++k) sum += fromHalf(links.coeffs[k * 9 + i]);
-    EXPECT_NEAR(sum, hemisphere[i], 3e-3f) << "coefficient " << i;
+  // Every band count: the links' sums are kept in rows of 8 polynomials (1 row for 2 and 3
+  // bands, 2 for 4), and a row or lane out of place breaks the coefficient sums below.
+  for (int bands = 1; bands <= 4; ++bands) {
+    SCOPED_TRACE("bands " + std::to_string(bands));
+    const int coeffs = bands * bands;
+    const Links links = fixture.link({{0, 0, 0}}, {{0, 1, 0}}, {.rays = 4096, .bands = bands});
+    const float a = 1.0f, b = 1.0f, h = 1.0f;
+    const float omega = 4.0f * std::atan(a * b / (h * std::sqrt(h * h + a * a + b * b)));  // 2 pi / 3
+    EXPECT_NEAR(linkSolidAngle(links, 0), omega, 0.01f * omega);
+    // Links and sky together are the whole visible hemisphere, coefficient by coefficient.
+    float hemisphere[16];
+    projectRuntimeLink({0, 1, 0}, 2.0f, bands, hemisphere);
+    for (int i = 0; i < coeffs; ++i) {
+      float sum = links.sky[i];
+      for (std::uint32_t k = 0; k < links.linkCount(); ++k) sum += fromHalf(links.coeffs[k * coeffs + i]);
+      EXPECT_NEAR(sum, hemisphere[i], 3e-3f) << "coefficient " << i;
+    }
+    // Sky sees the rest: c00 of the sky is (2 pi - omega) Y00 / pi.
+    EXPECT_NEAR(links.sky[0], (2.0f * kPi - omega) * sh::kY00 / kPi, 5e-3f);
   }
-  // Sky sees the rest: c00 of the sky is (2 pi - omega) Y00 / pi.
-  EXPECT_NEAR(links.sky[0], (2.0f * kPi - omega) * sh::kY00 / kPi, 5e-3f);
 }
 
 TEST(Links, ClosedRoomCutCoversTheVisibleSurfelsOnce) {
