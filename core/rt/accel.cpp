@@ -5,6 +5,7 @@
 #include <cfloat>
 #include <cmath>
 #include <cstring>
+#include <iterator>
 #include <mutex>
 #include <utility>
 #include <vector>
@@ -75,6 +76,7 @@ class ErrorSink {
 };
 
 // Embree's hit record -> ours. geom_to_mesh is dense: geometry ids are attached 0, 1, 2...
+// (its last entry, kNoHit, stands for a miss).
 inline void fillHit(Hit& out, unsigned geom_id, unsigned prim_id, float u, float v, float t, float ngx,
                     float ngy, float ngz, const std::vector<std::uint32_t>& geom_to_mesh) {
   if (geom_id == RTC_INVALID_GEOMETRY_ID) {
@@ -155,10 +157,10 @@ struct Accel::Impl {
   ErrorSink errors;
   DeviceHandle device;
   SceneHandle scene;  // released before the device (reverse declaration order)
+  // Mesh of each geometry id, then one more entry, kNoHit: indexed by min(geomID,
+  // geometries()), a miss reads kNoHit (the fan's copies look up 16 lanes without a branch).
   std::vector<std::uint32_t> geom_to_mesh;
-  // geom_to_mesh followed by kNoHit: indexed by min(geomID, geometries), a miss reads kNoHit.
-  std::vector<std::uint32_t> mesh_or_miss;
-  bool geometry_is_mesh = false;  // geom_to_mesh[g] == g for every g
+  std::uint32_t geometries() const { return static_cast<std::uint32_t>(geom_to_mesh.size() - 1); }
   Aabb bounds;
   float scale = 0.0f;
   float epsilon = 0.0f;
@@ -265,11 +267,7 @@ Expected<Accel> Accel::build(const scene::Scene& scene, const AccelOptions& opti
   }
   rtcCommitScene(rtc_scene);
   if (Status status = impl->errors.first(); !status.isOk()) return status;
-  impl->mesh_or_miss = impl->geom_to_mesh;
-  impl->mesh_or_miss.push_back(kNoHit);
-  impl->geometry_is_mesh = true;
-  for (std::size_t g = 0; g < impl->geom_to_mesh.size(); ++g)
-    impl->geometry_is_mesh = impl->geometry_is_mesh && impl->geom_to_mesh[g] == g;
+  impl->geom_to_mesh.push_back(kNoHit);
 
   impl->bounds = bounds;
   impl->scale = scale;
@@ -330,11 +328,11 @@ namespace {
 // into scalar code.
 typedef std::int32_t Ints8 __attribute__((vector_size(32)));
 
-// A whole packet (16 active lanes) in and out of Embree's record as vector moves: the
-// directions in, and every hit field out with the lanes that missed zeroed by a mask. Lane by
-// lane, with a select per field, these copies took ~14 % of the fan's time on the Zen 5 VM
-// (perf: intersectFan's own samples against Embree's; docs/results.md, issue 4 thirteenth
-// pass).
+// A packet in and out of Embree's record as vector moves: the directions in, and every hit
+// field out with the lanes that missed zeroed by a mask. Lane by lane, with a select per
+// field, link generation's trace phase took 46.4-47.7k ticks per cache on
+// CornellBox-Original, with these 41.0-45.0k (precompute_bench; docs/results.md, issue 4
+// thirteenth pass).
 LL_MULTIVERSION void fanPacketIn(RTCRayHit16& rh, const float* dx, const float* dy, const float* dz, float tfar) {
   std::memcpy(rh.ray.dir_x, dx, sizeof rh.ray.dir_x);
   std::memcpy(rh.ray.dir_y, dy, sizeof rh.ray.dir_y);
@@ -345,8 +343,8 @@ LL_MULTIVERSION void fanPacketIn(RTCRayHit16& rh, const float* dx, const float* 
   }
 }
 
-LL_MULTIVERSION void fanPacketOut(const RTCRayHit16& rh, const std::uint32_t* mesh_or_miss, std::uint32_t geometries,
-                                     std::size_t base, const HitArrays& out) {
+LL_MULTIVERSION void fanPacketOut(const RTCRayHit16& rh, const std::uint32_t* geom_to_mesh, std::uint32_t geometries,
+                                  std::size_t base, const HitArrays& out) {
   const Ints8 invalid = Ints8{} + static_cast<std::int32_t>(RTC_INVALID_GEOMETRY_ID);
   for (std::size_t half = 0; half < 16; half += 8) {
     Ints8 geom;
@@ -366,15 +364,8 @@ LL_MULTIVERSION void fanPacketOut(const RTCRayHit16& rh, const std::uint32_t* me
     masked(rh.hit.Ng_z + half, out.ng_z + base + half);
   }
   std::memcpy(out.t + base, rh.ray.tfar, sizeof rh.ray.tfar);
-  // Geometry g holds mesh g unless a mesh without triangles was skipped; a miss's geomID is
-  // already kNoHit then.
-  static_assert(RTC_INVALID_GEOMETRY_ID == kNoHit);
-  if (mesh_or_miss == nullptr) {
-    std::memcpy(out.mesh + base, rh.hit.geomID, sizeof rh.hit.geomID);
-    return;
-  }
   for (std::size_t j = 0; j < 16; ++j)
-    out.mesh[base + j] = mesh_or_miss[std::min<std::uint32_t>(rh.hit.geomID[j], geometries)];
+    out.mesh[base + j] = geom_to_mesh[std::min<std::uint32_t>(rh.hit.geomID[j], geometries)];
 }
 
 }  // namespace
@@ -397,42 +388,40 @@ void Accel::intersectFan(const RayFan& fan, const HitArrays& out) const {
     rh.ray.flags[j] = 0;
     rh.hit.instID[0][j] = RTC_INVALID_GEOMETRY_ID;
   }
-  const std::uint32_t* mesh_or_miss = impl_->mesh_or_miss.data();
-  const auto geometries = static_cast<std::uint32_t>(impl_->geom_to_mesh.size());
+  const std::uint32_t* geom_to_mesh = impl_->geom_to_mesh.data();
+  const std::uint32_t geometries = impl_->geometries();
   const float tfar = fan.tfar;
   RTCScene scene = impl_->scene.get();
   const std::size_t whole = fan.count / 16 * 16;
   for (std::size_t base = 0; base < whole; base += 16) {
     fanPacketIn(rh, fan.dir_x + base, fan.dir_y + base, fan.dir_z + base, tfar);
     rtcIntersect16(valid.data(), scene, &ctx, &rh);
-    fanPacketOut(rh, impl_->geometry_is_mesh ? nullptr : mesh_or_miss, geometries, base, out);
+    fanPacketOut(rh, geom_to_mesh, geometries, base, out);
   }
   if (whole == fan.count) return;
-  // The last, partial packet lane by lane. Lanes past the end: a harmless ray Embree skips
-  // (valid = 0), as in intersect().
-  const std::size_t base = whole, count = fan.count - whole;
-  for (std::size_t j = 0; j < 16; ++j) {
-    const bool active = j < count;
-    valid[j] = active ? -1 : 0;
-    rh.ray.dir_x[j] = active ? fan.dir_x[base + j] : 0.0f;
-    rh.ray.dir_y[j] = active ? fan.dir_y[base + j] : 0.0f;
-    rh.ray.dir_z[j] = active ? fan.dir_z[base + j] : 1.0f;
-    rh.ray.tfar[j] = active ? tfar : -1.0f;
-    rh.hit.geomID[j] = RTC_INVALID_GEOMETRY_ID;
-  }
+  // The last, partial packet through the same copies: its directions padded with harmless
+  // rays that Embree skips (valid = 0, as in intersect()), its hits out into a whole packet's
+  // arrays here, of which the first `count` are kept.
+  const std::size_t count = fan.count - whole;
+  alignas(64) float dx[16] = {}, dy[16] = {}, dz[16];
+  std::fill(std::begin(dz), std::end(dz), 1.0f);
+  std::copy_n(fan.dir_x + whole, count, dx);
+  std::copy_n(fan.dir_y + whole, count, dy);
+  std::copy_n(fan.dir_z + whole, count, dz);
+  for (std::size_t j = 0; j < 16; ++j) valid[j] = j < count ? -1 : 0;
+  fanPacketIn(rh, dx, dy, dz, tfar);
   rtcIntersect16(valid.data(), scene, &ctx, &rh);
-  for (std::size_t j = 0; j < count; ++j) {
-    const unsigned g = rh.hit.geomID[j];
-    const bool hit = g != RTC_INVALID_GEOMETRY_ID;
-    out.mesh[base + j] = mesh_or_miss[std::min<std::uint32_t>(g, geometries)];
-    out.triangle[base + j] = hit ? rh.hit.primID[j] : 0u;
-    out.u[base + j] = hit ? rh.hit.u[j] : 0.0f;
-    out.v[base + j] = hit ? rh.hit.v[j] : 0.0f;
-    out.t[base + j] = rh.ray.tfar[j];
-    out.ng_x[base + j] = hit ? rh.hit.Ng_x[j] : 0.0f;
-    out.ng_y[base + j] = hit ? rh.hit.Ng_y[j] : 0.0f;
-    out.ng_z[base + j] = hit ? rh.hit.Ng_z[j] : 0.0f;
-  }
+  alignas(64) std::uint32_t mesh[16], triangle[16];
+  alignas(64) float u[16], v[16], t[16], nx[16], ny[16], nz[16];
+  fanPacketOut(rh, geom_to_mesh, geometries, 0, HitArrays{mesh, triangle, u, v, t, nx, ny, nz});
+  std::copy_n(mesh, count, out.mesh + whole);
+  std::copy_n(triangle, count, out.triangle + whole);
+  std::copy_n(u, count, out.u + whole);
+  std::copy_n(v, count, out.v + whole);
+  std::copy_n(t, count, out.t + whole);
+  std::copy_n(nx, count, out.ng_x + whole);
+  std::copy_n(ny, count, out.ng_y + whole);
+  std::copy_n(nz, count, out.ng_z + whole);
 }
 
 void Accel::Impl::intersectStream(std::span<const Ray> rays, std::span<Hit> hits,
