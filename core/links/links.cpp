@@ -215,7 +215,7 @@ __attribute__((always_inline)) inline void skyPolynomialsImpl(const float* __res
       Lanes8 in[8];
       for (int j = 0; j < 8; ++j) {
         const int q = 1 + 8 * row + j;
-        in[j] = q < kCoeffs ? poly[q < kCoeffs ? q : 0] : Lanes8{};
+        in[j] = q < kCoeffs ? poly[std::min(q, kCoeffs - 1)] : Lanes8{};  // (min: a valid index in every branch)
       }
       transpose8(in, poly_out + (std::size_t(i0) * kRows + row) * 8, std::size_t(kRows) * 8);
     }
@@ -316,47 +316,6 @@ inline std::uint32_t octahedralCode(float x, float y, float z) {
         static_cast<std::int16_t>(std::lrint(std::clamp(c, -1.0f, 1.0f) * 32767.0f))));
   };
   return q(u) | (q(v) << 16);
-}
-
-// The codes of a cache's link directions, in one loop after its link loop: called per link
-// (out of line, from inside the projection loop) the encoding took 3.5 % of link generation's
-// samples on the bundled Cornell box, this loop 0.8 % (docs/results.md, issue 4 eighth pass).
-// Eight links at a time on GCC vectors (GCC 12 kept the scalar loop scalar: the clamp and the
-// rounding are control flow to it), with octahedralCode's operations in its order: the
-// clamp as two selects, and lrint (round to nearest even in the default mode) as adding and
-// subtracting 1.5 * 2^23, exact for |t| <= 32767; the remainder goes through
-// octahedralCode.
-LL_MULTIVERSION void octahedralCodes(const float* __restrict x, const float* __restrict y, const float* __restrict z,
-                                     std::uint32_t count, std::uint32_t* __restrict out) {
-  const Ints8 magnitude = Ints8{} + 0x7fffffff;
-  const Lanes8 one = Lanes8{} + 1.0f, minus_one = Lanes8{} + -1.0f, zero = Lanes8{};
-  const Lanes8 round_magic = Lanes8{} + 12582912.0f;  // 1.5 * 2^23
-  // (Macros: a vector-typed lambda or function would change the ABI of the SSE2 build.)
-#define LL_ABS8(v) reinterpret_cast<Lanes8>(reinterpret_cast<Ints8>(v) & magnitude)
-  std::uint32_t i = 0;
-  for (; i + 8 <= count; i += 8) {
-    Lanes8 vx, vy, vz;
-    std::memcpy(&vx, x + i, sizeof vx);
-    std::memcpy(&vy, y + i, sizeof vy);
-    std::memcpy(&vz, z + i, sizeof vz);
-    const Lanes8 inv = 1.0f / (LL_ABS8(vx) + LL_ABS8(vy) + LL_ABS8(vz));
-    const Lanes8 ox = vx * inv, oy = vy * inv;
-    const Lanes8 fx = (1.0f - LL_ABS8(oy)) * (ox >= zero ? one : minus_one);
-    const Lanes8 fy = (1.0f - LL_ABS8(ox)) * (oy >= zero ? one : minus_one);
-    const Lanes8 uv[2] = {vz < zero ? fx : ox, vz < zero ? fy : oy};
-    Ints8 q[2];
-    for (int k = 0; k < 2; ++k) {
-      const Lanes8 c = uv[k];
-      const Lanes8 clamped = c < minus_one ? minus_one : (one < c ? one : c);
-      const Lanes8 t = clamped * 32767.0f;
-      const Lanes8 rounded = (t + round_magic) - round_magic;
-      q[k] = __builtin_convertvector(rounded, Ints8) & 0xffff;
-    }
-    const Ints8 code = q[0] | (q[1] << 16);
-    std::memcpy(out + i, &code, sizeof code);
-  }
-#undef LL_ABS8
-  for (; i < count; ++i) out[i] = octahedralCode(x[i], y[i], z[i]);
 }
 
 // Laps of linkCache's phases into LinkStats::phase_ticks: 8 counter reads per cache, against
@@ -479,7 +438,7 @@ void linkCache(std::size_t cache, const glm::vec3& p, const glm::vec3& normal, c
   clock.lap(kPhaseProject);
   const std::size_t direction_at = out.direction.size();
   out.direction.resize(direction_at + links);
-  octahedralCodes(s.link_x.data(), s.link_y.data(), s.link_z.data(), static_cast<std::uint32_t>(links),
+  encodeOctahedral(s.link_x.data(), s.link_y.data(), s.link_z.data(), static_cast<std::uint32_t>(links),
                   out.direction.data() + direction_at);
   // |coefficient| <= (omega / pi) * max |Y_q| < 4: nothing comes near half's 65504.
   const std::size_t coeffs_at = out.coeffs.size(), solid_at = out.solid_angle.size();
@@ -698,8 +657,45 @@ void projectRuntimeLink(const glm::vec3& direction, float omega_over_pi, int ban
 
 std::uint32_t encodeOctahedral(const glm::vec3& d) { return octahedralCode(d.x, d.y, d.z); }
 
-void encodeOctahedral(const float* x, const float* y, const float* z, std::uint32_t count, std::uint32_t* out) {
-  octahedralCodes(x, y, z, count, out);
+// The codes of a cache's link directions, in one loop after its link loop: called per link
+// (out of line, from inside the projection loop) the encoding took 3.5 % of link generation's
+// samples on the bundled Cornell box, this loop 0.8 % (docs/results.md, issue 4 eighth pass).
+// Eight links at a time on GCC vectors (GCC 12 kept the scalar loop scalar: the clamp and the
+// rounding are control flow to it), with octahedralCode's operations in its order: the
+// clamp as two selects, and lrint (round to nearest even in the default mode) as adding and
+// subtracting 1.5 * 2^23, exact for |t| <= 32767; the remainder goes through
+// octahedralCode.
+LL_MULTIVERSION void encodeOctahedral(const float* __restrict x, const float* __restrict y, const float* __restrict z,
+                                      std::uint32_t count, std::uint32_t* __restrict out) {
+  const Ints8 magnitude = Ints8{} + 0x7fffffff;
+  const Lanes8 one = Lanes8{} + 1.0f, minus_one = Lanes8{} + -1.0f, zero = Lanes8{};
+  const Lanes8 round_magic = Lanes8{} + 12582912.0f;  // 1.5 * 2^23
+  // (Macros: a vector-typed lambda or function would change the ABI of the SSE2 build.)
+#define LL_ABS8(v) reinterpret_cast<Lanes8>(reinterpret_cast<Ints8>(v) & magnitude)
+  std::uint32_t i = 0;
+  for (; i + 8 <= count; i += 8) {
+    Lanes8 vx, vy, vz;
+    std::memcpy(&vx, x + i, sizeof vx);
+    std::memcpy(&vy, y + i, sizeof vy);
+    std::memcpy(&vz, z + i, sizeof vz);
+    const Lanes8 inv = 1.0f / (LL_ABS8(vx) + LL_ABS8(vy) + LL_ABS8(vz));
+    const Lanes8 ox = vx * inv, oy = vy * inv;
+    const Lanes8 fx = (1.0f - LL_ABS8(oy)) * (ox >= zero ? one : minus_one);
+    const Lanes8 fy = (1.0f - LL_ABS8(ox)) * (oy >= zero ? one : minus_one);
+    const Lanes8 uv[2] = {vz < zero ? fx : ox, vz < zero ? fy : oy};
+    Ints8 q[2];
+    for (int k = 0; k < 2; ++k) {
+      const Lanes8 c = uv[k];
+      const Lanes8 clamped = c < minus_one ? minus_one : (one < c ? one : c);
+      const Lanes8 t = clamped * 32767.0f;
+      const Lanes8 rounded = (t + round_magic) - round_magic;
+      q[k] = __builtin_convertvector(rounded, Ints8) & 0xffff;
+    }
+    const Ints8 code = q[0] | (q[1] << 16);
+    std::memcpy(out + i, &code, sizeof code);
+  }
+#undef LL_ABS8
+  for (; i < count; ++i) out[i] = octahedralCode(x[i], y[i], z[i]);
 }
 
 glm::vec3 decodeOctahedral(std::uint32_t packed) {
