@@ -231,7 +231,7 @@ int main(int argc, char** argv) {
   for (std::uint32_t c : pick) pos.push_back(lm.position[c]), nrm.push_back(lm.normal[c]);
 
   const int bands = baked->bands, nc = bands * bands;
-    const links::LinkRays pattern(opt->linkOptions());
+  const links::LinkRays pattern(opt->linkOptions());
   const links::SurfelLocator locator(p->surfels, *scene);
   std::vector<rt::Ray> rays(pattern.count());
   // Owned area per surfel: area-uniform points on the static triangles, credited to their owner
