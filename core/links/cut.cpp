@@ -1,21 +1,39 @@
+// GCC 12 warns inside its own AVX-512 headers (the _mm512_undefined_* they start from, GCC
+// bug 105593, fixed in 13): the warning is about the header, not this file's code.
+#if defined(__GNUC__) && !defined(__clang__)
+#pragma GCC diagnostic ignored "-Wmaybe-uninitialized"
+#pragma GCC diagnostic ignored "-Wuninitialized"
+#endif
 #include "core/links/cut.h"
 
 #include <algorithm>
 #include <bit>
+#include <stdexcept>
+
+#include "core/common/multiversion.h"
+
+#if defined(__x86_64__) && (defined(__GNUC__) || defined(__clang__))
+#include <immintrin.h>
+#define LL_CUT_AVX512 1
+#define LL_CUT_AVX512_FN __attribute__((target("avx512f,avx512bw,avx512vl,avx512dq")))
+#else
+#define LL_CUT_AVX512 0
+#endif
 
 namespace lightlink::links {
 
 CutTree cutTree(const hierarchy::Tree& tree) {
+  if (tree.nodeCount() >= kLeafChild) throw std::length_error("cutTree: more tree nodes than the cut can index");
   CutTree out;
   out.leaf_of_surfel = tree.leaf_of_surfel;
   std::vector<CutNode>& nodes = out.nodes;
   nodes.resize(tree.nodeCount());
   for (std::size_t i = 0; i < nodes.size(); ++i) {
     if (tree.isLeaf(i)) {
-      nodes[i] = {kLeaf, kLeaf, 0};
+      nodes[i] = {kLeaf, kLeaf, 0, 0};
     } else {
-      const auto l = static_cast<std::uint32_t>(tree.left[i]);
-      nodes[i] = {l, static_cast<std::uint32_t>(tree.right[i]), tree.end[l]};
+      const auto l = static_cast<std::uint32_t>(tree.left[i]), r = static_cast<std::uint32_t>(tree.right[i]);
+      nodes[i] = {l | (tree.isLeaf(l) ? kLeafChild : 0u), r | (tree.isLeaf(r) ? kLeafChild : 0u), tree.end[l], 0};
     }
   }
   return out;
@@ -23,87 +41,255 @@ CutTree cutTree(const hierarchy::Tree& tree) {
 
 namespace {
 
-inline std::uint64_t openKey(std::uint32_t count, std::uint32_t node) {
-  return (std::uint64_t(count) << 32) | std::uint32_t(~node);
-}
+// The nodes the search reached, one array per field (records), the internal ones still to
+// be split (queue: more samples than the threshold; pending: the others), and the split
+// nodes with samples on both sides (growing). Every array keeps kSlack entries of room past
+// its end, so that a batch of up to kBatch nodes can store whole vectors unchecked.
+constexpr std::size_t kBatch = 16, kSlack = 2 * kBatch;
+constexpr std::size_t kVectorFrom = 6;
 
-// The entry being placed is held in registers while the hole moves and written once, where
-// it lands. Written to its start slot first and read back from there, every push and
-// replacement read back as one load what two smaller stores had just written, which the
-// CPU cannot forward (perf put samples on the instructions after those loads). Measured
-// together with lowerBound's counted tail below (docs/results.md, issue 4 twelfth pass).
-class OpenHeap {
- public:
-  explicit OpenHeap(std::vector<OpenEntry>& storage) : h_(storage) { h_.clear(); }
-  bool empty() const { return h_.empty(); }
-  std::size_t size() const { return h_.size(); }
-  const OpenEntry& top() const { return h_[0]; }
-  void push(OpenEntry e) {
-    h_.emplace_back();
-    siftUp(h_.size() - 1, e);
-  }
-  // Replaces the top (with a key no larger than it had: a child of the popped node).
-  void replaceTop(OpenEntry e) { siftDown(0, e); }
-  void popTop() {
-    const OpenEntry last = h_.back();
-    h_.pop_back();
-    if (!h_.empty()) siftDown(0, last);
-  }
-  const std::vector<OpenEntry>& entries() const { return h_; }
+struct Search {
+  const CutNode* nodes;
+  const Sample* samples;
+  std::uint32_t threshold;
+  CutScratch& s;
+  // Records: node (with kLeafChild for a leaf), samples, first sample, parent's samples and
+  // parent's node (the parent's key, split in two for 32-bit lanes).
+  std::uint32_t *rn, *rc, *rf, *pc, *pn;
+  std::uint32_t *qn, *qc, *qf;  // queue
+  std::uint32_t *wn, *wc, *wf;  // pending
+  std::uint32_t *gc, *gn;       // growing
+  std::size_t records = 0, head = 0, tail = 0, pending = 0, growing = 0;
 
- private:
-  // Places e in the hole at i, moving the hole up past smaller parents.
-  void siftUp(std::size_t i, const OpenEntry e) {
-    while (i > 0) {
-      const std::size_t parent = (i - 1) / 2;
-      if (h_[parent].key >= e.key) break;
-      h_[i] = h_[parent];
-      i = parent;
-    }
-    h_[i] = e;
+  Search(const CutNode* n, const Sample* sm, std::uint32_t t, CutScratch& scratch)
+      : nodes(n), samples(sm), threshold(t), s(scratch) {
+    grow(std::max<std::size_t>(s.field[0].size(), 256));
   }
-  // Places e in the hole at i, moving the hole down past larger children.
-  void siftDown(std::size_t i, const OpenEntry e) {
-    const std::size_t n = h_.size();
-    for (;;) {
-      std::size_t c = 2 * i + 1;
-      if (c >= n) break;
-      c += (c + 1 < n && h_[c + 1].key > h_[c].key) ? 1 : 0;
-      if (h_[c].key <= e.key) break;
-      h_[i] = h_[c];
-      i = c;
-    }
-    h_[i] = e;
+  void bind() {
+    std::uint32_t* p[kCutFields];
+    for (std::size_t f = 0; f < kCutFields; ++f) p[f] = s.field[f].data();
+    rn = p[0], rc = p[1], rf = p[2], pc = p[3], pn = p[4];
+    qn = p[5], qc = p[6], qf = p[7];
+    wn = p[8], wc = p[9], wf = p[10];
+    gc = p[11], gn = p[12];
   }
-  std::vector<OpenEntry>& h_;
+  void grow(std::size_t size) {
+    for (auto& f : s.field) f.resize(size);
+    bind();
+  }
+  // Room for one more batch: it adds at most two records per node, as many queue or pending
+  // entries, and one growing node per node. The queue is never compacted while a cut is
+  // chosen, so every array is bounded by the records.
+  void reserveBatch() {
+    const std::size_t need = std::max(records, tail) + 2 * kBatch + kSlack;
+    if (need > s.field[0].size()) grow(2 * need);
+  }
+  void record(std::uint32_t node, std::uint32_t count, std::uint32_t first, std::uint32_t parent_count,
+              std::uint32_t parent_node) {
+    rn[records] = node, rc[records] = count, rf[records] = first, pc[records] = parent_count, pn[records] = parent_node;
+    ++records;
+    if (node & kLeafChild) return;
+    if (count > threshold) {
+      qn[tail] = node, qc[tail] = count, qf[tail] = first;
+      ++tail;
+    } else {
+      wn[pending] = node, wc[pending] = count, wf[pending] = first;
+      ++pending;
+    }
+  }
 };
 
-// First position in sorted [first, first + n) whose key is >= key. Branch-free: halving
-// steps (the select compiles to a conditional move; a profile of the old cut had its samples
-// on std::lower_bound's branches) until at most kLinearCount keys are left, which are then
-// counted. Each halving step waits on its load; the count's loads are independent. With the
-// heap's change above, the cut went from 6.2 to 5.9 us per cache (cut_bench, CornellBox-Original;
-// docs/results.md, issue 4 twelfth pass); counting 8 gained no more, 16 lost.
-inline constexpr std::uint32_t kLinearCount = 4;
+// First position in sorted [first, first + n) whose key is >= key, n >= 1: halving steps
+// (the select compiles to a conditional move) until one key is left, then that key compared.
 inline std::uint32_t lowerBound(const Sample* first, std::uint32_t n, Sample key) {
   const Sample* base = first;
-  while (n > kLinearCount) {
+  while (n > 1) {
     const std::uint32_t half = n / 2;
     base = base[half] < key ? base + half : base;
     n -= half;
   }
-  // n is 1..4 here (a node in the heap has samples): always four compares, the ones past n
-  // reading the last key and not counted, so no loop exit to mispredict.
-  std::uint32_t below = 0;
-  for (std::uint32_t i = 0; i < kLinearCount; ++i)
-    below += (i < n && base[std::min(i, n - 1)] < key) ? 1u : 0u;
-  return static_cast<std::uint32_t>(base - first) + below;
+  return static_cast<std::uint32_t>(base - first) + (*base < key ? 1u : 0u);
 }
+
+// Splits queue entries [head, head + m), m <= kBatch, one node at a time.
+void splitScalar(Search& x, std::size_t m) {
+  for (std::size_t i = x.head; i < x.head + m; ++i) {
+    const std::uint32_t node = x.qn[i], count = x.qc[i], first = x.qf[i];
+    const CutNode& tn = x.nodes[node];
+    // The left child's surfels come first in the parent's range, so its samples are a
+    // prefix of the parent's: one binary search inside the parent's samples.
+    const std::uint32_t cl = lowerBound(x.samples + first, count, makeSample(tn.split, 0)), cr = count - cl;
+    if (cl > 0) x.record(tn.left, cl, first, count, node);
+    if (cr > 0) x.record(tn.right, cr, first + cl, count, node);
+    if (cl > 0 && cr > 0) {
+      x.gc[x.growing] = count, x.gn[x.growing] = node;
+      ++x.growing;
+    }
+  }
+  x.head += m;
+}
+
+#if LL_CUT_AVX512
+// The same for 16 nodes in the lanes of one vector: their 16 binary searches advance
+// together (one gather per halving step, as many steps as the largest node needs), and
+// the children are appended to the arrays by compressing the lanes that have them. A
+// search that waits on its loads one after the other is what the one-node-at-a-time loop
+// is made of; here 16 of them share each wait.
+LL_CUT_AVX512_FN inline void append(std::uint32_t* dst, std::size_t& at, __mmask16 keep, __m512i v) {
+  _mm512_storeu_si512(dst + at, _mm512_maskz_compress_epi32(keep, v));
+  at += static_cast<std::size_t>(__builtin_popcount(keep));
+}
+
+LL_CUT_AVX512_FN void splitAvx512(Search& x, std::size_t m) {
+  const __mmask16 lanes = static_cast<__mmask16>((1u << m) - 1u);
+  const __m512i node = _mm512_maskz_loadu_epi32(lanes, x.qn + x.head);
+  const __m512i count = _mm512_maskz_loadu_epi32(lanes, x.qc + x.head);
+  const __m512i first = _mm512_maskz_loadu_epi32(lanes, x.qf + x.head);
+  x.head += m;
+  const auto* words = reinterpret_cast<const int*>(x.nodes);
+  const __m512i at = _mm512_slli_epi32(node, 2);  // CutNode is 4 words
+  const __m512i zero = _mm512_setzero_si512(), one = _mm512_set1_epi32(1);
+  const __m512i left = _mm512_mask_i32gather_epi32(zero, lanes, at, words, 4);
+  const __m512i right = _mm512_mask_i32gather_epi32(zero, lanes, _mm512_add_epi32(at, one), words, 4);
+  const __m512i split = _mm512_mask_i32gather_epi32(zero, lanes, _mm512_add_epi32(at, _mm512_set1_epi32(2)), words, 4);
+  // The surfel of sample k is the high word of the 8-byte key.
+  const int* surfels = reinterpret_cast<const int*>(x.samples) + 1;
+  const std::uint32_t widest = static_cast<std::uint32_t>(_mm512_mask_reduce_max_epu32(lanes, count));
+  __m512i base = first, n = count;
+  for (std::uint32_t w = widest; w > 1; w -= w / 2) {
+    const __m512i half = _mm512_srli_epi32(n, 1);
+    const __m512i probe = _mm512_add_epi32(base, half);
+    const __m512i v = _mm512_mask_i32gather_epi32(zero, lanes, probe, surfels, 8);
+    base = _mm512_mask_mov_epi32(base, _mm512_cmplt_epu32_mask(v, split), probe);
+    n = _mm512_sub_epi32(n, half);
+  }
+  const __m512i v = _mm512_mask_i32gather_epi32(zero, lanes, base, surfels, 8);
+  const __m512i cl = _mm512_mask_add_epi32(_mm512_sub_epi32(base, first), _mm512_cmplt_epu32_mask(v, split),
+                                           _mm512_sub_epi32(base, first), one);
+  const __m512i cr = _mm512_sub_epi32(count, cl);
+  const __m512i right_first = _mm512_add_epi32(first, cl);
+  const __mmask16 has_l = _mm512_mask_cmpneq_epi32_mask(lanes, cl, zero);
+  const __mmask16 has_r = _mm512_mask_cmpneq_epi32_mask(lanes, cr, zero);
+  // Records, the left children first, then the right ones (the order of records does not
+  // change the cut).
+  const std::size_t r0 = x.records;
+  std::size_t k = r0;
+  append(x.rn, k, has_l, left), append(x.rn, k, has_r, right);
+  k = r0, append(x.rc, k, has_l, cl), append(x.rc, k, has_r, cr);
+  k = r0, append(x.rf, k, has_l, first), append(x.rf, k, has_r, right_first);
+  k = r0, append(x.pc, k, has_l, count), append(x.pc, k, has_r, count);
+  k = r0, append(x.pn, k, has_l, node), append(x.pn, k, has_r, node);
+  x.records = k;
+  // Internal children: to the queue above the threshold, else to pending.
+  const __m512i threshold = _mm512_set1_epi32(static_cast<int>(x.threshold));
+  const __m512i leaf_bit = _mm512_set1_epi32(static_cast<int>(kLeafChild));
+  const __mmask16 inner_l = _mm512_mask_testn_epi32_mask(has_l, left, leaf_bit);
+  const __mmask16 inner_r = _mm512_mask_testn_epi32_mask(has_r, right, leaf_bit);
+  const __mmask16 big_l = _mm512_mask_cmpgt_epu32_mask(inner_l, cl, threshold);
+  const __mmask16 big_r = _mm512_mask_cmpgt_epu32_mask(inner_r, cr, threshold);
+  const __mmask16 small_l = inner_l & ~big_l, small_r = inner_r & ~big_r;
+  std::size_t t = x.tail;
+  append(x.qn, t, big_l, left), append(x.qn, t, big_r, right);
+  t = x.tail, append(x.qc, t, big_l, cl), append(x.qc, t, big_r, cr);
+  t = x.tail, append(x.qf, t, big_l, first), append(x.qf, t, big_r, right_first);
+  x.tail = t;
+  std::size_t p = x.pending;
+  append(x.wn, p, small_l, left), append(x.wn, p, small_r, right);
+  p = x.pending, append(x.wc, p, small_l, cl), append(x.wc, p, small_r, cr);
+  p = x.pending, append(x.wf, p, small_l, first), append(x.wf, p, small_r, right_first);
+  x.pending = p;
+  const __mmask16 both = has_l & has_r;
+  std::size_t g = x.growing;
+  append(x.gc, g, both, count);
+  g = x.growing, append(x.gn, g, both, node);
+  x.growing = g;
+}
+
+bool cpuHasAvx512() {
+  static const bool has = __builtin_cpu_supports("avx512f") && __builtin_cpu_supports("avx512bw") &&
+                          __builtin_cpu_supports("avx512vl") && __builtin_cpu_supports("avx512dq");
+  return has;
+}
+#endif
+
+// The distinct surfels among sorted samples, counted until past `enough`. Blocks of 16
+// samples without a branch inside (the one-sample loop's exit test was taken about every
+// other sample).
+LL_MULTIVERSION std::uint32_t distinctSurfels(std::span<const Sample> samples, std::uint32_t enough) {
+  constexpr std::size_t kBlock = 16;
+  const std::size_t n = samples.size();
+  std::uint32_t distinct = 1;
+  std::size_t k = 1;
+  for (; k + kBlock <= n && distinct <= enough; k += kBlock)
+    for (std::size_t i = k; i < k + kBlock; ++i) distinct += (samples[i] >> 32) != (samples[i - 1] >> 32) ? 1u : 0u;
+  for (; k < n && distinct <= enough; ++k) distinct += (samples[k] >> 32) != (samples[k - 1] >> 32) ? 1u : 0u;
+  return distinct;
+}
+
+// How many of counts[0, n) are >= c.
+LL_MULTIVERSION std::uint32_t countAtLeast(const std::uint32_t* counts, std::size_t n, std::uint32_t c) {
+  std::uint32_t k = 0;
+  for (std::size_t i = 0; i < n; ++i) k += counts[i] >= c ? 1u : 0u;
+  return k;
+}
+
+inline bool keyAbove(std::uint32_t count, std::uint32_t node, std::uint32_t stop_count, std::uint32_t stop_node) {
+  return count > stop_count || (count == stop_count && node < stop_node);
+}
+
+// Marks the cut's records in the ordering's table and bitmap: a record is in the cut when
+// its parent is refined (key above g's) and it is not (a leaf, or a key not above g's).
+void markScalar(const Search& x, std::uint32_t stop_count, std::uint32_t stop_node, std::uint32_t* at_first,
+                std::uint64_t* starts) {
+  for (std::uint32_t r = 0; r < x.records; ++r) {
+    const std::uint32_t node = x.rn[r] & ~kLeafChild;
+    const bool refined = !(x.rn[r] & kLeafChild) && keyAbove(x.rc[r], node, stop_count, stop_node);
+    if (!keyAbove(x.pc[r], x.pn[r], stop_count, stop_node) || refined) continue;
+    at_first[x.rf[r]] = r;
+    starts[x.rf[r] / 64] |= std::uint64_t(1) << (x.rf[r] % 64);
+  }
+}
+
+#if LL_CUT_AVX512
+// The same test on 16 records at a time (the branches of the one above mispredicted on
+// about every other record).
+LL_CUT_AVX512_FN void markAvx512(const Search& x, std::uint32_t stop_count, std::uint32_t stop_node,
+                                 std::uint32_t* at_first, std::uint64_t* starts) {
+  const __m512i sc = _mm512_set1_epi32(static_cast<int>(stop_count));
+  const __m512i sn = _mm512_set1_epi32(static_cast<int>(stop_node));
+  const __m512i leaf_bit = _mm512_set1_epi32(static_cast<int>(kLeafChild));
+  for (std::size_t r = 0; r < x.records; r += kBatch) {
+    const __mmask16 lanes = x.records - r >= kBatch ? __mmask16(0xffff) : __mmask16((1u << (x.records - r)) - 1u);
+    const __m512i rn = _mm512_maskz_loadu_epi32(lanes, x.rn + r), rc = _mm512_maskz_loadu_epi32(lanes, x.rc + r);
+    const __m512i pc = _mm512_maskz_loadu_epi32(lanes, x.pc + r), pn = _mm512_maskz_loadu_epi32(lanes, x.pn + r);
+    const __mmask16 parent_refined =
+        _mm512_mask_cmpgt_epu32_mask(lanes, pc, sc) |
+        (_mm512_mask_cmpeq_epi32_mask(lanes, pc, sc) & _mm512_cmplt_epu32_mask(pn, sn));
+    // A leaf's kLeafChild bit makes its node compare above any stop node: never refined.
+    const __mmask16 refined = _mm512_cmpgt_epu32_mask(rc, sc) & _mm512_testn_epi32_mask(rn, leaf_bit);
+    const __mmask16 refined_tie = _mm512_cmpeq_epi32_mask(rc, sc) & _mm512_cmplt_epu32_mask(rn, sn);
+    for (unsigned in = parent_refined & ~(refined | refined_tie); in != 0; in &= in - 1) {
+      const auto k = static_cast<std::uint32_t>(r) + static_cast<std::uint32_t>(std::countr_zero(in));
+      const std::uint32_t first = x.rf[k];
+      at_first[first] = k;
+      starts[first / 64] |= std::uint64_t(1) << (first % 64);
+    }
+  }
+}
+#endif
 
 }  // namespace
 
+bool cutHasVectorKernel() {
+#if LL_CUT_AVX512
+  return cpuHasAvx512();
+#else
+  return false;
+#endif
+}
+
 void chooseCut(const CutTree& tree, std::span<const Sample> samples, int max_links, CutScratch& s,
-               std::vector<CutEntry>& cut) {
+               std::vector<CutEntry>& cut, CutKernel kernel) {
   cut.clear();
   const std::span<const CutNode> nodes = tree.nodes;
   if (samples.empty() || nodes.empty()) return;
@@ -114,9 +300,7 @@ void chooseCut(const CutTree& tree, std::span<const Sample> samples, int max_lin
   // (On ShadowsDirectional, 52 links per cache on average, this halved chooseCut's perf
   // samples: docs/results.md, "Cuts that end at the leaves".)
   // (Counting stops once past the budget: most caches of a closed scene see hundreds of surfels.)
-  std::uint32_t distinct = 0;
-  for (std::size_t k = 0; k < samples.size() && distinct <= static_cast<std::uint32_t>(max_links); ++k)
-    distinct += (k == 0 || surfelOf(samples[k]) != surfelOf(samples[k - 1])) ? 1 : 0;
+  const std::uint32_t distinct = distinctSurfels(samples, static_cast<std::uint32_t>(max_links));
   if (distinct <= static_cast<std::uint32_t>(max_links)) {
     for (std::uint32_t k = 0; k < samples.size();) {
       const std::uint32_t surfel = surfelOf(samples[k]);
@@ -127,64 +311,94 @@ void chooseCut(const CutTree& tree, std::span<const Sample> samples, int max_lin
     }
     return;
   }
-  OpenHeap open(s.open);
-  open.push({openKey(static_cast<std::uint32_t>(samples.size()), 0), 0});
-  const auto limit = static_cast<std::size_t>(max_links);
-  while (!open.empty()) {
-    const OpenEntry top = open.top();
-    const auto node = static_cast<std::uint32_t>(~static_cast<std::uint32_t>(top.key));
-    const auto count = static_cast<std::uint32_t>(top.key >> 32);
-    const CutNode& tn = nodes[node];
-    if (tn.left == kLeaf) {
-      open.popTop();
-      cut.push_back({count, node, top.first});
-      continue;
+  // Largest-first refinement, without replaying it step by step. A node's key (samples, then
+  // the lower node index) is unique and, children having higher indices than their parents
+  // (breadth-first layout), falls strictly from a node to its children. So the refinement
+  // pops nodes in falling key order; every refinement of a node with samples on both sides
+  // ("growing") opens one entry more; and it stops at the max_links-th growing node in key
+  // order, g (one exists: there are more distinct surfels than the budget). Refined are
+  // exactly the internal nodes with keys above g's, and the cut is every reached node whose
+  // parent is refined and which is not refined itself (tests/links/cut_test.cpp holds this
+  // against the refinement taken literally).
+  // Finding g needs every node with a key above g's split: a search that splits every
+  // internal node with more than T samples has done so once it found max_links growing
+  // nodes. T starts just below the last cut's stopping count (neighbouring caches see much
+  // the same) and is lowered while fewer were found; the cut does not depend on T. The
+  // splits need no order among themselves, so they run 16 at a time (splitAvx512).
+  const auto limit = static_cast<std::uint32_t>(max_links);
+  Search x(nodes.data(), samples.data(), s.stop_count > 1 ? s.stop_count - 1 : 0, s);
+  x.record(0, static_cast<std::uint32_t>(samples.size()), 0, ~0u, 0);
+  const bool vector = kernel == CutKernel::kBest && cutHasVectorKernel();
+#if LL_CUT_AVX512
+  auto split = vector ? &splitAvx512 : &splitScalar;
+  auto mark = vector ? &markAvx512 : &markScalar;
+#else
+  auto split = &splitScalar;
+  auto mark = &markScalar;
+#endif
+  for (;;) {
+    while (x.head < x.tail) {
+      x.reserveBatch();
+      const std::size_t m = std::min(kBatch, x.tail - x.head);
+      // A batch of a few nodes (the first ones, from the root down) waits on one gather per
+      // halving step where single loads would do (cut_bench: 4.1 -> 3.6 us per cache on
+      // CornellBox-Original with fewer than 6 split one at a time).
+      (m < kVectorFrom ? &splitScalar : split)(x, m);
     }
-    // The left child's surfels come first in the parent's range, so its samples are a
-    // prefix of the parent's: one binary search inside the parent's samples.
-    const std::uint32_t l = tn.left, r = tn.right;
-    // The children's records are read when they come to the top, often the next step: start
-    // their loads now, under the binary search.
-    __builtin_prefetch(&nodes[l]);
-    __builtin_prefetch(&nodes[r]);
-    const std::uint32_t cl = lowerBound(samples.data() + top.first, count, makeSample(tn.split, 0));
-    const std::uint32_t cr = count - cl;
-    const std::size_t grow = (cl > 0 && cr > 0) ? 1 : 0;
-    if (open.size() + cut.size() + grow > limit) break;
-    if (cl > 0 && cr > 0) {
-      // The larger child takes the top (it often stays there: a short sift down), the
-      // smaller one enters at the bottom (a short sift up). Keys are unique, so the heap's
-      // layout does not change which node is refined next.
-      const OpenEntry left{openKey(cl, l), top.first}, right{openKey(cr, r), top.first + cl};
-      const bool left_larger = left.key > right.key;
-      open.replaceTop(left_larger ? left : right);
-      open.push(left_larger ? right : left);
-    } else if (cl > 0) {
-      open.replaceTop({openKey(cl, l), top.first});
-    } else {
-      open.replaceTop({openKey(cr, r), top.first + cl});
+    if (x.growing >= limit || x.pending == 0) break;
+    // Lowered by a quarter (at least 1): a second search is cheap, splitting far more
+    // nodes than the cut needs is not.
+    x.threshold -= std::max<std::uint32_t>(1, x.threshold / 4);
+    std::size_t kept = 0;
+    for (std::size_t i = 0; i < x.pending; ++i) {
+      if (x.wc[i] > x.threshold) {
+        x.qn[x.tail] = x.wn[i], x.qc[x.tail] = x.wc[i], x.qf[x.tail] = x.wf[i];
+        ++x.tail;
+      } else {
+        x.wn[kept] = x.wn[i], x.wc[kept] = x.wc[i], x.wf[kept] = x.wf[i];
+        ++kept;
+      }
     }
+    x.pending = kept;
   }
-  for (const OpenEntry& e : open.entries())
-    cut.push_back({static_cast<std::uint32_t>(e.key >> 32), ~static_cast<std::uint32_t>(e.key), e.first});
-  // The entries' sample ranges partition [0, samples): ordering them by first sample is a
-  // walk over a bitmap of the first samples, lowest bit first, through a first-sample ->
-  // entry table (no comparison sort). Walking the ranges themselves (k += count of the entry
-  // at k) was a chain of three dependent loads per entry.
+  // g: the limit-th largest key among the growing nodes. Its count c first, the largest
+  // with at least `limit` growing nodes of c samples or more: all of them have more than the
+  // final threshold, and c is mostly just above it, so the search gallops up from there.
+  // Then, among the growing nodes of exactly c samples, the one of the right rank by node
+  // index.
+  std::uint32_t stop_count = 0, stop_node = 0;  // 0, 0: nothing above it (cannot happen here)
+  if (x.growing >= limit) {
+    std::uint32_t lo = x.threshold + 1, hi = lo + 1;  // atLeast(lo) >= limit > atLeast(hi)
+    for (std::uint32_t step = 1; countAtLeast(x.gc, x.growing, hi) >= limit; step *= 2) lo = hi, hi += step;
+    while (hi - lo > 1) {
+      const std::uint32_t mid = lo + (hi - lo) / 2;
+      (countAtLeast(x.gc, x.growing, mid) >= limit ? lo : hi) = mid;
+    }
+    stop_count = lo;
+    const std::uint32_t rank = limit - countAtLeast(x.gc, x.growing, lo + 1);  // 1-based among the ties
+    std::vector<std::uint32_t>& ties = s.ties;
+    ties.resize(x.growing);
+    std::size_t n_ties = 0;
+    for (std::size_t i = 0; i < x.growing; ++i) {
+      ties[n_ties] = x.gn[i];
+      n_ties += x.gc[i] == lo ? 1 : 0;
+    }
+    std::nth_element(ties.begin(), ties.begin() + (rank - 1), ties.begin() + static_cast<std::ptrdiff_t>(n_ties));
+    stop_node = ties[rank - 1];
+    s.stop_count = stop_count;
+  }
+  // The cut, put in order of first sample: the entries' sample ranges partition
+  // [0, samples), so that is a walk over a bitmap of their first samples, lowest bit first,
+  // through a first-sample -> record table (no comparison sort).
   const std::size_t words = (samples.size() + 63) / 64;
   if (s.at_first.size() < samples.size()) s.at_first.resize(samples.size());
   s.starts.assign(words, 0);
-  for (std::uint32_t e = 0; e < cut.size(); ++e) {
-    const std::uint32_t first = cut[e].first;
-    s.at_first[first] = e;
-    s.starts[first / 64] |= std::uint64_t(1) << (first % 64);
-  }
-  s.ordered.resize(cut.size());
-  CutEntry* out = s.ordered.data();
+  mark(x, stop_count, stop_node, s.at_first.data(), s.starts.data());
   for (std::size_t w = 0; w < words; ++w)
-    for (std::uint64_t bits = s.starts[w]; bits != 0; bits &= bits - 1)
-      *out++ = cut[s.at_first[w * 64 + static_cast<std::uint32_t>(std::countr_zero(bits))]];
-  cut.swap(s.ordered);
+    for (std::uint64_t bits = s.starts[w]; bits != 0; bits &= bits - 1) {
+      const std::uint32_t r = s.at_first[w * 64 + static_cast<std::uint32_t>(std::countr_zero(bits))];
+      cut.push_back({x.rc[r], x.rn[r] & ~kLeafChild, x.rf[r]});
+    }
 }
 
 }  // namespace lightlink::links

@@ -8,6 +8,8 @@
 // it against that definition taken literally (tests/links/cut_test.cpp).
 #pragma once
 
+#include <array>
+#include <cstddef>
 #include <cstdint>
 #include <span>
 #include <vector>
@@ -23,17 +25,17 @@ inline Sample makeSample(std::uint32_t surfel, std::uint32_t ray) { return (Samp
 inline std::uint32_t rayOf(Sample s) { return static_cast<std::uint32_t>(s); }
 inline std::uint32_t surfelOf(Sample s) { return static_cast<std::uint32_t>(s >> 32); }
 
-// What the cut reads of a tree node, packed so that a refinement touches one record instead
-// of three arrays (left, right, end of left) of 65k+ nodes each. With the keyed heap and the
-// branch-free split search (cut.cpp), the cut went from 0.52-0.55 to 0.27 Gcycles on the Cornell box
-// (docs/results.md, phase table).
+// What the cut reads of a tree node: one 16-byte record instead of three arrays (left,
+// right, end of left) of 65k+ nodes each, so that the vector search gathers its fields at
+// node * 4 words. The children carry a leaf flag, so a leaf is never split or its record read.
 struct CutNode {
-  std::uint32_t left;   // kLeaf for a leaf
-  std::uint32_t right;
+  std::uint32_t left;   // kLeaf for a leaf; else the child, with kLeafChild set if it is a leaf
+  std::uint32_t right;  // the same
   std::uint32_t split;  // first surfel of the right child (= end of the left child's range)
+  std::uint32_t pad;
 };
 inline constexpr std::uint32_t kLeaf = 0xffffffffu;
-
+inline constexpr std::uint32_t kLeafChild = 0x80000000u;
 
 // The tree as the cut reads it: the node records, and the leaf of each surfel (a view of the
 // tree's own array: a CutTree must not outlive the tree it was made from).
@@ -47,25 +49,28 @@ struct CutEntry {
   std::uint32_t count, node, first;  // visible samples, tree node, index of its first sample
 };
 
-// The cut's open nodes as a binary max-heap keyed by one integer: visible samples in the high
-// half, the complement of the node in the low half (so ties go to the lower node index, for
-// determinism). Keys are unique, so the order of pops does not depend on the heap's layout.
-struct OpenEntry {
-  std::uint64_t key;
-  std::uint32_t first;
-};
-// Reused between caches so that choosing a cut never allocates once warm.
+// Reused between caches so that choosing a cut never allocates once warm: the search's
+// arrays (cut.cpp), the stopping count of the last cut (where the next search starts), and
+// the final ordering's table and bitmap.
+inline constexpr std::size_t kCutFields = 13;
 struct CutScratch {
-  std::vector<OpenEntry> open;          // the open nodes (a max-heap)
-  std::vector<CutEntry> ordered;
-  std::vector<std::uint32_t> at_first;  // per sample: the cut entry starting there
+  std::array<std::vector<std::uint32_t>, kCutFields> field;
+  std::vector<std::uint32_t> ties;
+  std::uint32_t stop_count = 0;
+  std::vector<std::uint32_t> at_first;  // per sample: the record of the cut entry starting there
   std::vector<std::uint64_t> starts;    // per sample, one bit: a cut entry starts there
 };
 
+// Which code splits the nodes: the best this CPU has (16 nodes at a time with AVX-512 where
+// present), or one node at a time. Both choose the same cut (tests run both).
+enum class CutKernel { kBest, kScalar };
+bool cutHasVectorKernel();
+
 // Chooses the cut of at most max_links (>= 1) nodes over `samples`, sorted ascending (by
 // surfel, then ray). `cut` receives the nodes with their sample ranges, ordered by first
-// sample (= by surfel range, the order links are stored in).
+// sample (= by surfel range, the order links are stored in). The cut does not depend on
+// what the scratch held before.
 void chooseCut(const CutTree& tree, std::span<const Sample> samples, int max_links, CutScratch& scratch,
-               std::vector<CutEntry>& cut);
+               std::vector<CutEntry>& cut, CutKernel kernel = CutKernel::kBest);
 
 }  // namespace lightlink::links

@@ -85,19 +85,24 @@ void expectLiteralCut(hierarchy::Builder builder) {
   const CutTree cut_tree = cutTree(*tree);
   const auto n = static_cast<std::uint32_t>(placed->size());
   std::mt19937 rng(7);
-  CutScratch scratch;
+  // One scratch per kernel, reused across the cases as link generation reuses it across
+  // caches (the next search starts from the last one's stopping count).
+  CutScratch scratch[2];
   std::vector<CutEntry> cut;
   std::size_t cases = 0, shortened = 0, within = 0;
   for (int trial = 0; trial < 60; ++trial) {
     const std::vector<Sample> samples = hitSamples(n, 1 + rng() % 12, rng() % 300, rng);
     for (int max_links : {1, 2, 3, 8, 64, 128, 4096}) {
-      chooseCut(cut_tree, samples, max_links, scratch, cut);
       const std::vector<CutEntry> want = literalCut(*tree, samples, std::size_t(max_links));
-      ASSERT_EQ(cut.size(), want.size()) << "trial " << trial << ", nL " << max_links;
-      for (std::size_t k = 0; k < want.size(); ++k) {
-        EXPECT_EQ(cut[k].node, want[k].node) << "trial " << trial << ", nL " << max_links << ", link " << k;
-        EXPECT_EQ(cut[k].count, want[k].count) << "trial " << trial << ", nL " << max_links << ", link " << k;
-        EXPECT_EQ(cut[k].first, want[k].first) << "trial " << trial << ", nL " << max_links << ", link " << k;
+      for (const CutKernel kernel : {CutKernel::kBest, CutKernel::kScalar}) {
+        const char* name = kernel == CutKernel::kBest ? "best" : "scalar";
+        chooseCut(cut_tree, samples, max_links, scratch[kernel == CutKernel::kBest ? 0 : 1], cut, kernel);
+        ASSERT_EQ(cut.size(), want.size()) << "trial " << trial << ", nL " << max_links << ", " << name;
+        for (std::size_t k = 0; k < want.size(); ++k) {
+          EXPECT_EQ(cut[k].node, want[k].node) << "trial " << trial << ", nL " << max_links << ", link " << k << ", " << name;
+          EXPECT_EQ(cut[k].count, want[k].count) << "trial " << trial << ", nL " << max_links << ", link " << k << ", " << name;
+          EXPECT_EQ(cut[k].first, want[k].first) << "trial " << trial << ", nL " << max_links << ", link " << k << ", " << name;
+        }
       }
       ++cases;
       shortened += want.size() == std::size_t(max_links) ? 1 : 0;
@@ -116,6 +121,41 @@ void expectLiteralCut(hierarchy::Builder builder) {
 
 TEST(Cut, IsTheLiteralLargestFirstRefinementOnAnAgglomerativeTree) { expectLiteralCut(hierarchy::Builder::kAgglomerative); }
 TEST(Cut, IsTheLiteralLargestFirstRefinementOnAKdTree) { expectLiteralCut(hierarchy::Builder::kKdMedian); }
+
+// The search starts from the last cut's stopping count; wherever it starts (far above the
+// answer: several lowering rounds; at 0: every node split), the cut is the same.
+TEST(Cut, DoesNotDependOnWhereTheSearchStarts) {
+  scene::Scene s;
+  lightlink::testing::addBox(s, {0, 0, 0}, {2, 2, 2}, /*inward=*/true);
+  lightlink::testing::finishScene(s);
+  auto placed = surfels::placeSurfels(s, {.count = 4096});
+  ASSERT_TRUE(placed) << placed.status().toString();
+  auto tree = hierarchy::buildTree(*placed, {.builder = hierarchy::Builder::kAgglomerative});
+  ASSERT_TRUE(tree) << tree.status().toString();
+  const CutTree cut_tree = cutTree(*tree);
+  std::mt19937 rng(11);
+  std::vector<CutEntry> fresh, warm;
+  std::size_t compared = 0;
+  for (int trial = 0; trial < 20; ++trial) {
+    const std::vector<Sample> samples = hitSamples(static_cast<std::uint32_t>(placed->size()), 1 + rng() % 12, 100 + rng() % 300, rng);
+    for (const CutKernel kernel : {CutKernel::kBest, CutKernel::kScalar}) {
+      CutScratch first_use;
+      chooseCut(cut_tree, samples, 32, first_use, fresh, kernel);
+      for (const std::uint32_t start : {0u, 1u, 2u, 5u, 40u, 100000u, 0xffffffffu}) {
+        CutScratch scratch;
+        scratch.stop_count = start;
+        chooseCut(cut_tree, samples, 32, scratch, warm, kernel);
+        ASSERT_EQ(warm.size(), fresh.size()) << "trial " << trial << ", start " << start;
+        for (std::size_t k = 0; k < fresh.size(); ++k) {
+          EXPECT_EQ(warm[k].node, fresh[k].node) << "trial " << trial << ", start " << start << ", link " << k;
+          EXPECT_EQ(warm[k].first, fresh[k].first) << "trial " << trial << ", start " << start << ", link " << k;
+        }
+        compared += fresh.size() == 32 ? 1 : 0;
+      }
+    }
+  }
+  EXPECT_GT(compared, 200u);  // cuts that stopped at the budget, where the stopping count matters
+}
 
 TEST(Cut, NoSamplesNoLinks) {
   static constexpr std::uint32_t kLeafOfSurfel[] = {0};
