@@ -77,11 +77,12 @@ struct Search {
     for (auto& f : s.field) f.resize(size);
     bind();
   }
-  // Room for one more batch: it adds at most two records per node, as many queue or pending
-  // entries, and one growing node per node. The queue is never compacted while a cut is
-  // chosen, so every array is bounded by the records.
+  // Room for one more batch: it adds at most six records per node (its children's and,
+  // split in the same go, its grandchildren's), at most as many queue or pending entries, and
+  // three growing nodes per node. The queue is never compacted while a cut is chosen, so
+  // every array is bounded by the records.
   void reserveBatch() {
-    const std::size_t need = std::max(records, tail) + 2 * kBatch + kSlack;
+    const std::size_t need = std::max(records, tail) + 6 * kBatch + kSlack;
     if (need > s.field[0].size()) grow(2 * need);
   }
   void record(std::uint32_t node, std::uint32_t count, std::uint32_t first, std::uint32_t parent_count,
@@ -140,69 +141,140 @@ LL_CUT_AVX512_FN inline void append(std::uint32_t* dst, std::size_t& at, __mmask
   at += static_cast<std::size_t>(__builtin_popcount(keep));
 }
 
-LL_CUT_AVX512_FN void splitAvx512(Search& x, std::size_t m) {
-  const __mmask16 lanes = static_cast<__mmask16>((1u << m) - 1u);
-  const __m512i node = _mm512_maskz_loadu_epi32(lanes, x.qn + x.head);
-  const __m512i count = _mm512_maskz_loadu_epi32(lanes, x.qc + x.head);
-  const __m512i first = _mm512_maskz_loadu_epi32(lanes, x.qf + x.head);
-  x.head += m;
+// One vector of nodes being split: their fields, their records' fields, and then the left
+// child's count.
+struct Lanes {
+  __mmask16 lanes;
+  __m512i node, count, first, left, right, split, cl;
+};
+
+LL_CUT_AVX512_FN inline Lanes loadLanes(const Search& x, std::size_t at, std::size_t m) {
+  Lanes l;
+  l.lanes = static_cast<__mmask16>((1u << m) - 1u);
+  l.node = _mm512_maskz_loadu_epi32(l.lanes, x.qn + at);
+  l.count = _mm512_maskz_loadu_epi32(l.lanes, x.qc + at);
+  l.first = _mm512_maskz_loadu_epi32(l.lanes, x.qf + at);
   const auto* words = reinterpret_cast<const int*>(x.nodes);
-  const __m512i at = _mm512_slli_epi32(node, 2);  // CutNode is 4 words
-  const __m512i zero = _mm512_setzero_si512(), one = _mm512_set1_epi32(1);
-  const __m512i left = _mm512_mask_i32gather_epi32(zero, lanes, at, words, 4);
-  const __m512i right = _mm512_mask_i32gather_epi32(zero, lanes, _mm512_add_epi32(at, one), words, 4);
-  const __m512i split = _mm512_mask_i32gather_epi32(zero, lanes, _mm512_add_epi32(at, _mm512_set1_epi32(2)), words, 4);
+  const __m512i w = _mm512_slli_epi32(l.node, 2);  // CutNode is 4 words
+  const __m512i zero = _mm512_setzero_si512();
+  l.left = _mm512_mask_i32gather_epi32(zero, l.lanes, w, words, 4);
+  l.right = _mm512_mask_i32gather_epi32(zero, l.lanes, _mm512_add_epi32(w, _mm512_set1_epi32(1)), words, 4);
+  l.split = _mm512_mask_i32gather_epi32(zero, l.lanes, _mm512_add_epi32(w, _mm512_set1_epi32(2)), words, 4);
+  return l;
+}
+
+// The binary searches of V vectors of nodes, interleaved: V independent chains of gathers,
+// each as long as the largest range needs.
+template <int V>
+LL_CUT_AVX512_FN inline void searchLanes(const Search& x, Lanes* l) {
   // The surfel of sample k is the high word of the 8-byte key.
   const int* surfels = reinterpret_cast<const int*>(x.samples) + 1;
-  const std::uint32_t widest = static_cast<std::uint32_t>(_mm512_mask_reduce_max_epu32(lanes, count));
-  __m512i base = first, n = count;
-  for (std::uint32_t w = widest; w > 1; w -= w / 2) {
-    const __m512i half = _mm512_srli_epi32(n, 1);
-    const __m512i probe = _mm512_add_epi32(base, half);
-    const __m512i v = _mm512_mask_i32gather_epi32(zero, lanes, probe, surfels, 8);
-    base = _mm512_mask_mov_epi32(base, _mm512_cmplt_epu32_mask(v, split), probe);
-    n = _mm512_sub_epi32(n, half);
+  const __m512i zero = _mm512_setzero_si512(), one = _mm512_set1_epi32(1);
+  std::uint32_t widest = 0;
+  __m512i base[V], n[V];
+  for (int v = 0; v < V; ++v) {
+    widest = std::max(widest, static_cast<std::uint32_t>(_mm512_mask_reduce_max_epu32(l[v].lanes, l[v].count)));
+    base[v] = l[v].first, n[v] = l[v].count;
   }
-  const __m512i v = _mm512_mask_i32gather_epi32(zero, lanes, base, surfels, 8);
-  const __m512i cl = _mm512_mask_add_epi32(_mm512_sub_epi32(base, first), _mm512_cmplt_epu32_mask(v, split),
-                                           _mm512_sub_epi32(base, first), one);
-  const __m512i cr = _mm512_sub_epi32(count, cl);
-  const __m512i right_first = _mm512_add_epi32(first, cl);
-  const __mmask16 has_l = _mm512_mask_cmpneq_epi32_mask(lanes, cl, zero);
-  const __mmask16 has_r = _mm512_mask_cmpneq_epi32_mask(lanes, cr, zero);
+  for (std::uint32_t w = widest; w > 1; w -= w / 2) {
+    for (int v = 0; v < V; ++v) {
+      const __m512i half = _mm512_srli_epi32(n[v], 1);
+      const __m512i probe = _mm512_add_epi32(base[v], half);
+      const __m512i s = _mm512_mask_i32gather_epi32(zero, l[v].lanes, probe, surfels, 8);
+      base[v] = _mm512_mask_mov_epi32(base[v], _mm512_cmplt_epu32_mask(s, l[v].split), probe);
+      n[v] = _mm512_sub_epi32(n[v], half);
+    }
+  }
+  for (int v = 0; v < V; ++v) {
+    const __m512i s = _mm512_mask_i32gather_epi32(zero, l[v].lanes, base[v], surfels, 8);
+    const __m512i below = _mm512_sub_epi32(base[v], l[v].first);
+    l[v].cl = _mm512_mask_add_epi32(below, _mm512_cmplt_epu32_mask(s, l[v].split), below, one);
+  }
+}
+
+// Appends the split nodes' children (and the split nodes to growing). Children in
+// done_l / done_r are split in the same call (splitAvx512's second level): not queued.
+LL_CUT_AVX512_FN inline void appendLanes(Search& x, const Lanes& l, __mmask16 done_l = 0, __mmask16 done_r = 0) {
+  const __m512i zero = _mm512_setzero_si512();
+  const __m512i cr = _mm512_sub_epi32(l.count, l.cl);
+  const __m512i right_first = _mm512_add_epi32(l.first, l.cl);
+  const __mmask16 has_l = _mm512_mask_cmpneq_epi32_mask(l.lanes, l.cl, zero);
+  const __mmask16 has_r = _mm512_mask_cmpneq_epi32_mask(l.lanes, cr, zero);
   // Records, the left children first, then the right ones (the order of records does not
   // change the cut).
   const std::size_t r0 = x.records;
   std::size_t k = r0;
-  append(x.rn, k, has_l, left), append(x.rn, k, has_r, right);
-  k = r0, append(x.rc, k, has_l, cl), append(x.rc, k, has_r, cr);
-  k = r0, append(x.rf, k, has_l, first), append(x.rf, k, has_r, right_first);
-  k = r0, append(x.pc, k, has_l, count), append(x.pc, k, has_r, count);
-  k = r0, append(x.pn, k, has_l, node), append(x.pn, k, has_r, node);
+  append(x.rn, k, has_l, l.left), append(x.rn, k, has_r, l.right);
+  k = r0, append(x.rc, k, has_l, l.cl), append(x.rc, k, has_r, cr);
+  k = r0, append(x.rf, k, has_l, l.first), append(x.rf, k, has_r, right_first);
+  k = r0, append(x.pc, k, has_l, l.count), append(x.pc, k, has_r, l.count);
+  k = r0, append(x.pn, k, has_l, l.node), append(x.pn, k, has_r, l.node);
   x.records = k;
   // Internal children: to the queue above the threshold, else to pending.
   const __m512i threshold = _mm512_set1_epi32(static_cast<int>(x.threshold));
   const __m512i leaf_bit = _mm512_set1_epi32(static_cast<int>(kLeafChild));
-  const __mmask16 inner_l = _mm512_mask_testn_epi32_mask(has_l, left, leaf_bit);
-  const __mmask16 inner_r = _mm512_mask_testn_epi32_mask(has_r, right, leaf_bit);
-  const __mmask16 big_l = _mm512_mask_cmpgt_epu32_mask(inner_l, cl, threshold);
+  const __mmask16 inner_l = _mm512_mask_testn_epi32_mask(has_l, l.left, leaf_bit);
+  const __mmask16 inner_r = _mm512_mask_testn_epi32_mask(has_r, l.right, leaf_bit);
+  const __mmask16 big_l = _mm512_mask_cmpgt_epu32_mask(inner_l, l.cl, threshold);
   const __mmask16 big_r = _mm512_mask_cmpgt_epu32_mask(inner_r, cr, threshold);
   const __mmask16 small_l = inner_l & ~big_l, small_r = inner_r & ~big_r;
+  const __mmask16 queue_l = big_l & ~done_l, queue_r = big_r & ~done_r;
   std::size_t t = x.tail;
-  append(x.qn, t, big_l, left), append(x.qn, t, big_r, right);
-  t = x.tail, append(x.qc, t, big_l, cl), append(x.qc, t, big_r, cr);
-  t = x.tail, append(x.qf, t, big_l, first), append(x.qf, t, big_r, right_first);
+  append(x.qn, t, queue_l, l.left), append(x.qn, t, queue_r, l.right);
+  t = x.tail, append(x.qc, t, queue_l, l.cl), append(x.qc, t, queue_r, cr);
+  t = x.tail, append(x.qf, t, queue_l, l.first), append(x.qf, t, queue_r, right_first);
   x.tail = t;
   std::size_t p = x.pending;
-  append(x.wn, p, small_l, left), append(x.wn, p, small_r, right);
-  p = x.pending, append(x.wc, p, small_l, cl), append(x.wc, p, small_r, cr);
-  p = x.pending, append(x.wf, p, small_l, first), append(x.wf, p, small_r, right_first);
+  append(x.wn, p, small_l, l.left), append(x.wn, p, small_r, l.right);
+  p = x.pending, append(x.wc, p, small_l, l.cl), append(x.wc, p, small_r, cr);
+  p = x.pending, append(x.wf, p, small_l, l.first), append(x.wf, p, small_r, right_first);
   x.pending = p;
   const __mmask16 both = has_l & has_r;
   std::size_t g = x.growing;
-  append(x.gc, g, both, count);
-  g = x.growing, append(x.gn, g, both, node);
+  append(x.gc, g, both, l.count);
+  g = x.growing, append(x.gn, g, both, l.node);
   x.growing = g;
+}
+
+// Splits queue entries [head, head + m), m <= kBatch, and those of their children that
+// are to be split too, in one go. The split search of a child needs no result of its
+// parent's: it searches the child's split in the parent's samples, which holds the child's.
+// So the parents' and the children's searches run as three interleaved chains, and a path
+// from the root costs half as many chains one after the other (the search's depth, not its
+// width, is what it waits on: most batches hold fewer than 16 nodes).
+LL_CUT_AVX512_FN void splitAvx512(Search& x, std::size_t m) {
+  Lanes l[3];
+  l[0] = loadLanes(x, x.head, m);
+  x.head += m;
+  const Lanes& p = l[0];
+  const __m512i leaf_bit = _mm512_set1_epi32(static_cast<int>(kLeafChild));
+  const auto* words = reinterpret_cast<const int*>(x.nodes);
+  const __m512i zero = _mm512_setzero_si512();
+  for (int c = 1; c <= 2; ++c) {
+    Lanes& k = l[c];
+    k.node = c == 1 ? p.left : p.right;
+    k.lanes = _mm512_mask_testn_epi32_mask(p.lanes, k.node, leaf_bit);
+    k.first = p.first, k.count = p.count;  // searched in the parent's samples
+    const __m512i w = _mm512_slli_epi32(k.node, 2);
+    k.left = _mm512_mask_i32gather_epi32(zero, k.lanes, w, words, 4);
+    k.right = _mm512_mask_i32gather_epi32(zero, k.lanes, _mm512_add_epi32(w, _mm512_set1_epi32(1)), words, 4);
+    k.split = _mm512_mask_i32gather_epi32(zero, k.lanes, _mm512_add_epi32(w, _mm512_set1_epi32(2)), words, 4);
+  }
+  searchLanes<3>(x, l);
+  // The children's own ranges: the left child has the parent's first cl samples, the right
+  // one the rest; children above the threshold are split here.
+  const __m512i threshold = _mm512_set1_epi32(static_cast<int>(x.threshold));
+  Lanes& a = l[1];
+  Lanes& b = l[2];
+  a.count = p.cl;
+  b.count = _mm512_sub_epi32(p.count, p.cl);
+  b.first = _mm512_add_epi32(p.first, p.cl);
+  b.cl = _mm512_sub_epi32(b.cl, p.cl);
+  a.lanes = _mm512_mask_cmpgt_epu32_mask(a.lanes, a.count, threshold);
+  b.lanes = _mm512_mask_cmpgt_epu32_mask(b.lanes, b.count, threshold);
+  appendLanes(x, p, a.lanes, b.lanes);
+  if (a.lanes) appendLanes(x, a);
+  if (b.lanes) appendLanes(x, b);
 }
 
 bool cpuHasAvx512() {
