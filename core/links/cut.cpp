@@ -23,18 +23,20 @@
 namespace lightlink::links {
 
 CutTree cutTree(const hierarchy::Tree& tree) {
-  if (tree.nodeCount() >= kLeafChild) throw std::length_error("cutTree: more tree nodes than the cut can index");
+  if (tree.nodeCount() >= kRightIsLeaf) throw std::length_error("cutTree: more tree nodes than the cut can index");
   CutTree out;
   out.leaf_of_surfel = tree.leaf_of_surfel;
   std::vector<CutNode>& nodes = out.nodes;
   nodes.resize(tree.nodeCount());
   for (std::size_t i = 0; i < nodes.size(); ++i) {
     if (tree.isLeaf(i)) {
-      nodes[i] = {kLeaf, kLeaf, 0, 0};
-    } else {
-      const auto l = static_cast<std::uint32_t>(tree.left[i]), r = static_cast<std::uint32_t>(tree.right[i]);
-      nodes[i] = {l | (tree.isLeaf(l) ? kLeafChild : 0u), r | (tree.isLeaf(r) ? kLeafChild : 0u), tree.end[l], 0};
+      nodes[i] = {kLeaf, 0};
+      continue;
     }
+    const auto l = static_cast<std::uint32_t>(tree.left[i]), r = static_cast<std::uint32_t>(tree.right[i]);
+    // Breadth-first numbering gives siblings consecutive indices (hierarchy/tree.h).
+    if (r != l + 1) throw std::logic_error("cutTree: a node's children are not consecutive nodes");
+    nodes[i] = {l | (tree.isLeaf(l) ? kLeftIsLeaf : 0u) | (tree.isLeaf(r) ? kRightIsLeaf : 0u), tree.end[l]};
   }
   return out;
 }
@@ -117,11 +119,12 @@ void splitScalar(Search& x, std::size_t m) {
   for (std::size_t i = x.head; i < x.head + m; ++i) {
     const std::uint32_t node = x.qn[i], count = x.qc[i], first = x.qf[i];
     const CutNode& tn = x.nodes[node];
+    const std::uint32_t left = leftChild(tn.children), right = rightChild(tn.children);
     // The left child's surfels come first in the parent's range, so its samples are a
     // prefix of the parent's: one binary search inside the parent's samples.
     const std::uint32_t cl = lowerBound(x.samples + first, count, makeSample(tn.split, 0)), cr = count - cl;
-    if (cl > 0) x.record(tn.left, cl, first, count, node);
-    if (cr > 0) x.record(tn.right, cr, first + cl, count, node);
+    if (cl > 0) x.record(left, cl, first, count, node);
+    if (cr > 0) x.record(right, cr, first + cl, count, node);
     if (cl > 0 && cr > 0) {
       x.gc[x.growing] = count, x.gn[x.growing] = node;
       ++x.growing;
@@ -141,6 +144,21 @@ LL_CUT_AVX512_FN inline void append(std::uint32_t* dst, std::size_t& at, __mmask
   at += static_cast<std::size_t>(__builtin_popcount(keep));
 }
 
+// The node records of 16 nodes: children (with kLeafChild for a leaf) and split.
+LL_CUT_AVX512_FN inline void gatherNode(__m512i node, __mmask16 lanes, const CutNode* nodes, __m512i& left,
+                                        __m512i& right, __m512i& split) {
+  const auto* words = reinterpret_cast<const int*>(nodes);
+  const __m512i zero = _mm512_setzero_si512();
+  const __m512i w = _mm512_slli_epi32(node, 1);  // CutNode is 2 words
+  const __m512i children = _mm512_mask_i32gather_epi32(zero, lanes, w, words, 4);
+  split = _mm512_mask_i32gather_epi32(zero, lanes, _mm512_add_epi32(w, _mm512_set1_epi32(1)), words, 4);
+  const __m512i index = _mm512_and_si512(children, _mm512_set1_epi32(static_cast<int>(kChildIndex)));
+  const __m512i leaf_bit = _mm512_set1_epi32(static_cast<int>(kLeafChild));
+  left = _mm512_or_si512(index, _mm512_and_si512(children, leaf_bit));
+  right = _mm512_or_si512(_mm512_add_epi32(index, _mm512_set1_epi32(1)),
+                          _mm512_and_si512(_mm512_slli_epi32(children, 1), leaf_bit));
+}
+
 // One vector of nodes being split: their fields, their records' fields, and then the left
 // child's count.
 struct Lanes {
@@ -154,12 +172,7 @@ LL_CUT_AVX512_FN inline Lanes loadLanes(const Search& x, std::size_t at, std::si
   l.node = _mm512_maskz_loadu_epi32(l.lanes, x.qn + at);
   l.count = _mm512_maskz_loadu_epi32(l.lanes, x.qc + at);
   l.first = _mm512_maskz_loadu_epi32(l.lanes, x.qf + at);
-  const auto* words = reinterpret_cast<const int*>(x.nodes);
-  const __m512i w = _mm512_slli_epi32(l.node, 2);  // CutNode is 4 words
-  const __m512i zero = _mm512_setzero_si512();
-  l.left = _mm512_mask_i32gather_epi32(zero, l.lanes, w, words, 4);
-  l.right = _mm512_mask_i32gather_epi32(zero, l.lanes, _mm512_add_epi32(w, _mm512_set1_epi32(1)), words, 4);
-  l.split = _mm512_mask_i32gather_epi32(zero, l.lanes, _mm512_add_epi32(w, _mm512_set1_epi32(2)), words, 4);
+  gatherNode(l.node, l.lanes, x.nodes, l.left, l.right, l.split);
   return l;
 }
 
@@ -248,17 +261,12 @@ LL_CUT_AVX512_FN void splitAvx512(Search& x, std::size_t m) {
   x.head += m;
   const Lanes& p = l[0];
   const __m512i leaf_bit = _mm512_set1_epi32(static_cast<int>(kLeafChild));
-  const auto* words = reinterpret_cast<const int*>(x.nodes);
-  const __m512i zero = _mm512_setzero_si512();
   for (int c = 1; c <= 2; ++c) {
     Lanes& k = l[c];
     k.node = c == 1 ? p.left : p.right;
     k.lanes = _mm512_mask_testn_epi32_mask(p.lanes, k.node, leaf_bit);
     k.first = p.first, k.count = p.count;  // searched in the parent's samples
-    const __m512i w = _mm512_slli_epi32(k.node, 2);
-    k.left = _mm512_mask_i32gather_epi32(zero, k.lanes, w, words, 4);
-    k.right = _mm512_mask_i32gather_epi32(zero, k.lanes, _mm512_add_epi32(w, _mm512_set1_epi32(1)), words, 4);
-    k.split = _mm512_mask_i32gather_epi32(zero, k.lanes, _mm512_add_epi32(w, _mm512_set1_epi32(2)), words, 4);
+    gatherNode(k.node, k.lanes, x.nodes, k.left, k.right, k.split);
   }
   searchLanes<3>(x, l);
   // The children's own ranges: the left child has the parent's first cl samples, the right

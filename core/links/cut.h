@@ -25,17 +25,23 @@ inline Sample makeSample(std::uint32_t surfel, std::uint32_t ray) { return (Samp
 inline std::uint32_t rayOf(Sample s) { return static_cast<std::uint32_t>(s); }
 inline std::uint32_t surfelOf(Sample s) { return static_cast<std::uint32_t>(s >> 32); }
 
-// What the cut reads of a tree node: one 16-byte record instead of three arrays (left,
-// right, end of left) of 65k+ nodes each, so that the vector search gathers its fields at
-// node * 4 words. The children carry a leaf flag, so a leaf is never split or its record read.
+// What the cut reads of a tree node: one 8-byte record instead of three arrays (left,
+// right, end of left) of 65k+ nodes each. Siblings have consecutive indices (breadth-first
+// layout), so the right child is the left one + 1; the children carry leaf flags, so a leaf
+// is never split or its record read.
 struct CutNode {
-  std::uint32_t left;   // kLeaf for a leaf; else the child, with kLeafChild set if it is a leaf
-  std::uint32_t right;  // the same
-  std::uint32_t split;  // first surfel of the right child (= end of the left child's range)
-  std::uint32_t pad;
+  std::uint32_t children;  // kLeaf for a leaf; else the left child | kLeftIsLeaf | kRightIsLeaf
+  std::uint32_t split;     // first surfel of the right child (= end of the left child's range)
 };
 inline constexpr std::uint32_t kLeaf = 0xffffffffu;
+inline constexpr std::uint32_t kLeftIsLeaf = 0x80000000u, kRightIsLeaf = 0x40000000u;
+inline constexpr std::uint32_t kChildIndex = 0x3fffffffu;
+// Where the cut holds a node index, a leaf is marked with this bit.
 inline constexpr std::uint32_t kLeafChild = 0x80000000u;
+inline std::uint32_t leftChild(std::uint32_t children) { return (children & kChildIndex) | (children & kLeftIsLeaf); }
+inline std::uint32_t rightChild(std::uint32_t children) {
+  return ((children & kChildIndex) + 1) | ((children & kRightIsLeaf) << 1);
+}
 
 // The tree as the cut reads it: the node records, and the leaf of each surfel (a view of the
 // tree's own array: a CutTree must not outlive the tree it was made from).

@@ -159,7 +159,7 @@ TEST(Cut, DoesNotDependOnWhereTheSearchStarts) {
 
 TEST(Cut, NoSamplesNoLinks) {
   static constexpr std::uint32_t kLeafOfSurfel[] = {0};
-  const CutTree one{{{kLeaf, kLeaf, 0}}, kLeafOfSurfel};
+  const CutTree one{{{kLeaf, 0}}, kLeafOfSurfel};
   CutScratch scratch;
   std::vector<CutEntry> cut{{1, 2, 3}};
   chooseCut(one, {}, 8, scratch, cut);
