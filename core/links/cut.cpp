@@ -134,11 +134,14 @@ void splitScalar(Search& x, std::size_t m) {
 }
 
 #if LL_CUT_AVX512
-// The same for 16 nodes in the lanes of one vector: their 16 binary searches advance
-// together (one gather per halving step, as many steps as the largest node needs), and
-// the children are appended to the arrays by compressing the lanes that have them. A
-// search that waits on its loads one after the other is what the one-node-at-a-time loop
-// is made of; here 16 of them share each wait.
+// The same for 16 nodes in the lanes of one vector (splitAvx512, below): their 16 binary
+// searches advance together (one gather per halving step, as many steps as the largest node
+// needs), and the children are appended to the arrays by compressing the lanes that have
+// them. A search that waits on its loads one after the other is what the one-node-at-a-time
+// loop is made of; here 16 of them share each wait.
+
+// Appends v's lanes in `keep` to dst at `at`: compressed in a register and stored whole (a
+// compressing store to memory is microcoded on Zen 4/5; the arrays have the slack).
 LL_CUT_AVX512_FN inline void append(std::uint32_t* dst, std::size_t& at, __mmask16 keep, __m512i v) {
   _mm512_storeu_si512(dst + at, _mm512_maskz_compress_epi32(keep, v));
   at += static_cast<std::size_t>(__builtin_popcount(keep));
