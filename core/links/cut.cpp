@@ -10,6 +10,7 @@
 #include <bit>
 #include <stdexcept>
 
+#include "core/common/check.h"
 #include "core/common/multiversion.h"
 
 #if defined(__x86_64__) && (defined(__GNUC__) || defined(__clang__))
@@ -363,14 +364,6 @@ LL_CUT_AVX512_FN void markAvx512(const Search& x, std::uint32_t stop_count, std:
 
 }  // namespace
 
-bool cutHasVectorKernel() {
-#if LL_CUT_AVX512
-  return cpuHasAvx512();
-#else
-  return false;
-#endif
-}
-
 void chooseCut(const CutTree& tree, std::span<const Sample> samples, int max_links, CutScratch& s,
                std::vector<CutEntry>& cut, CutKernel kernel) {
   cut.clear();
@@ -411,11 +404,12 @@ void chooseCut(const CutTree& tree, std::span<const Sample> samples, int max_lin
   const auto limit = static_cast<std::uint32_t>(max_links);
   Search x(nodes.data(), samples.data(), s.stop_count > 1 ? s.stop_count - 1 : 0, s);
   x.record(0, static_cast<std::uint32_t>(samples.size()), 0, ~0u, 0);
-  const bool vector = kernel == CutKernel::kBest && cutHasVectorKernel();
 #if LL_CUT_AVX512
+  const bool vector = kernel == CutKernel::kBest && cpuHasAvx512();
   auto split = vector ? &splitAvx512 : &splitScalar;
   auto mark = vector ? &markAvx512 : &markScalar;
 #else
+  (void)kernel;
   auto split = &splitScalar;
   auto mark = &markScalar;
 #endif
@@ -424,13 +418,13 @@ void chooseCut(const CutTree& tree, std::span<const Sample> samples, int max_lin
       x.reserveBatch();
       const std::size_t m = std::min(kBatch, x.tail - x.head);
       // A batch of a few nodes (the first ones, from the root down) waits on one gather per
-      // halving step where single loads would do (cut_bench: 4.1 -> 3.6 us per cache on
-      // CornellBox-Original with fewer than 6 split one at a time).
+      // halving step where single loads would do: fewer than kVectorFrom go one at a time
+      // (a sweep of the constant with cut_bench: docs/results.md, issue 4 fourteenth pass).
       (m < kVectorFrom ? &splitScalar : split)(x, m);
     }
     if (x.growing >= limit || x.pending == 0) break;
-    // Lowered by a quarter (at least 1): a second search is cheap, splitting far more
-    // nodes than the cut needs is not.
+    // Lowered by a quarter (at least 1; not tuned): a further round only splits the nodes
+    // that the lower threshold adds, while every node split below g's count is wasted.
     x.threshold -= std::max<std::uint32_t>(1, x.threshold / 4);
     std::size_t kept = 0;
     for (std::size_t i = 0; i < x.pending; ++i) {
@@ -449,27 +443,27 @@ void chooseCut(const CutTree& tree, std::span<const Sample> samples, int max_lin
   // final threshold, and c is mostly just above it, so the search gallops up from there.
   // Then, among the growing nodes of exactly c samples, the one of the right rank by node
   // index.
-  std::uint32_t stop_count = 0, stop_node = 0;  // 0, 0: nothing above it (cannot happen here)
-  if (x.growing >= limit) {
-    std::uint32_t lo = x.threshold + 1, hi = lo + 1;  // atLeast(lo) >= limit > atLeast(hi)
-    for (std::uint32_t step = 1; countAtLeast(x.gc, x.growing, hi) >= limit; step *= 2) lo = hi, hi += step;
-    while (hi - lo > 1) {
-      const std::uint32_t mid = lo + (hi - lo) / 2;
-      (countAtLeast(x.gc, x.growing, mid) >= limit ? lo : hi) = mid;
-    }
-    stop_count = lo;
-    const std::uint32_t rank = limit - countAtLeast(x.gc, x.growing, lo + 1);  // 1-based among the ties
-    std::vector<std::uint32_t>& ties = s.ties;
-    ties.resize(x.growing);
-    std::size_t n_ties = 0;
-    for (std::size_t i = 0; i < x.growing; ++i) {
-      ties[n_ties] = x.gn[i];
-      n_ties += x.gc[i] == lo ? 1 : 0;
-    }
-    std::nth_element(ties.begin(), ties.begin() + (rank - 1), ties.begin() + static_cast<std::ptrdiff_t>(n_ties));
-    stop_node = ties[rank - 1];
-    s.stop_count = stop_count;
+  // The search only stops short of `limit` growing nodes with nothing left to split, and
+  // then the whole tree had only distinct - 1 < limit of them: the leaves' case above.
+  LL_CHECK_GE(x.growing, std::size_t(limit));
+  std::uint32_t lo = x.threshold + 1, hi = lo + 1;  // atLeast(lo) >= limit > atLeast(hi)
+  for (std::uint32_t step = 1; countAtLeast(x.gc, x.growing, hi) >= limit; step *= 2) lo = hi, hi += step;
+  while (hi - lo > 1) {
+    const std::uint32_t mid = lo + (hi - lo) / 2;
+    (countAtLeast(x.gc, x.growing, mid) >= limit ? lo : hi) = mid;
   }
+  const std::uint32_t stop_count = lo;
+  const std::uint32_t rank = limit - countAtLeast(x.gc, x.growing, lo + 1);  // 1-based among the ties
+  std::vector<std::uint32_t>& ties = s.ties;
+  ties.resize(x.growing);
+  std::size_t n_ties = 0;
+  for (std::size_t i = 0; i < x.growing; ++i) {
+    ties[n_ties] = x.gn[i];
+    n_ties += x.gc[i] == lo ? 1 : 0;
+  }
+  std::nth_element(ties.begin(), ties.begin() + (rank - 1), ties.begin() + static_cast<std::ptrdiff_t>(n_ties));
+  const std::uint32_t stop_node = ties[rank - 1];
+  s.stop_count = stop_count;
   // The cut, put in order of first sample: the entries' sample ranges partition
   // [0, samples), so that is a walk over a bitmap of their first samples, lowest bit first,
   // through a first-sample -> record table (no comparison sort).

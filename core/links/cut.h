@@ -34,11 +34,13 @@ struct CutNode {
   std::uint32_t split;     // first surfel of the right child (= end of the left child's range)
 };
 inline constexpr std::uint32_t kLeaf = 0xffffffffu;
-inline constexpr std::uint32_t kLeftIsLeaf = 0x80000000u, kRightIsLeaf = 0x40000000u;
-inline constexpr std::uint32_t kChildIndex = 0x3fffffffu;
 // Where the cut holds a node index, a leaf is marked with this bit.
 inline constexpr std::uint32_t kLeafChild = 0x80000000u;
-inline std::uint32_t leftChild(std::uint32_t children) { return (children & kChildIndex) | (children & kLeftIsLeaf); }
+// The children word's flags: the left one is kLeafChild itself and the right one the bit
+// below it, so that leftChild and rightChild below move them into place with a mask and a shift.
+inline constexpr std::uint32_t kLeftIsLeaf = kLeafChild, kRightIsLeaf = kLeafChild >> 1;
+inline constexpr std::uint32_t kChildIndex = kRightIsLeaf - 1;
+inline std::uint32_t leftChild(std::uint32_t children) { return children & (kChildIndex | kLeftIsLeaf); }
 inline std::uint32_t rightChild(std::uint32_t children) {
   return ((children & kChildIndex) + 1) | ((children & kRightIsLeaf) << 1);
 }
@@ -70,7 +72,6 @@ struct CutScratch {
 // Which code splits the nodes: the best this CPU has (16 nodes at a time with AVX-512 where
 // present), or one node at a time. Both choose the same cut (tests run both).
 enum class CutKernel { kBest, kScalar };
-bool cutHasVectorKernel();
 
 // Chooses the cut of at most max_links (>= 1) nodes over `samples`, sorted ascending (by
 // surfel, then ray). `cut` receives the nodes with their sample ranges, ordered by first
