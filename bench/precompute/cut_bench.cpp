@@ -6,9 +6,10 @@
 // surfels, tree and lightmap caches, each cache's fan traced and credited as link generation
 // does), then chooseCut runs over all of them on one thread, `repeats` times: the median
 // time per cache (each cache's samples hot in cache, as the sort leaves them), and what the
-// cut did (links per cache, a checksum of the chosen nodes).
+// cut did (links per cache, a checksum of the chosen nodes). --cut-kernel scalar times the
+// one-node-at-a-time splits (links::CutKernel::kScalar: the code on CPUs without AVX-512).
 // Usage: cut_bench [--scene F] [--surfels N] [--links N] [--bands B] [--rays N] [--resolution R] [--hierarchy hac|fast]
-//                  [--caches N] [--repeats N] [--json OUT]
+//                  [--caches N] [--repeats N] [--cut-kernel best|scalar] [--json OUT]
 #include <algorithm>
 #include <cstdio>
 #include <cstring>
@@ -36,6 +37,7 @@ struct Args {
   std::string json;
   std::size_t caches = 4096;  // evenly spaced over the lightmap caches
   int repeats = 15;
+  links::CutKernel kernel = links::CutKernel::kBest;
   precompute::PrecomputeOptions options;
 };
 
@@ -49,6 +51,8 @@ bool parse(int argc, char** argv, Args& a) {
     else if (k == "--json") a.json = v;
     else if (k == "--caches") a.caches = std::max<std::size_t>(1, std::stoul(v));
     else if (k == "--repeats") a.repeats = std::max(1, std::stoi(v));
+    else if (k == "--cut-kernel" && (std::strcmp(v, "best") == 0 || std::strcmp(v, "scalar") == 0))
+      a.kernel = std::strcmp(v, "scalar") == 0 ? links::CutKernel::kScalar : links::CutKernel::kBest;
     else if (!bench::parsePrecomputeFlag(k, v, a.options)) return false;
   }
   return true;
@@ -61,7 +65,7 @@ int main(int argc, char** argv) {
   if (!parse(argc, argv, args)) {
     std::fprintf(stderr, "usage: cut_bench [--scene F] [--surfels N] [--links N] [--bands B] [--rays N] [--resolution R] "
                          "[--hierarchy hac|fast] "
-                         "[--caches N] [--repeats N] [--json OUT]\n");
+                         "[--caches N] [--repeats N] [--cut-kernel best|scalar] [--json OUT]\n");
     return 1;
   }
   auto scene = scene::loadGltf(args.scene);
@@ -118,7 +122,8 @@ int main(int argc, char** argv) {
       const std::size_t m = begin[k + 1] - begin[k];
       std::copy(all.begin() + begin[k], all.begin() + begin[k + 1], hot.begin());
       const auto t0 = bench::Clock::now();
-      links::chooseCut(tree, std::span<const links::Sample>(hot.data(), m), args.options.links, scratch, cut);
+      links::chooseCut(tree, std::span<const links::Sample>(hot.data(), m), args.options.links, scratch, cut,
+                       args.kernel);
       cut_s += bench::secondsSince(t0);
       total += cut.size();
       for (const links::CutEntry& e : cut) chosen = chosen * 31 + e.node;
@@ -144,6 +149,7 @@ int main(int argc, char** argv) {
     j["cut_ns_per_cache"] = cut_ns;
     j["median_cut_ns_per_cache"] = cut_med;
     j["checksum"] = checksum;
+    j["cut_kernel"] = args.kernel == links::CutKernel::kScalar ? "scalar" : "best";
     std::ofstream(args.json) << j.dump(2) << "\n";
   }
   return 0;
