@@ -30,9 +30,9 @@
 #include "core/sh/sh.h"
 
 // The row kernel, the sky pass, the link sums and the octahedral codes are LL_MULTIVERSION
-// (core/common/multiversion.h): AVX2 and baseline builds, the same bits. The row kernel is
-// plain loops the compiler vectorises; without FMA every lane rounds exactly as the scalar
-// code did, so the rays are bit-identical on every machine (the artifact depends on them).
+// (core/common/multiversion.h: one version per vector width, the same bits). The row kernel
+// is plain loops the compiler vectorises; without contraction every lane rounds exactly as the
+// scalar code did, so the rays are bit-identical on every machine (the artifact depends on them).
 
 namespace lightlink::links {
 namespace {
@@ -133,7 +133,7 @@ struct ChunkResult {
 
 // Sky visibility: sums of the basis polynomials over the escaped rays (escaped[i] is 1 or 0),
 // in kSkyLanes interleaved partial sums added in a fixed order at the end. Every lane adds in
-// ray order, so the AVX2 and SSE2 builds of this loop (and the scalar one) give the same
+// ray order, so every LL_MULTIVERSION build of this loop (and the scalar one) gives the same
 // bits; a plain reduction would not vectorise without reassociating. Most rays of an open
 // scene escape (ShadowsDirectional: 82 %); there the hit loop with the sky projected ray by
 // ray took 0.23 Gcycles, this pass and the owner rasters 0.10 (docs/results.md).
@@ -319,7 +319,7 @@ inline std::uint32_t octahedralCode(float x, float y, float z) {
 }
 
 // Laps of linkCache's phases into LinkStats::phase_ticks: 8 counter reads per cache, against
-// ~72k ticks of work per cache on CornellBox-Original, so it stays on in every build.
+// ~62k ticks of work per cache on CornellBox-Original, so it stays on in every build.
 class PhaseClock {
  public:
   explicit PhaseClock(std::array<std::uint64_t, kLinkPhases>& ticks) : ticks_(ticks), last_(now()) {}

@@ -320,7 +320,7 @@ void Accel::Impl::intersectPackets(std::span<const Ray> rays, std::span<Hit> hit
   }
 }
 
-// The fan's packet copies are LL_MULTIVERSION (AVX2 and baseline builds); they move bits only.
+// The fan's packet copies are LL_MULTIVERSION (core/common/multiversion.h); they move bits only.
 
 namespace {
 
