@@ -60,17 +60,59 @@ struct Scratch {
   std::vector<float> dir_x, dir_y, dir_z;  // per ray, padded to a multiple of kSkyLanes
   std::vector<float> escaped;           // per ray: 1 escaped, 0 not (0 in the padding)
   std::vector<float> poly;              // per ray (padded), polyRows(bands) rows of 8: the basis polynomials q >= 1
-  std::vector<float> link_sums;         // per link of the cache, polyRows(bands) rows of 8: sums of those
-  std::vector<std::uint8_t> starts;     // per sample: 1 for a link's first hit, else 0
+  std::vector<float> link_sums;         // a spare, then per link of the cache polyRows(bands) rows of 8: sums of those
   std::vector<float> coeff_values;      // per link of the cache: its SH in float, then fp16
   std::vector<float> solid_values;
   std::vector<float> link_x, link_y, link_z;  // per link of the cache: the direction to encode
 };
 
+// Sixteen bucket counters as one GCC vector, for bucketStarts below.
+typedef std::uint32_t Counts16 __attribute__((vector_size(64)));
+
+// The radix sort's bucket starts from its two counter sets (below): bucket b of the first
+// half's keys starts after all keys of the buckets before b, the second half's after the
+// first half's bucket b. An exclusive prefix sum, 16 buckets per step (a scan in the
+// register, then the running total added): the bucket-by-bucket loop made each bucket wait
+// on the last one's sum, 2 x 256 steps per cache.
+LL_MULTIVERSION void bucketStarts(std::uint32_t* __restrict count_a, std::uint32_t* __restrict count_b,
+                                  std::uint32_t buckets) {
+  std::uint32_t b = 0;
+  if (buckets >= 16) {
+    const Counts16 zero = {};
+    Counts16 total = {};
+    for (; b < buckets; b += 16) {
+      Counts16 a, c;
+      std::memcpy(&a, count_a + b, sizeof a);
+      std::memcpy(&c, count_b + b, sizeof c);
+      const Counts16 t = a + c;
+      // Inclusive scan: lane i gets the sum of lanes 0..i (shifted copies added in 4 steps).
+      Counts16 scan = t;
+      scan += __builtin_shuffle(zero, scan, Counts16{0, 16, 17, 18, 19, 20, 21, 22, 23, 24, 25, 26, 27, 28, 29, 30});
+      scan += __builtin_shuffle(zero, scan, Counts16{0, 0, 16, 17, 18, 19, 20, 21, 22, 23, 24, 25, 26, 27, 28, 29});
+      scan += __builtin_shuffle(zero, scan, Counts16{0, 0, 0, 0, 16, 17, 18, 19, 20, 21, 22, 23, 24, 25, 26, 27});
+      scan += __builtin_shuffle(zero, scan, Counts16{0, 0, 0, 0, 0, 0, 0, 0, 16, 17, 18, 19, 20, 21, 22, 23});
+      const Counts16 start = total + scan - t;
+      const Counts16 start_b = start + a;
+      std::memcpy(count_a + b, &start, sizeof start);
+      std::memcpy(count_b + b, &start_b, sizeof start_b);
+      total += __builtin_shuffle(scan, Counts16{15, 15, 15, 15, 15, 15, 15, 15, 15, 15, 15, 15, 15, 15, 15, 15});
+    }
+    return;
+  }
+  std::uint32_t sum = 0;
+  for (; b < buckets; ++b) {
+    const std::uint32_t a = count_a[b], c = count_b[b];
+    count_a[b] = sum;
+    count_b[b] = sum + a;
+    sum += a + c;
+  }
+}
+
 // Stable LSD radix sort of the samples by surfel: they are appended in ray order, so the
 // result equals a sort by (surfel, ray). Two or three passes over ~1k keys beat a
 // comparison sort by 4-5x here (the sort runs once per cache). `keys` and `buffer` hold n
-// keys each; returns the one that holds the sorted keys.
+// keys each; returns the one that holds the sorted keys. A pass has no more buckets than its
+// bits of the surfel need (15 bits: 256 then 128).
 // Each pass counts and scatters the two halves of the keys with counters of their own (the
 // second half's bucket b starts where the first half's ends: the same stable order).
 // Neighbouring rays mostly hit the same surfel, so with one set of counters every key's
@@ -80,11 +122,11 @@ struct Scratch {
 Sample* sortSamples(Sample* keys, Sample* buffer, std::size_t n, std::uint32_t surfel_bits) {
   const std::uint32_t passes = std::max<std::uint32_t>(1, (surfel_bits + 10) / 11);
   const std::uint32_t bits = (surfel_bits + passes - 1) / passes;
-  const std::uint32_t buckets = 1u << bits;
-  std::uint32_t count_a[1u << 11], count_b[1u << 11];
+  alignas(64) std::uint32_t count_a[1u << 11], count_b[1u << 11];
   const std::size_t half = n / 2;  // the second half, [half, n), has the odd key
   for (std::uint32_t pass = 0; pass < passes; ++pass) {
     const std::uint32_t shift = 32 + pass * bits;
+    const std::uint32_t buckets = 1u << std::min(bits, surfel_bits - pass * bits);
     auto bucket = [&](Sample k) { return static_cast<std::uint32_t>(k >> shift) & (buckets - 1); };
     std::fill(count_a, count_a + buckets, 0u);
     std::fill(count_b, count_b + buckets, 0u);
@@ -93,13 +135,7 @@ Sample* sortSamples(Sample* keys, Sample* buffer, std::size_t n, std::uint32_t s
       ++count_b[bucket(keys[half + i])];
     }
     if (n > 2 * half) ++count_b[bucket(keys[n - 1])];
-    std::uint32_t sum = 0;
-    for (std::uint32_t b = 0; b < buckets; ++b) {
-      const std::uint32_t a = count_a[b], c = count_b[b];
-      count_a[b] = sum;
-      count_b[b] = sum + a;
-      sum += a + c;
-    }
+    bucketStarts(count_a, count_b, buckets);
     for (std::size_t i = 0; i < half; ++i) {
       const Sample ka = keys[i], kb = keys[half + i];
       buffer[count_a[bucket(ka)]++] = ka;
@@ -244,55 +280,69 @@ LL_SKY_ENTRY(4)
 template <int Bands>
 constexpr SkyFn skyPolynomials = Bands == 1 ? sky1 : Bands == 2 ? sky2 : Bands == 3 ? sky3 : sky4;
 
-// The links' polynomial sums: link l's row r at sums[(l * polyRows + r) * 8], each the sum of
+// The links' polynomial sums: link l's row r at sums[((l + 1) * polyRows + r) * 8], each the sum of
 // its hits' rows in sample order, from zero: the same additions in the same order as a loop
 // per link, so the same bits. One flat loop over the samples instead, with no branch: the
-// entry starting at a sample (`starts[k]` is 1) moves the output to the next link and
-// clears the running sums; every sample stores them, the link's last one leaving its
-// total. A loop per link ended on a data-dependent branch for each of ~125 links per cache.
-// The samples are walked as two chains, [0, mid) and [mid, n) (mid the first sample of link
-// `link_mid`), one step of each in turn, so that one chain's adds do not wait on the other's.
+// sample that starts a link (kLinkStart set in its ray word) moves the output to the next
+// link and clears the running sums; every sample stores them, the link's last one leaving
+// its total. A loop per link ended on a data-dependent branch for each of ~125 links per
+// cache. The samples are walked as kSumChains chains, each from a link's first sample to the
+// next chain's first, one step of each in turn, so that one chain's adds do not wait on
+// another's (the and + add of a step is the loop's critical path).
+constexpr std::uint32_t kLinkStart = 0x80000000u;
+constexpr int kSumChains = 2;
 template <int Bands>
 __attribute__((always_inline)) inline void linkSumsImpl(const Sample* __restrict sorted, std::uint32_t n,
-                                                        const std::uint8_t* __restrict starts, std::uint32_t mid,
-                                                        std::uint32_t link_mid, const float* __restrict poly,
-                                                        float* __restrict sums) {
+                                                        const std::uint32_t* __restrict first,
+                                                        const std::uint32_t* __restrict link_at,
+                                                        const float* __restrict poly, float* __restrict sums) {
   constexpr int kRows = polyRows(Bands);
-  struct Chain {
-    Lanes8 acc[kRows];
-    std::uint32_t link;
-  };
+  constexpr std::size_t kStride = std::size_t(kRows) * 8;
   // The mask that keeps the running sums, and the one that clears them (a load, where
   // broadcasting the start flag took three instructions).
   alignas(32) static constexpr std::int32_t kKeep[2][8] = {{-1, -1, -1, -1, -1, -1, -1, -1}, {}};
-  auto step = [&](Chain& c, std::uint32_t k) {
-    const std::uint32_t start = starts[k];
-    c.link += start;
+  struct Chain {
+    Lanes8 acc[kRows];
+    const Sample* key;  // the next sample
+    float* out;         // the current link's sums (one row before link_at's at the start)
+  };
+  auto step = [&](Chain& c) {
+    const auto word = static_cast<std::uint32_t>(*c.key++);
+    const std::uint32_t start = word >> 31;
+    c.out += start * kStride;
     Ints8 keep;
     std::memcpy(&keep, kKeep[start], sizeof keep);
-    const float* row = poly + std::size_t(rayOf(sorted[k])) * (kRows * 8);
+    const float* row = poly + std::size_t(word & ~kLinkStart) * kStride;
     for (int r = 0; r < kRows; ++r) {
       Lanes8 v;
       std::memcpy(&v, row + r * 8, sizeof v);
       c.acc[r] = reinterpret_cast<Lanes8>(reinterpret_cast<Ints8>(c.acc[r]) & keep) + v;
-      std::memcpy(sums + (std::size_t(c.link) * kRows + r) * 8, &c.acc[r], sizeof(Lanes8));
+      std::memcpy(c.out + r * 8, &c.acc[r], sizeof(Lanes8));
     }
   };
-  Chain a{{}, ~0u}, b{{}, link_mid - 1};  // sample 0 and sample mid each start a link
-  const std::uint32_t both = std::min(mid, n - mid);
-  for (std::uint32_t i = 0; i < both; ++i) {
-    step(a, i);
-    step(b, mid + i);
+  // Chain c covers samples [first[c], first[c + 1]) (first[kSumChains] = n); each starts
+  // with a link's first sample, which moves it to link link_at[c]. Link l's sums are at
+  // sums + (l + 1) * kStride: the set before link 0's is where chain 0 starts.
+  Chain ch[kSumChains];
+  std::uint32_t len[kSumChains], both = n;
+  for (int c = 0; c < kSumChains; ++c) {
+    ch[c].key = sorted + first[c];
+    ch[c].out = sums + std::size_t(link_at[c]) * kStride;
+    for (int r = 0; r < kRows; ++r) ch[c].acc[r] = Lanes8{};
+    len[c] = (c + 1 < kSumChains ? first[c + 1] : n) - first[c];
+    both = std::min(both, len[c]);
   }
-  for (std::uint32_t k = both; k < mid; ++k) step(a, k);
-  for (std::uint32_t k = mid + both; k < n; ++k) step(b, k);
+  for (std::uint32_t i = 0; i < both; ++i)
+    for (int c = 0; c < kSumChains; ++c) step(ch[c]);
+  for (int c = 0; c < kSumChains; ++c)
+    for (std::uint32_t k = both; k < len[c]; ++k) step(ch[c]);
 }
-using LinkSumsFn = void (*)(const Sample*, std::uint32_t, const std::uint8_t*, std::uint32_t, std::uint32_t,
-                            const float*, float*);
-#define LL_SUMS_ENTRY(B)                                                                                \
-  LL_MULTIVERSION void linkSums##B(const Sample* sorted, std::uint32_t n, const std::uint8_t* starts,         \
-                                   std::uint32_t mid, std::uint32_t link_mid, const float* poly, float* sums) { \
-    linkSumsImpl<B>(sorted, n, starts, mid, link_mid, poly, sums);                                        \
+using LinkSumsFn = void (*)(const Sample*, std::uint32_t, const std::uint32_t*, const std::uint32_t*, const float*,
+                            float*);
+#define LL_SUMS_ENTRY(B)                                                                                      \
+  LL_MULTIVERSION void linkSums##B(const Sample* sorted, std::uint32_t n, const std::uint32_t* first,       \
+                                   const std::uint32_t* link_at, const float* poly, float* sums) {           \
+    linkSumsImpl<B>(sorted, n, first, link_at, poly, sums);                                                   \
   }
 LL_SUMS_ENTRY(2)
 LL_SUMS_ENTRY(3)
@@ -386,7 +436,7 @@ void linkCache(std::size_t cache, const glm::vec3& p, const glm::vec3& normal, c
   float sky[kCoeffs];
   for (int q = 0; q < kCoeffs; ++q) sky[q] = w * sh::kBasisScale[q] * sky_poly[q];
   clock.lap(kPhaseSky);
-  const Sample* sorted = sortSamples(s.samples.data(), s.sort_buffer.data(), sampled, surfel_bits);
+  Sample* const sorted = sortSamples(s.samples.data(), s.sort_buffer.data(), sampled, surfel_bits);
   clock.lap(kPhaseSort);
   chooseCut(cut_tree, std::span<const Sample>(sorted, sampled), options.max_links, s.cut_scratch, s.cut);
   clock.lap(kPhaseCut);
@@ -397,14 +447,22 @@ void linkCache(std::size_t cache, const glm::vec3& p, const glm::vec3& normal, c
   float* coeff_values = s.coeff_values.data();
   float* solid_values = s.solid_values.data();
   const std::size_t links = s.cut.size();
-  float* const link_sums = s.link_sums.data();  // link l's polynomial q at [l * polyRows * 8 + q - 1]
+  // link l's polynomial q at [(l + 1) * polyRows * 8 + q - 1], after linkSums's spare row set
+  float* const link_sums = s.link_sums.data();
   if constexpr (Bands >= 2) {
     if (links > 0) {
-      std::fill(s.starts.begin(), s.starts.begin() + sampled, std::uint8_t(0));
-      for (const CutEntry& e : s.cut) s.starts[e.first] = 1;
-      const auto link_mid = static_cast<std::uint32_t>(links / 2);
-      linkSums<Bands>(sorted, static_cast<std::uint32_t>(sampled), s.starts.data(), s.cut[link_mid].first, link_mid,
-                      poly, link_sums);
+      // The sorted keys are scratch: a link's first sample carries the start flag from here.
+      for (const CutEntry& e : s.cut) sorted[e.first] |= kLinkStart;
+      std::uint32_t first[kSumChains], link_at[kSumChains];
+      // Chains of about equal numbers of samples: each starts at the first link that starts
+      // at or after its share.
+      for (int c = 0, l = 0; c < kSumChains; ++c) {
+        const std::size_t share = sampled * c / kSumChains;
+        while (l + 1 < static_cast<int>(links) && s.cut[l].first < share) ++l;
+        link_at[c] = static_cast<std::uint32_t>(l);
+        first[c] = s.cut[l].first;
+      }
+      linkSums<Bands>(sorted, static_cast<std::uint32_t>(sampled), first, link_at, poly, link_sums);
     }
   }
   float scale[kCoeffs];
@@ -414,7 +472,7 @@ void linkCache(std::size_t cache, const glm::vec3& p, const glm::vec3& normal, c
   out.node.resize(node_at + links);
   for (std::size_t l = 0; l < links; ++l) {
     const CutEntry& e = s.cut[l];
-    const float* m = link_sums + l * kRowFloats;  // polynomial q at m[q - 1]
+    const float* m = link_sums + (l + 1) * kRowFloats;  // polynomial q at m[q - 1]
     glm::vec3 sum_dir(0.0f);
     if constexpr (Bands >= 2) {
       sum_dir = glm::vec3(m[2], m[0], m[1]);  // the band-1 polynomials are y, z, x
@@ -806,8 +864,7 @@ Expected<Links> generateLinks(const scene::Scene& scene, const rt::Accel& accel,
                 for (auto* v : {&scratch.dir_x, &scratch.dir_y, &scratch.dir_z, &scratch.escaped})
                   v->resize(skyPadded(pattern.count()));
                 scratch.poly.resize(std::size_t(skyPadded(pattern.count())) * polyRows(options.bands) * 8);
-                scratch.link_sums.resize(std::size_t(options.max_links) * polyRows(options.bands) * 8);
-                scratch.starts.resize(pattern.count());
+                scratch.link_sums.resize((std::size_t(options.max_links) + 1) * polyRows(options.bands) * 8);
                 scratch.coeff_values.resize(std::size_t(options.max_links) * coeffs_per_link);
                 scratch.solid_values.resize(std::size_t(options.max_links));
                 for (auto* v : {&scratch.link_x, &scratch.link_y, &scratch.link_z})
