@@ -89,7 +89,6 @@ int main(int argc, char** argv) {
     std::vector<float> dx(n + 16), dy(n + 16), dz(n + 16), u(n), v(n), t(n), nx(n), ny(n), nz(n), escaped(n);
     std::vector<std::uint32_t> mesh(n), tri(n), slots(n);
     std::vector<links::Sample> samples(n + links::kHitCreditSlack);
-    std::vector<std::uint8_t> seen(locator.surfelCount());
     const rt::HitArrays hits{mesh.data(), tri.data(), u.data(), v.data(), t.data(), nx.data(), ny.data(), nz.data()};
     for (std::size_t k = 0; k < caches; ++k) {
       const std::size_t c = k * lightmap / caches;
@@ -97,7 +96,7 @@ int main(int argc, char** argv) {
       const rt::RayFan fan = pattern.fan(*accel, c, p->lightmap.position[c], p->lightmap.normal[c], d);
       accel->intersectFan(fan, hits);
       const links::HitCredit credit = links::creditHits(fan, hits, double_sided.data(), locator, slots.data(),
-                                                        escaped.data(), samples.data(), seen.data());
+                                                        escaped.data(), samples.data());
       std::sort(samples.begin(), samples.begin() + credit.sampled);
       all.insert(all.end(), samples.begin(), samples.begin() + credit.sampled);
       begin.push_back(all.size());

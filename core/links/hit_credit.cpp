@@ -60,8 +60,7 @@ void classify(const rt::RayFan& fan, const rt::HitArrays& hits, const std::uint3
 
 // Pass 2 over the same rays: the owners, appended in ray order.
 void credit(const rt::RayFan& fan, const rt::HitArrays& hits, const SurfelLocator& locator, std::uint32_t i0,
-            std::uint32_t i1, const std::uint32_t* slot, Sample* samples, std::uint8_t* seen, HitCredit& c) {
-  // Counts and the sample cursor in locals: the byte stores to `seen` may alias anything.
+            std::uint32_t i1, const std::uint32_t* slot, Sample* samples, HitCredit& c) {
   std::uint32_t sampled = c.sampled, escaped = 0, back_hits = 0, unowned = 0;
   for (std::uint32_t i = i0; i < i1; ++i) {
     if (slot[i] == kEscaped) {
@@ -86,7 +85,6 @@ void credit(const rt::RayFan& fan, const rt::HitArrays& hits, const SurfelLocato
       ++unowned;
       continue;
     }
-    seen[owner] = 1;
     samples[sampled++] = makeSample(owner, i);
   }
   c.sampled = sampled;
@@ -96,12 +94,11 @@ void credit(const rt::RayFan& fan, const rt::HitArrays& hits, const SurfelLocato
 }
 
 HitCredit creditScalar(const rt::RayFan& fan, const rt::HitArrays& hits, const std::uint32_t* double_sided,
-                       const SurfelLocator& locator, std::uint32_t* slots, float* escaped, Sample* samples,
-                       std::uint8_t* seen) {
+                       const SurfelLocator& locator, std::uint32_t* slots, float* escaped, Sample* samples) {
   const auto n = static_cast<std::uint32_t>(fan.count);
   HitCredit c;
   classify(fan, hits, double_sided, locator, 0, n, slots, escaped);
-  credit(fan, hits, locator, 0, n, slots, samples, seen, c);
+  credit(fan, hits, locator, 0, n, slots, samples, c);
   return c;
 }
 
@@ -128,7 +125,7 @@ LL_AVX512_FN inline __m512i rasterAxis(const float* w, __mmask16 lanes, __m512 s
 
 LL_AVX512_FN HitCredit creditAvx512(const rt::RayFan& fan, const rt::HitArrays& hits,
                                     const std::uint32_t* double_sided, const SurfelLocator& locator,
-                                    std::uint32_t* slots, float* escaped, Sample* samples, std::uint8_t* seen) {
+                                    std::uint32_t* slots, float* escaped, Sample* samples) {
   const SurfelLocator::RasterTables tab = locator.rasterTables();
   const auto n = static_cast<std::uint32_t>(fan.count);
   const std::uint32_t mesh_limit = tab.mesh_first_count == 0 ? 0u : tab.mesh_first_count - 1;
@@ -207,7 +204,7 @@ LL_AVX512_FN HitCredit creditAvx512(const rt::RayFan& fan, const rt::HitArrays& 
     }
     const __mmask16 stray = ask | _mm512_mask_cmpeq_epi32_mask(rastered, owner, none);
     if (stray != 0) {
-      credit(fan, hits, locator, i0, std::min(n, i0 + 16), slots, samples, seen, c);
+      credit(fan, hits, locator, i0, std::min(n, i0 + 16), slots, samples, c);
       continue;
     }
     escaped_count += static_cast<std::uint32_t>(std::popcount(static_cast<unsigned>(escaped_lanes)));
@@ -228,7 +225,6 @@ LL_AVX512_FN HitCredit creditAvx512(const rt::RayFan& fan, const rt::HitArrays& 
   }
   c.escaped += escaped_count;
   c.back_hits += back_hits;
-  for (std::uint32_t k = 0; k < c.sampled; ++k) seen[surfelOf(samples[k])] = 1;
   return c;
 }
 #endif
@@ -259,14 +255,14 @@ HitCreditKernel hitCreditKernelRun(HitCreditKernel requested) {
 
 HitCredit creditHits(const rt::RayFan& fan, const rt::HitArrays& hits, const std::uint32_t* double_sided,
                      const SurfelLocator& locator, std::uint32_t* slots, float* escaped, Sample* samples,
-                     std::uint8_t* seen, HitCreditKernel kernel) {
+                     HitCreditKernel kernel) {
 #if LL_HIT_CREDIT_AVX512
   if (hitCreditKernelRun(kernel) == HitCreditKernel::kAvx512)
-    return creditAvx512(fan, hits, double_sided, locator, slots, escaped, samples, seen);
+    return creditAvx512(fan, hits, double_sided, locator, slots, escaped, samples);
 #else
   (void)kernel;
 #endif
-  return creditScalar(fan, hits, double_sided, locator, slots, escaped, samples, seen);
+  return creditScalar(fan, hits, double_sided, locator, slots, escaped, samples);
 }
 
 }  // namespace lightlink::links

@@ -48,12 +48,13 @@ inline constexpr std::size_t kHitCreditSlack = 16;
 std::vector<std::uint32_t> doubleSidedByMesh(const scene::Scene& scene);
 
 // Credits the fan's hits: `samples` receives (owner, ray) for every credited hit in ray
-// order (it must hold fan.count + kHitCreditSlack) and `escaped` 1.0 for a ray that escaped, else 0.0 (both fan.count long), and
-// seen[owner] is set to 1. `double_sided` holds one word per mesh, non-zero where back
-// faces are visible. `slots` is scratch of fan.count words. kAvx512 on a CPU without it
-// runs the scalar kernel.
+// order (it must hold fan.count + kHitCreditSlack) and `escaped` 1.0 for a ray that
+// escaped, else 0.0 (both fan.count long). `double_sided` holds one word per mesh, non-zero
+// where back faces are visible. `slots` is scratch of fan.count words. kAvx512 on a CPU
+// without it runs the scalar kernel. (Which surfels were seen, link generation marks in its
+// sort, which reads every sample anyway.)
 HitCredit creditHits(const rt::RayFan& fan, const rt::HitArrays& hits, const std::uint32_t* double_sided,
                      const SurfelLocator& locator, std::uint32_t* slots, float* escaped, Sample* samples,
-                     std::uint8_t* seen, HitCreditKernel kernel = HitCreditKernel::kBest);
+                     HitCreditKernel kernel = HitCreditKernel::kBest);
 
 }  // namespace lightlink::links

@@ -112,14 +112,16 @@ LL_MULTIVERSION void bucketStarts(std::uint32_t* __restrict count_a, std::uint32
 // result equals a sort by (surfel, ray). Two or three passes over ~1k keys beat a
 // comparison sort by 4-5x here (the sort runs once per cache). `keys` and `buffer` hold n
 // keys each; returns the one that holds the sorted keys. A pass has no more buckets than its
-// bits of the surfel need (15 bits: 256 then 128).
+// bits of the surfel need (15 bits: 256 then 128). The first pass's count also sets
+// seen[surfel] for every key: hit credit's own pass for it had cost more (credit + sort
+// 10.1-10.4k -> 9.9-10.0k ticks per cache, CornellBox-Original, 4 alternated rounds).
 // Each pass counts and scatters the two halves of the keys with counters of their own (the
 // second half's bucket b starts where the first half's ends: the same stable order).
 // Neighbouring rays mostly hit the same surfel, so with one set of counters every key's
 // bucket increment waited on the previous key's; two halves make two chains that overlap
 // (the sort's share of link time, precompute_bench's phase timers on CornellBox-Original:
 // 5.9-6.5 % -> 5.2-5.3 %, Zen 5 VM; docs/results.md, issue 4 tenth pass).
-Sample* sortSamples(Sample* keys, Sample* buffer, std::size_t n, std::uint32_t surfel_bits) {
+Sample* sortSamples(Sample* keys, Sample* buffer, std::size_t n, std::uint32_t surfel_bits, std::uint8_t* seen) {
   const std::uint32_t passes = std::max<std::uint32_t>(1, (surfel_bits + 10) / 11);
   const std::uint32_t bits = (surfel_bits + passes - 1) / passes;
   alignas(64) std::uint32_t count_a[1u << 11], count_b[1u << 11];
@@ -130,9 +132,19 @@ Sample* sortSamples(Sample* keys, Sample* buffer, std::size_t n, std::uint32_t s
     auto bucket = [&](Sample k) { return static_cast<std::uint32_t>(k >> shift) & (buckets - 1); };
     std::fill(count_a, count_a + buckets, 0u);
     std::fill(count_b, count_b + buckets, 0u);
-    for (std::size_t i = 0; i < half; ++i) {
-      ++count_a[bucket(keys[i])];
-      ++count_b[bucket(keys[half + i])];
+    if (pass == 0) {
+      for (std::size_t i = 0; i < half; ++i) {
+        ++count_a[bucket(keys[i])];
+        ++count_b[bucket(keys[half + i])];
+        seen[surfelOf(keys[i])] = 1;
+        seen[surfelOf(keys[half + i])] = 1;
+      }
+      if (n > 2 * half) seen[surfelOf(keys[n - 1])] = 1;
+    } else {
+      for (std::size_t i = 0; i < half; ++i) {
+        ++count_a[bucket(keys[i])];
+        ++count_b[bucket(keys[half + i])];
+      }
     }
     if (n > 2 * half) ++count_b[bucket(keys[n - 1])];
     bucketStarts(count_a, count_b, buckets);
@@ -420,7 +432,7 @@ void linkCache(std::size_t cache, const glm::vec3& p, const glm::vec3& normal, c
   const std::uint32_t padded = skyPadded(count);
   for (std::uint32_t i = count; i < padded; ++i) escaped_mask[i] = dirs.x[i] = dirs.y[i] = dirs.z[i] = 0.0f;
   const HitCredit credited = creditHits(fan, hits, double_sided, locator, s.slots.data(), escaped_mask,
-                                       s.samples.data(), seen, options.hit_credit);
+                                       s.samples.data(), options.hit_credit);
   const std::size_t sampled = credited.sampled;
   const std::uint32_t escaped = credited.escaped;
   clock.lap(kPhaseCredit);
@@ -436,7 +448,7 @@ void linkCache(std::size_t cache, const glm::vec3& p, const glm::vec3& normal, c
   float sky[kCoeffs];
   for (int q = 0; q < kCoeffs; ++q) sky[q] = w * sh::kBasisScale[q] * sky_poly[q];
   clock.lap(kPhaseSky);
-  Sample* const sorted = sortSamples(s.samples.data(), s.sort_buffer.data(), sampled, surfel_bits);
+  Sample* const sorted = sortSamples(s.samples.data(), s.sort_buffer.data(), sampled, surfel_bits, seen);
   clock.lap(kPhaseSort);
   chooseCut(cut_tree, std::span<const Sample>(sorted, sampled), options.max_links, s.cut_scratch, s.cut);
   clock.lap(kPhaseCut);

@@ -51,7 +51,6 @@ struct Outcome {
   HitCredit credit;
   std::vector<Sample> samples;
   std::vector<float> escaped;
-  std::vector<std::uint8_t> seen;
 };
 
 // What creditHits must give, one ray at a time.
@@ -59,7 +58,6 @@ Outcome creditedRayByRay(const rt::RayFan& fan, const rt::HitArrays& hits, const
                          const SurfelLocator& locator) {
   Outcome o;
   o.escaped.assign(fan.count, 0.0f);
-  o.seen.assign(locator.surfelCount(), 0);
   for (std::uint32_t i = 0; i < fan.count; ++i) {
     if (hits.mesh[i] == rt::kNoHit) {
       o.escaped[i] = 1.0f;
@@ -79,7 +77,6 @@ Outcome creditedRayByRay(const rt::RayFan& fan, const rt::HitArrays& hits, const
       ++o.credit.unowned;
       continue;
     }
-    o.seen[owner] = 1;
     o.samples.push_back(makeSample(owner, i));
   }
   o.credit.sampled = static_cast<std::uint32_t>(o.samples.size());
@@ -138,9 +135,8 @@ TEST(HitCredit, EveryKernelCreditsAsTheLocatorRayByRay) {
           Outcome got;
           got.samples.assign(count + kHitCreditSlack, 0);
           got.escaped.assign(count, -1.0f);
-          got.seen.assign(locator.surfelCount(), 0);
           got.credit = creditHits(fan, hits, double_sided.data(), locator, slots.data(), got.escaped.data(),
-                                  got.samples.data(), got.seen.data(), kernel);
+                                  got.samples.data(), kernel);
           got.samples.resize(got.credit.sampled);
           const std::string where = std::string(kernel == HitCreditKernel::kScalar ? "scalar" : "AVX-512") +
                                     " kernel, rays " + std::to_string(count) + ", cache " + std::to_string(cache) +
@@ -152,7 +148,6 @@ TEST(HitCredit, EveryKernelCreditsAsTheLocatorRayByRay) {
           EXPECT_EQ(got.credit.unowned, want.credit.unowned) << where;
           EXPECT_EQ(got.samples, want.samples) << where;
           EXPECT_EQ(0, std::memcmp(got.escaped.data(), want.escaped.data(), count * sizeof(float))) << where;
-          EXPECT_EQ(got.seen, want.seen) << where;
         }
         kinds.sampled += want.credit.sampled;
         kinds.escaped += want.credit.escaped;
