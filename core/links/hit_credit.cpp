@@ -132,7 +132,14 @@ LL_AVX512_FN HitCredit creditAvx512(const rt::RayFan& fan, const rt::HitArrays& 
   const std::uint32_t triangles = tab.mesh_first_count == 0 ? 0u : tab.mesh_first[tab.mesh_first_count - 1];
   const auto* ds = reinterpret_cast<const int*>(double_sided);
   const auto* mesh_first = reinterpret_cast<const int*>(tab.mesh_first);
-  const auto* ref = reinterpret_cast<const int*>(tab.raster_ref);
+  // With up to 16 meshes their first triangles fit one register: a permute instead of a gather.
+  const bool few_meshes = mesh_limit <= 16;
+  const __m512i mesh_first_table =
+      few_meshes ? _mm512_maskz_loadu_epi32(static_cast<__mmask16>((1u << mesh_limit) - 1u), mesh_first)
+                 : _mm512_setzero_si512();
+  const auto* ref64 = reinterpret_cast<const long long*>(tab.raster_ref);
+  const __m512i even = _mm512_setr_epi32(0, 2, 4, 6, 8, 10, 12, 14, 16, 18, 20, 22, 24, 26, 28, 30);
+  const __m512i odd = _mm512_add_epi32(even, _mm512_set1_epi32(1));
   const __m512i zero = _mm512_setzero_si512();
   const __m512i none = _mm512_set1_epi32(static_cast<int>(kNoSurfel));
   const __m512 zero_f = _mm512_setzero_ps(), one_f = _mm512_set1_ps(1.0f);
@@ -154,8 +161,9 @@ LL_AVX512_FN HitCredit creditAvx512(const rt::RayFan& fan, const rt::HitArrays& 
     if (back != 0) blocked = _mm512_mask_cmpeq_epi32_mask(back, _mm512_mask_i32gather_epi32(zero, back, mesh, ds, 4), zero);
     const __mmask16 live = hit & static_cast<__mmask16>(~blocked);
     const __mmask16 mesh_ok = _mm512_mask_cmplt_epu32_mask(live, mesh, _mm512_set1_epi32(static_cast<int>(mesh_limit)));
-    const __m512i tri = _mm512_add_epi32(_mm512_mask_i32gather_epi32(zero, mesh_ok, mesh, mesh_first, 4),
-                                         _mm512_maskz_loadu_epi32(mesh_ok, hits.triangle + i0));
+    const __m512i base = few_meshes ? _mm512_maskz_permutexvar_epi32(mesh_ok, mesh, mesh_first_table)
+                                    : _mm512_mask_i32gather_epi32(zero, mesh_ok, mesh, mesh_first, 4);
+    const __m512i tri = _mm512_add_epi32(base, _mm512_maskz_loadu_epi32(mesh_ok, hits.triangle + i0));
     const __mmask16 tri_ok = _mm512_mask_cmplt_epu32_mask(mesh_ok, tri, _mm512_set1_epi32(static_cast<int>(triangles)));
     __m512i code = _mm512_mask_blend_epi32(tri_ok, _mm512_set1_epi32(static_cast<int>(kAskLocator)), tri);
     code = _mm512_mask_blend_epi32(blocked, code, _mm512_set1_epi32(static_cast<int>(kBlocked)));
@@ -168,9 +176,16 @@ LL_AVX512_FN HitCredit creditAvx512(const rt::RayFan& fan, const rt::HitArrays& 
     const __mmask16 lanes = n - i0 >= 16 ? __mmask16(0xffff) : __mmask16((1u << (n - i0)) - 1u);
     const __m512i tri = _mm512_maskz_loadu_epi32(lanes, slots + i0);
     const __mmask16 tri_ok = _mm512_mask_cmplt_epu32_mask(lanes, tri, _mm512_set1_epi32(static_cast<int>(kAskLocator)));
-    const __m512i t4 = _mm512_slli_epi32(tri, 2);
-    const __m512i first = _mm512_mask_i32gather_epi32(none, tri_ok, t4, ref, 4);
-    const __m512i size = _mm512_mask_i32gather_epi32(zero, tri_ok, t4, ref + 1, 4);
+    // Each triangle's (first, size) as one 8-byte word (RasterRef is 16 bytes): two gathers
+    // of 8 words, 16 loads, where one gather per field made 32.
+    const __m512i t2 = _mm512_slli_epi32(tri, 1);
+    const __m512i empty = _mm512_set1_epi64(static_cast<long long>(kNoSurfel));  // first none, size 0
+    const __m512i ref_lo = _mm512_mask_i32gather_epi64(empty, static_cast<__mmask8>(tri_ok), _mm512_castsi512_si256(t2),
+                                                       ref64, 8);
+    const __m512i ref_hi = _mm512_mask_i32gather_epi64(empty, static_cast<__mmask8>(tri_ok >> 8),
+                                                       _mm512_extracti64x4_epi64(t2, 1), ref64, 8);
+    const __m512i first = _mm512_permutex2var_epi32(ref_lo, even, ref_hi);
+    const __m512i size = _mm512_permutex2var_epi32(ref_lo, odd, ref_hi);
     const __mmask16 rastered = _mm512_mask_cmpneq_epu32_mask(tri_ok, first, none);
     // RasterRef's size_f and max_f, which are these conversions (exact: sizes are < 2^24).
     const __m512 size_f = _mm512_cvtepu32_ps(size);
