@@ -87,15 +87,15 @@ LL_MULTIVERSION void bucketStarts(std::uint32_t* __restrict count_a, std::uint32
       const Counts16 t = a + c;
       // Inclusive scan: lane i gets the sum of lanes 0..i (shifted copies added in 4 steps).
       Counts16 scan = t;
-      scan += __builtin_shuffle(zero, scan, Counts16{0, 16, 17, 18, 19, 20, 21, 22, 23, 24, 25, 26, 27, 28, 29, 30});
-      scan += __builtin_shuffle(zero, scan, Counts16{0, 0, 16, 17, 18, 19, 20, 21, 22, 23, 24, 25, 26, 27, 28, 29});
-      scan += __builtin_shuffle(zero, scan, Counts16{0, 0, 0, 0, 16, 17, 18, 19, 20, 21, 22, 23, 24, 25, 26, 27});
-      scan += __builtin_shuffle(zero, scan, Counts16{0, 0, 0, 0, 0, 0, 0, 0, 16, 17, 18, 19, 20, 21, 22, 23});
+      scan += __builtin_shufflevector(zero, scan, 0, 16, 17, 18, 19, 20, 21, 22, 23, 24, 25, 26, 27, 28, 29, 30);
+      scan += __builtin_shufflevector(zero, scan, 0, 0, 16, 17, 18, 19, 20, 21, 22, 23, 24, 25, 26, 27, 28, 29);
+      scan += __builtin_shufflevector(zero, scan, 0, 0, 0, 0, 16, 17, 18, 19, 20, 21, 22, 23, 24, 25, 26, 27);
+      scan += __builtin_shufflevector(zero, scan, 0, 0, 0, 0, 0, 0, 0, 0, 16, 17, 18, 19, 20, 21, 22, 23);
       const Counts16 start = total + scan - t;
       const Counts16 start_b = start + a;
       std::memcpy(count_a + b, &start, sizeof start);
       std::memcpy(count_b + b, &start_b, sizeof start_b);
-      total += __builtin_shuffle(scan, Counts16{15, 15, 15, 15, 15, 15, 15, 15, 15, 15, 15, 15, 15, 15, 15, 15});
+      total += __builtin_shufflevector(scan, scan, 15, 15, 15, 15, 15, 15, 15, 15, 15, 15, 15, 15, 15, 15, 15, 15);
     }
     return;
   }
@@ -302,6 +302,7 @@ constexpr SkyFn skyPolynomials = Bands == 1 ? sky1 : Bands == 2 ? sky2 : Bands =
 // cache. The samples are walked as kSumChains chains, each from a link's first sample to the
 // next chain's first, one step of each in turn, so that one chain's adds do not wait on
 // another's (the and + add of a step is the loop's critical path).
+// Ray indices stay below 2^20 (generateLinks rejects more rays), so the top bit is free.
 constexpr std::uint32_t kLinkStart = 0x80000000u;
 constexpr int kSumChains = 2;
 template <int Bands>
