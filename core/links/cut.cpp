@@ -1,25 +1,12 @@
-// GCC 12 warns inside its own AVX-512 headers (the _mm512_undefined_* they start from, GCC
-// bug 105593, fixed in 13): the warning is about the header, not this file's code.
-#if defined(__GNUC__) && !defined(__clang__)
-#pragma GCC diagnostic ignored "-Wmaybe-uninitialized"
-#pragma GCC diagnostic ignored "-Wuninitialized"
-#endif
 #include "core/links/cut.h"
 
 #include <algorithm>
 #include <bit>
 #include <stdexcept>
 
+#include "core/common/avx512.h"
 #include "core/common/check.h"
 #include "core/common/multiversion.h"
-
-#if defined(__x86_64__) && (defined(__GNUC__) || defined(__clang__))
-#include <immintrin.h>
-#define LL_CUT_AVX512 1
-#define LL_CUT_AVX512_FN __attribute__((target("avx512f,avx512bw,avx512vl,avx512dq")))
-#else
-#define LL_CUT_AVX512 0
-#endif
 
 namespace lightlink::links {
 
@@ -134,7 +121,7 @@ void splitScalar(Search& x, std::size_t m) {
   x.head += m;
 }
 
-#if LL_CUT_AVX512
+#if LL_AVX512
 // The same for 16 nodes in the lanes of one vector (splitAvx512, below): their 16 binary
 // searches advance together (one gather per halving step, as many steps as the largest node
 // needs), and the children are appended to the arrays by compressing the lanes that have
@@ -143,13 +130,13 @@ void splitScalar(Search& x, std::size_t m) {
 
 // Appends v's lanes in `keep` to dst at `at`: compressed in a register and stored whole (a
 // compressing store to memory is microcoded on Zen 4/5; the arrays have the slack).
-LL_CUT_AVX512_FN inline void append(std::uint32_t* dst, std::size_t& at, __mmask16 keep, __m512i v) {
+LL_AVX512_FN inline void append(std::uint32_t* dst, std::size_t& at, __mmask16 keep, __m512i v) {
   _mm512_storeu_si512(dst + at, _mm512_maskz_compress_epi32(keep, v));
   at += static_cast<std::size_t>(__builtin_popcount(keep));
 }
 
 // The node records of 16 nodes: children (with kLeafChild for a leaf) and split.
-LL_CUT_AVX512_FN inline void gatherNode(__m512i node, __mmask16 lanes, const CutNode* nodes, __m512i& left,
+LL_AVX512_FN inline void gatherNode(__m512i node, __mmask16 lanes, const CutNode* nodes, __m512i& left,
                                         __m512i& right, __m512i& split) {
   const auto* words = reinterpret_cast<const int*>(nodes);
   const __m512i zero = _mm512_setzero_si512();
@@ -170,9 +157,9 @@ struct Lanes {
   __m512i node, count, first, left, right, split, cl;
 };
 
-LL_CUT_AVX512_FN inline Lanes loadLanes(const Search& x, std::size_t at, std::size_t m) {
+LL_AVX512_FN inline Lanes loadLanes(const Search& x, std::size_t at, std::size_t m) {
   Lanes l;
-  l.lanes = static_cast<__mmask16>((1u << m) - 1u);
+  l.lanes = firstLanes(m);
   l.node = _mm512_maskz_loadu_epi32(l.lanes, x.qn + at);
   l.count = _mm512_maskz_loadu_epi32(l.lanes, x.qc + at);
   l.first = _mm512_maskz_loadu_epi32(l.lanes, x.qf + at);
@@ -183,7 +170,7 @@ LL_CUT_AVX512_FN inline Lanes loadLanes(const Search& x, std::size_t at, std::si
 // The binary searches of V vectors of nodes, interleaved: V independent chains of gathers,
 // each as long as the largest range needs.
 template <int V>
-LL_CUT_AVX512_FN inline void searchLanes(const Search& x, Lanes* l) {
+LL_AVX512_FN inline void searchLanes(const Search& x, Lanes* l) {
   // The surfel of sample k is the high word of the 8-byte key.
   const int* surfels = reinterpret_cast<const int*>(x.samples) + 1;
   const __m512i zero = _mm512_setzero_si512(), one = _mm512_set1_epi32(1);
@@ -211,7 +198,7 @@ LL_CUT_AVX512_FN inline void searchLanes(const Search& x, Lanes* l) {
 
 // Appends the split nodes' children (and the split nodes to growing). Children in
 // done_l / done_r are split in the same call (splitAvx512's second level): not queued.
-LL_CUT_AVX512_FN inline void appendLanes(Search& x, const Lanes& l, __mmask16 done_l = 0, __mmask16 done_r = 0) {
+LL_AVX512_FN inline void appendLanes(Search& x, const Lanes& l, __mmask16 done_l = 0, __mmask16 done_r = 0) {
   const __m512i zero = _mm512_setzero_si512();
   const __m512i cr = _mm512_sub_epi32(l.count, l.cl);
   const __m512i right_first = _mm512_add_epi32(l.first, l.cl);
@@ -259,7 +246,7 @@ LL_CUT_AVX512_FN inline void appendLanes(Search& x, const Lanes& l, __mmask16 do
 // So the parents' and the children's searches run as three interleaved chains, and a path
 // from the root costs half as many chains one after the other (the search's depth, not its
 // width, is what it waits on: most batches hold fewer than 16 nodes).
-LL_CUT_AVX512_FN void splitAvx512(Search& x, std::size_t m) {
+LL_AVX512_FN void splitAvx512(Search& x, std::size_t m) {
   Lanes l[3];
   l[0] = loadLanes(x, x.head, m);
   x.head += m;
@@ -289,11 +276,6 @@ LL_CUT_AVX512_FN void splitAvx512(Search& x, std::size_t m) {
   if (b.lanes) appendLanes(x, b);
 }
 
-bool cpuHasAvx512() {
-  static const bool has = __builtin_cpu_supports("avx512f") && __builtin_cpu_supports("avx512bw") &&
-                          __builtin_cpu_supports("avx512vl") && __builtin_cpu_supports("avx512dq");
-  return has;
-}
 #endif
 
 // The distinct surfels among sorted samples, counted until past `enough`. Blocks of 16
@@ -305,8 +287,8 @@ LL_MULTIVERSION std::uint32_t distinctSurfels(std::span<const Sample> samples, s
   std::uint32_t distinct = 1;
   std::size_t k = 1;
   for (; k + kBlock <= n && distinct <= enough; k += kBlock)
-    for (std::size_t i = k; i < k + kBlock; ++i) distinct += (samples[i] >> 32) != (samples[i - 1] >> 32) ? 1u : 0u;
-  for (; k < n && distinct <= enough; ++k) distinct += (samples[k] >> 32) != (samples[k - 1] >> 32) ? 1u : 0u;
+    for (std::size_t i = k; i < k + kBlock; ++i) distinct += surfelOf(samples[i]) != surfelOf(samples[i - 1]) ? 1u : 0u;
+  for (; k < n && distinct <= enough; ++k) distinct += surfelOf(samples[k]) != surfelOf(samples[k - 1]) ? 1u : 0u;
   return distinct;
 }
 
@@ -334,16 +316,16 @@ void markScalar(const Search& x, std::uint32_t stop_count, std::uint32_t stop_no
   }
 }
 
-#if LL_CUT_AVX512
+#if LL_AVX512
 // The same test on 16 records at a time (the branches of the one above mispredicted on
 // about every other record).
-LL_CUT_AVX512_FN void markAvx512(const Search& x, std::uint32_t stop_count, std::uint32_t stop_node,
+LL_AVX512_FN void markAvx512(const Search& x, std::uint32_t stop_count, std::uint32_t stop_node,
                                  std::uint32_t* at_first, std::uint64_t* starts) {
   const __m512i sc = _mm512_set1_epi32(static_cast<int>(stop_count));
   const __m512i sn = _mm512_set1_epi32(static_cast<int>(stop_node));
   const __m512i leaf_bit = _mm512_set1_epi32(static_cast<int>(kLeafChild));
   for (std::size_t r = 0; r < x.records; r += kBatch) {
-    const __mmask16 lanes = x.records - r >= kBatch ? __mmask16(0xffff) : __mmask16((1u << (x.records - r)) - 1u);
+    const __mmask16 lanes = firstLanes(x.records - r);
     const __m512i rn = _mm512_maskz_loadu_epi32(lanes, x.rn + r), rc = _mm512_maskz_loadu_epi32(lanes, x.rc + r);
     const __m512i pc = _mm512_maskz_loadu_epi32(lanes, x.pc + r), pn = _mm512_maskz_loadu_epi32(lanes, x.pn + r);
     const __mmask16 parent_refined =
@@ -404,7 +386,7 @@ void chooseCut(const CutTree& tree, std::span<const Sample> samples, int max_lin
   const auto limit = static_cast<std::uint32_t>(max_links);
   Search x(nodes.data(), samples.data(), s.stop_count > 1 ? s.stop_count - 1 : 0, s);
   x.record(0, static_cast<std::uint32_t>(samples.size()), 0, ~0u, 0);
-#if LL_CUT_AVX512
+#if LL_AVX512
   const bool vector = kernel == CutKernel::kBest && cpuHasAvx512();
   auto split = vector ? &splitAvx512 : &splitScalar;
   auto mark = vector ? &markAvx512 : &markScalar;

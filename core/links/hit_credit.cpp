@@ -1,8 +1,3 @@
-// GCC 12 warns inside its own AVX-512 headers (the _mm512_undefined_* they start from, GCC
-// bug 105593, fixed in 13): the warning is about the header, not this file's code.
-#if defined(__GNUC__) && !defined(__clang__)
-#pragma GCC diagnostic ignored "-Wmaybe-uninitialized"
-#endif
 #include "core/links/hit_credit.h"
 
 #include <algorithm>
@@ -10,22 +5,8 @@
 
 #include <glm/glm.hpp>
 
+#include "core/common/avx512.h"
 #include "core/links/surfel_locator.h"
-
-#if defined(__x86_64__) && (defined(__GNUC__) || defined(__clang__))
-#include <immintrin.h>
-#define LL_HIT_CREDIT_AVX512 1
-// AVX-512 implies FMA to GCC, and GCC contracts a * b + c into one even across intrinsics:
-// the back-face test's dot product would then round differently from the scalar kernel's
-// (and a ray could change class). Clang does not contract across intrinsic calls.
-#if defined(__clang__)
-#define LL_AVX512_FN __attribute__((target("avx512f,avx512bw,avx512vl,avx512dq")))
-#else
-#define LL_AVX512_FN __attribute__((target("avx512f,avx512bw,avx512vl,avx512dq"), optimize("fp-contract=off")))
-#endif
-#else
-#define LL_HIT_CREDIT_AVX512 0
-#endif
 
 namespace lightlink::links {
 namespace {
@@ -102,7 +83,7 @@ HitCredit creditScalar(const rt::RayFan& fan, const rt::HitArrays& hits, const s
   return c;
 }
 
-#if LL_HIT_CREDIT_AVX512
+#if LL_AVX512
 // 16 rays per step, in three passes over the fan. The table reads are gathers, and each
 // pass makes at most one gather per step that depends on another pass's data: pass 1 the
 // triangle's global index (from the mesh), pass 2 its raster reference and the slot (and it
@@ -147,7 +128,7 @@ LL_AVX512_FN HitCredit creditAvx512(const rt::RayFan& fan, const rt::HitArrays& 
   HitCredit c;
   std::uint32_t escaped_count = 0, back_hits = 0;
   for (std::uint32_t i0 = 0; i0 < n; i0 += 16) {
-    const __mmask16 lanes = n - i0 >= 16 ? __mmask16(0xffff) : __mmask16((1u << (n - i0)) - 1u);
+    const __mmask16 lanes = firstLanes(n - i0);
     const __m512i mesh = _mm512_maskz_loadu_epi32(lanes, hits.mesh + i0);
     const __mmask16 hit = _mm512_mask_cmpneq_epu32_mask(lanes, mesh, _mm512_set1_epi32(static_cast<int>(rt::kNoHit)));
     _mm512_mask_storeu_ps(escaped + i0, lanes, _mm512_mask_blend_ps(hit, one_f, zero_f));
@@ -173,7 +154,7 @@ LL_AVX512_FN HitCredit creditAvx512(const rt::RayFan& fan, const rt::HitArrays& 
   // Pass 2: the raster slots, and the owner loads started. A lane holds a global triangle
   // (below every code: there are fewer than 2^32 - 3 triangles) or pass 1's code.
   for (std::uint32_t i0 = 0; i0 < n; i0 += 16) {
-    const __mmask16 lanes = n - i0 >= 16 ? __mmask16(0xffff) : __mmask16((1u << (n - i0)) - 1u);
+    const __mmask16 lanes = firstLanes(n - i0);
     const __m512i tri = _mm512_maskz_loadu_epi32(lanes, slots + i0);
     const __mmask16 tri_ok = _mm512_mask_cmplt_epu32_mask(lanes, tri, _mm512_set1_epi32(static_cast<int>(kAskLocator)));
     // Each triangle's (first, size) as one 8-byte word (RasterRef is 16 bytes): two gathers
@@ -202,7 +183,7 @@ LL_AVX512_FN HitCredit creditAvx512(const rt::RayFan& fan, const rt::HitArrays& 
   }
   // Pass 3: the owners.
   for (std::uint32_t i0 = 0; i0 < n; i0 += 16) {
-    const __mmask16 lanes = n - i0 >= 16 ? __mmask16(0xffff) : __mmask16((1u << (n - i0)) - 1u);
+    const __mmask16 lanes = firstLanes(n - i0);
     const __m512i slot = _mm512_maskz_loadu_epi32(lanes, slots + i0);
     const __mmask16 escaped_lanes = _mm512_mask_cmpeq_epi32_mask(lanes, slot, _mm512_set1_epi32(static_cast<int>(kEscaped)));
     const __mmask16 blocked = _mm512_mask_cmpeq_epi32_mask(lanes, slot, _mm512_set1_epi32(static_cast<int>(kBlocked)));
@@ -246,15 +227,7 @@ LL_AVX512_FN HitCredit creditAvx512(const rt::RayFan& fan, const rt::HitArrays& 
 
 }  // namespace
 
-bool hitCreditHasAvx512() {
-#if LL_HIT_CREDIT_AVX512
-  static const bool has = __builtin_cpu_supports("avx512f") && __builtin_cpu_supports("avx512bw") &&
-                          __builtin_cpu_supports("avx512vl") && __builtin_cpu_supports("avx512dq");
-  return has;
-#else
-  return false;
-#endif
-}
+bool hitCreditHasAvx512() { return cpuHasAvx512(); }
 
 std::vector<std::uint32_t> doubleSidedByMesh(const scene::Scene& scene) {
   std::vector<std::uint32_t> double_sided(scene.meshes.size());
@@ -271,7 +244,7 @@ HitCreditKernel hitCreditKernelRun(HitCreditKernel requested) {
 HitCredit creditHits(const rt::RayFan& fan, const rt::HitArrays& hits, const std::uint32_t* double_sided,
                      const SurfelLocator& locator, std::uint32_t* slots, float* escaped, Sample* samples,
                      HitCreditKernel kernel) {
-#if LL_HIT_CREDIT_AVX512
+#if LL_AVX512
   if (hitCreditKernelRun(kernel) == HitCreditKernel::kAvx512)
     return creditAvx512(fan, hits, double_sided, locator, slots, escaped, samples);
 #else
