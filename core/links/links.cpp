@@ -11,6 +11,7 @@
 #include <x86intrin.h>
 #endif
 #include <numbers>
+#include <type_traits>
 
 #if defined(__SSE2__)
 #include <immintrin.h>
@@ -133,21 +134,23 @@ Sample* sortSamples(Sample* keys, Sample* buffer, std::size_t n, std::uint32_t s
     auto bucket = [&](Sample k) { return static_cast<std::uint32_t>(k >> shift) & (buckets - 1); };
     std::fill(count_a, count_a + buckets, 0u);
     std::fill(count_b, count_b + buckets, 0u);
-    if (pass == 0) {
+    // The first pass's count marks the seen surfels too (a constant, so the other passes'
+    // loop has no test for it).
+    auto count = [&](auto mark_seen) {
       for (std::size_t i = 0; i < half; ++i) {
         ++count_a[bucket(keys[i])];
         ++count_b[bucket(keys[half + i])];
-        seen[surfelOf(keys[i])] = 1;
-        seen[surfelOf(keys[half + i])] = 1;
+        if constexpr (mark_seen) seen[surfelOf(keys[i])] = seen[surfelOf(keys[half + i])] = 1;
       }
-      if (n > 2 * half) seen[surfelOf(keys[n - 1])] = 1;
-    } else {
-      for (std::size_t i = 0; i < half; ++i) {
-        ++count_a[bucket(keys[i])];
-        ++count_b[bucket(keys[half + i])];
+      if (n > 2 * half) {
+        ++count_b[bucket(keys[n - 1])];
+        if constexpr (mark_seen) seen[surfelOf(keys[n - 1])] = 1;
       }
-    }
-    if (n > 2 * half) ++count_b[bucket(keys[n - 1])];
+    };
+    if (pass == 0)
+      count(std::true_type{});
+    else
+      count(std::false_type{});
     bucketStarts(count_a, count_b, buckets);
     for (std::size_t i = 0; i < half; ++i) {
       const Sample ka = keys[i], kb = keys[half + i];
@@ -293,22 +296,20 @@ LL_SKY_ENTRY(4)
 template <int Bands>
 constexpr SkyFn skyPolynomials = Bands == 1 ? sky1 : Bands == 2 ? sky2 : Bands == 3 ? sky3 : sky4;
 
-// The links' polynomial sums: link l's row r at sums[((l + 1) * polyRows + r) * 8], each the sum of
-// its hits' rows in sample order, from zero: the same additions in the same order as a loop
-// per link, so the same bits. One flat loop over the samples instead, with no branch: the
-// sample that starts a link (kLinkStart set in its ray word) moves the output to the next
-// link and clears the running sums; every sample stores them, the link's last one leaving
-// its total. A loop per link ended on a data-dependent branch for each of ~125 links per
-// cache. The samples are walked as kSumChains chains, each from a link's first sample to the
-// next chain's first, one step of each in turn, so that one chain's adds do not wait on
-// another's (the and + add of a step is the loop's critical path).
+// The links' polynomial sums: link l's row r at sums[((l + 1) * polyRows + r) * 8] (the first
+// row set is a spare), each the sum of its hits' rows in sample order, from zero: the same
+// additions in the same order as a loop per link, so the same bits. One flat loop over the
+// samples instead, with no branch: the sample that starts a link (kLinkStart set in its ray
+// word) moves the output to the next link and clears the running sums; every sample stores
+// them, the link's last one leaving its total. A loop per link ended on a data-dependent
+// branch for each of ~125 links per cache. The samples are walked as two chains, [0, mid)
+// and [mid, n) (mid the first sample of link `link_mid`), one step of each in turn, so that
+// one chain's adds do not wait on the other's.
 // Ray indices stay below 2^20 (generateLinks rejects more rays), so the top bit is free.
 constexpr std::uint32_t kLinkStart = 0x80000000u;
-constexpr int kSumChains = 2;
 template <int Bands>
 __attribute__((always_inline)) inline void linkSumsImpl(const Sample* __restrict sorted, std::uint32_t n,
-                                                        const std::uint32_t* __restrict first,
-                                                        const std::uint32_t* __restrict link_at,
+                                                        std::uint32_t mid, std::uint32_t link_mid,
                                                         const float* __restrict poly, float* __restrict sums) {
   constexpr int kRows = polyRows(Bands);
   constexpr std::size_t kStride = std::size_t(kRows) * 8;
@@ -317,11 +318,10 @@ __attribute__((always_inline)) inline void linkSumsImpl(const Sample* __restrict
   alignas(32) static constexpr std::int32_t kKeep[2][8] = {{-1, -1, -1, -1, -1, -1, -1, -1}, {}};
   struct Chain {
     Lanes8 acc[kRows];
-    const Sample* key;  // the next sample
-    float* out;         // the current link's sums (one row before link_at's at the start)
+    float* out;  // the current link's sums
   };
-  auto step = [&](Chain& c) {
-    const auto word = static_cast<std::uint32_t>(*c.key++);
+  auto step = [&](Chain& c, std::uint32_t k) {
+    const auto word = static_cast<std::uint32_t>(sorted[k]);
     const std::uint32_t start = word >> 31;
     c.out += start * kStride;
     Ints8 keep;
@@ -334,29 +334,21 @@ __attribute__((always_inline)) inline void linkSumsImpl(const Sample* __restrict
       std::memcpy(c.out + r * 8, &c.acc[r], sizeof(Lanes8));
     }
   };
-  // Chain c covers samples [first[c], first[c + 1]) (first[kSumChains] = n); each starts
-  // with a link's first sample, which moves it to link link_at[c]. Link l's sums are at
-  // sums + (l + 1) * kStride: the set before link 0's is where chain 0 starts.
-  Chain ch[kSumChains];
-  std::uint32_t len[kSumChains], both = n;
-  for (int c = 0; c < kSumChains; ++c) {
-    ch[c].key = sorted + first[c];
-    ch[c].out = sums + std::size_t(link_at[c]) * kStride;
-    for (int r = 0; r < kRows; ++r) ch[c].acc[r] = Lanes8{};
-    len[c] = (c + 1 < kSumChains ? first[c + 1] : n) - first[c];
-    both = std::min(both, len[c]);
+  // Sample 0 and sample mid each start a link, which moves each chain onto its first link.
+  Chain a{{}, sums}, b{{}, sums + std::size_t(link_mid) * kStride};
+  const std::uint32_t both = std::min(mid, n - mid);
+  for (std::uint32_t i = 0; i < both; ++i) {
+    step(a, i);
+    step(b, mid + i);
   }
-  for (std::uint32_t i = 0; i < both; ++i)
-    for (int c = 0; c < kSumChains; ++c) step(ch[c]);
-  for (int c = 0; c < kSumChains; ++c)
-    for (std::uint32_t k = both; k < len[c]; ++k) step(ch[c]);
+  for (std::uint32_t k = both; k < mid; ++k) step(a, k);
+  for (std::uint32_t k = mid + both; k < n; ++k) step(b, k);
 }
-using LinkSumsFn = void (*)(const Sample*, std::uint32_t, const std::uint32_t*, const std::uint32_t*, const float*,
-                            float*);
-#define LL_SUMS_ENTRY(B)                                                                                      \
-  LL_MULTIVERSION void linkSums##B(const Sample* sorted, std::uint32_t n, const std::uint32_t* first,       \
-                                   const std::uint32_t* link_at, const float* poly, float* sums) {           \
-    linkSumsImpl<B>(sorted, n, first, link_at, poly, sums);                                                   \
+using LinkSumsFn = void (*)(const Sample*, std::uint32_t, std::uint32_t, std::uint32_t, const float*, float*);
+#define LL_SUMS_ENTRY(B)                                                                                       \
+  LL_MULTIVERSION void linkSums##B(const Sample* sorted, std::uint32_t n, std::uint32_t mid, std::uint32_t link_mid, \
+                                   const float* poly, float* sums) {                                          \
+    linkSumsImpl<B>(sorted, n, mid, link_mid, poly, sums);                                                     \
   }
 LL_SUMS_ENTRY(2)
 LL_SUMS_ENTRY(3)
@@ -467,16 +459,9 @@ void linkCache(std::size_t cache, const glm::vec3& p, const glm::vec3& normal, c
     if (links > 0) {
       // The sorted keys are scratch: a link's first sample carries the start flag from here.
       for (const CutEntry& e : s.cut) sorted[e.first] |= kLinkStart;
-      std::uint32_t first[kSumChains], link_at[kSumChains];
-      // Chains of about equal numbers of samples: each starts at the first link that starts
-      // at or after its share.
-      for (int c = 0, l = 0; c < kSumChains; ++c) {
-        const std::size_t share = sampled * c / kSumChains;
-        while (l + 1 < static_cast<int>(links) && s.cut[l].first < share) ++l;
-        link_at[c] = static_cast<std::uint32_t>(l);
-        first[c] = s.cut[l].first;
-      }
-      linkSums<Bands>(sorted, static_cast<std::uint32_t>(sampled), first, link_at, poly, link_sums);
+      const auto link_mid = static_cast<std::uint32_t>(links / 2);
+      linkSums<Bands>(sorted, static_cast<std::uint32_t>(sampled), s.cut[link_mid].first, link_mid, poly,
+                      link_sums);
     }
   }
   float scale[kCoeffs];
