@@ -6,7 +6,8 @@
 // surfels, tree and lightmap caches, each cache's fan traced and credited as link generation
 // does), then chooseCut runs over all of them on one thread, `repeats` times: the median
 // time per cache (each cache's samples hot in cache, as the sort leaves them), and what the
-// cut did (links per cache, a checksum of the chosen nodes). --cut-kernel scalar times the
+// cut did (links per cache, a checksum of the chosen nodes), and how often consecutive hits
+// (in ray order) fall on the same surfel. --cut-kernel scalar times the
 // one-node-at-a-time splits (links::CutKernel::kScalar: the code on CPUs without AVX-512).
 // Usage: cut_bench [--scene F] [--surfels N] [--links N] [--bands B] [--rays N] [--resolution R] [--hierarchy hac|fast]
 //                  [--caches N] [--repeats N] [--cut-kernel best|scalar] [--json OUT]
@@ -85,6 +86,7 @@ int main(int argc, char** argv) {
   const std::size_t caches = std::min(args.caches, lightmap);
   std::vector<links::Sample> all;
   std::vector<std::size_t> begin{0};
+  std::size_t same_as_previous = 0;
   {
     std::vector<float> dx(n + 16), dy(n + 16), dz(n + 16), u(n), v(n), t(n), nx(n), ny(n), nz(n), escaped(n);
     std::vector<std::uint32_t> mesh(n), tri(n), slots(n);
@@ -97,6 +99,9 @@ int main(int argc, char** argv) {
       accel->intersectFan(fan, hits);
       const links::HitCredit credit = links::creditHits(fan, hits, double_sided.data(), locator, slots.data(),
                                                         escaped.data(), samples.data());
+      // In ray order, as the sort receives them: how often a hit's surfel is the previous hit's.
+      for (std::uint32_t i = 1; i < credit.sampled; ++i)
+        same_as_previous += links::surfelOf(samples[i]) == links::surfelOf(samples[i - 1]) ? 1 : 0;
       std::sort(samples.begin(), samples.begin() + credit.sampled);
       all.insert(all.end(), samples.begin(), samples.begin() + credit.sampled);
       begin.push_back(all.size());
@@ -136,6 +141,8 @@ int main(int argc, char** argv) {
   const double links_per_cache = double(links_total) / double(caches);
   fmt::print("{} caches of {} ({} rays each), {:.0f} samples and {:.1f} links per cache\n", caches, lightmap, n,
              samples_per_cache, links_per_cache);
+  const double same_share = all.empty() ? 0.0 : double(same_as_previous) / double(all.size());
+  fmt::print("hits in ray order on the same surfel as the previous hit: {:.1f} %\n", 100.0 * same_share);
   fmt::print("chooseCut: {:.0f} ns per cache (min {:.0f}), {:.1f} ns per link; checksum {:016x}\n", cut_med,
              *std::min_element(cut_ns.begin(), cut_ns.end()), cut_med / std::max(1.0, links_per_cache), checksum);
   if (!args.json.empty()) {
@@ -145,6 +152,7 @@ int main(int argc, char** argv) {
     j["rays_per_cache"] = n;
     j["samples_per_cache"] = samples_per_cache;
     j["links_per_cache"] = links_per_cache;
+    j["same_surfel_as_previous_hit"] = same_share;
     j["cut_ns_per_cache"] = cut_ns;
     j["median_cut_ns_per_cache"] = cut_med;
     j["checksum"] = checksum;

@@ -119,8 +119,8 @@ LL_MULTIVERSION void bucketStarts(std::uint32_t* __restrict count_a, std::uint32
 // Each pass counts and scatters the two halves of the keys with counters of their own (the
 // second half's bucket b starts where the first half's ends: the same stable order).
 // Neighbouring rays hit nearby surfels (12 % of consecutive hits the same one on
-// CornellBox-Original, 20 % on ShadowsDirectional), so with one set of counters increments
-// of one bucket waited on each other; two halves make two chains that overlap
+// CornellBox-Original, 20 % on ShadowsDirectional: cut_bench), so with one set of counters
+// increments of one bucket waited on each other; two halves make two chains that overlap
 // (the sort's share of link time, precompute_bench's phase timers on CornellBox-Original:
 // 5.9-6.5 % -> 5.2-5.3 %, Zen 5 VM; docs/results.md, issue 4 tenth pass).
 Sample* sortSamples(Sample* keys, Sample* buffer, std::size_t n, std::uint32_t surfel_bits, std::uint8_t* seen) {
