@@ -1,24 +1,44 @@
 #include "core/common/memory.h"
 
 #include <cstdint>
+#include <cstdlib>
 
 #if defined(__linux__)
 #include <sys/mman.h>
 #endif
 
 namespace lightlink {
+namespace {
+constexpr std::size_t kHuge = std::size_t(2) << 20;
+}  // namespace
 
 void adviseHugePages(const void* p, std::size_t bytes) {
 #if defined(__linux__) && defined(MADV_HUGEPAGE)
-  constexpr std::uintptr_t kHuge = std::uintptr_t(2) << 20;
-  const auto begin = (reinterpret_cast<std::uintptr_t>(p) + kHuge - 1) & ~(kHuge - 1);
-  const auto end = (reinterpret_cast<std::uintptr_t>(p) + bytes) & ~(kHuge - 1);
+  const auto begin = (reinterpret_cast<std::uintptr_t>(p) + kHuge - 1) & ~std::uintptr_t(kHuge - 1);
+  const auto end = (reinterpret_cast<std::uintptr_t>(p) + bytes) & ~std::uintptr_t(kHuge - 1);
   // A refusal (no THP in this kernel, THP "never") leaves the memory as it was: ignored.
   if (end > begin) (void)madvise(reinterpret_cast<void*>(begin), end - begin, MADV_HUGEPAGE);
 #else
   (void)p;
   (void)bytes;
 #endif
+}
+
+void* allocateHuge(std::size_t bytes) {
+  if (bytes < kHuge) return ::operator new(bytes);
+  if (bytes > std::size_t(-1) - kHuge) throw std::bad_alloc();
+  const std::size_t rounded = (bytes + kHuge - 1) & ~(kHuge - 1);
+  void* p = std::aligned_alloc(kHuge, rounded);
+  if (p == nullptr) throw std::bad_alloc();
+  adviseHugePages(p, rounded);
+  return p;
+}
+
+void freeHuge(void* p, std::size_t bytes) noexcept {
+  if (bytes < kHuge)
+    ::operator delete(p);
+  else
+    std::free(p);
 }
 
 }  // namespace lightlink

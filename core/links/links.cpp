@@ -822,11 +822,11 @@ Expected<Links> generateLinks(const scene::Scene& scene, const rt::Accel& accel,
   const std::size_t reserve = std::min(n * static_cast<std::size_t>(options.max_links), kReserveLinks);
   links.offsets.reserve(n + 1);
   links.offsets.push_back(0);
-  reserveHuge(links.node, reserve);
-  reserveHuge(links.coeffs, reserve * coeffs_per_link);
-  reserveHuge(links.direction, reserve);
-  reserveHuge(links.solid_angle, reserve);
-  reserveHuge(links.sky, n * coeffs_per_link);
+  links.node.reserve(reserve);
+  links.coeffs.reserve(reserve * coeffs_per_link);
+  links.direction.reserve(reserve);
+  links.solid_angle.reserve(reserve);
+  links.sky.reserve(n * coeffs_per_link);
 
   // Chunks go through a pipeline: linked in parallel, appended to `links` in chunk order by
   // a serial stage. At most `tokens` chunks are in flight, and those are consecutive (the

@@ -35,6 +35,7 @@
 #include <glm/glm.hpp>
 
 #include "core/common/half.h"
+#include "core/common/memory.h"
 #include "core/common/progress.h"
 #include "core/common/status.h"
 #include "core/hierarchy/tree.h"
@@ -100,11 +101,11 @@ struct LinksView {
 struct Links {
   int bands = 0;
   std::vector<std::uint32_t> offsets;   // caches + 1: links of cache c are [offsets[c], offsets[c+1])
-  std::vector<std::uint32_t> node;      // per link: tree node
-  std::vector<half_bits> coeffs;        // per link, bands^2: SH of V/pi (projected form)
-  std::vector<std::uint32_t> direction; // per link: octahedral direction, 2 x snorm16 (runtime form)
-  std::vector<half_bits> solid_angle;   // per link: visible solid angle / pi (runtime form)
-  std::vector<float> sky;               // per cache, bands^2: SH of sky visibility / pi
+  HugeVector<std::uint32_t> node;       // per link: tree node
+  HugeVector<half_bits> coeffs;         // per link, bands^2: SH of V/pi (projected form)
+  HugeVector<std::uint32_t> direction;  // per link: octahedral direction, 2 x snorm16 (runtime form)
+  HugeVector<half_bits> solid_angle;    // per link: visible solid angle / pi (runtime form)
+  HugeVector<float> sky;                // per cache, bands^2: SH of sky visibility / pi
   // Per surfel (tree order): 1 when a front hit of some cache's ray was credited to it, else
   // 0. Relight averages node radiosity over these surfels only (docs/relight.md, "Surfels no
   // cache sees"); the precompute keeps their union over the lightmap and grid caches.

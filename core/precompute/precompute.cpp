@@ -24,8 +24,8 @@ using Clock = std::chrono::steady_clock;
 
 double secondsSince(Clock::time_point t0) { return std::chrono::duration<double>(Clock::now() - t0).count(); }
 
-template <typename T>
-std::size_t bytesOf(const std::vector<T>& v) {
+template <typename T, typename A>
+std::size_t bytesOf(const std::vector<T, A>& v) {
   return v.size() * sizeof(T);
 }
 

@@ -8,22 +8,34 @@
 namespace lightlink {
 namespace {
 
-// The hint changes no contents and no capacity rule: a vector reserved "huge" fills and
-// reads back like any other, at sizes below, at and past a 2 MiB page.
-TEST(Memory, ReserveHugeKeepsTheVectorsContract) {
+// A HugeVector fills and reads back like any vector, at sizes below, at and past a 2 MiB
+// page, across reallocations; its blocks of 2 MiB or more start on a 2 MiB boundary (the
+// point of it: the whole block can be given huge pages).
+TEST(Memory, HugeVectorKeepsTheVectorsContractAndAlignsBigBlocks) {
+  constexpr std::size_t kHuge = std::size_t(2) << 20;
   for (const std::size_t n : {std::size_t(0), std::size_t(1000), std::size_t(1) << 19, (std::size_t(3) << 20) + 7}) {
-    std::vector<std::uint32_t> v = {7, 8, 9};
-    reserveHuge(v, n);
+    HugeVector<std::uint32_t> v = {7, 8, 9};
+    v.reserve(n);
     EXPECT_GE(v.capacity(), n);
     ASSERT_EQ(v.size(), 3u);
     EXPECT_EQ(v[0], 7u);
     EXPECT_EQ(v[2], 9u);
+    if (v.capacity() * sizeof(std::uint32_t) >= kHuge) {
+      EXPECT_EQ(reinterpret_cast<std::uintptr_t>(v.data()) % kHuge, 0u) << n << " words";
+    }
     const std::uint32_t* before = v.data();
     for (std::size_t i = 3; i < n; ++i) v.push_back(static_cast<std::uint32_t>(i * 2654435761u));
     if (n > 3) {
       EXPECT_EQ(v.data(), before) << "filling within the reserve must not reallocate";
     }
     for (std::size_t i = 3; i < n; ++i) ASSERT_EQ(v[i], static_cast<std::uint32_t>(i * 2654435761u));
+    // Growing past the reserve moves the contents into a new block (of either kind).
+    const std::size_t size = v.size();
+    v.resize(2 * size + 1000, 5u);
+    for (std::size_t i = 3; i < size; ++i) ASSERT_EQ(v[i], static_cast<std::uint32_t>(i * 2654435761u));
+    EXPECT_EQ(v.back(), 5u);
+    HugeVector<std::uint32_t> copy = v;
+    EXPECT_EQ(copy, v);
   }
 }
 
