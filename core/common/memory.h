@@ -1,4 +1,4 @@
-// Memory for the big arrays a stage fills once (link coefficients, lightmaps).
+// Memory for the big arrays a stage fills once (link generation's output).
 //
 // Filling fresh memory costs one page fault per 4 KiB page the first time it is touched. On
 // the virtual machines we build and measure on that is expensive: 13 us of kernel time per
@@ -8,8 +8,9 @@
 // gives them to regions that ask (THP "madvise", Debian's default), these helpers ask.
 // A hint only covers the whole 2 MiB pages inside a block, and a block from malloc starts
 // anywhere: HugeVector's blocks of 2 MiB or more start on a 2 MiB boundary, so all of the
-// block can have huge pages (link generation's output on CornellBox-Original: 2,269 faults
-// of 4 KiB at the blocks' unaligned ends before; docs/results.md, issue 4 sixteenth pass).
+// block can have huge pages (`lightlink precompute` of CornellBox-Original: 9,391-9,399
+// page faults before, 7,146-7,258 after, `/usr/bin/time`; docs/results.md, issue 4
+// sixteenth pass).
 // They are hints: nothing changes but the time where the kernel says no.
 #pragma once
 
@@ -18,6 +19,9 @@
 #include <vector>
 
 namespace lightlink {
+
+// A huge page of x86-64 Linux (THP).
+inline constexpr std::size_t kHugePageBytes = std::size_t(2) << 20;
 
 // Asks for huge pages over the whole 2 MiB pages inside [p, p + bytes). Call it before the
 // memory is first written: pages already faulted in stay small.

@@ -116,7 +116,7 @@ LL_AVX512_FN HitCredit creditAvx512(const rt::RayFan& fan, const rt::HitArrays& 
   // With up to 16 meshes their first triangles fit one register: a permute instead of a gather.
   const bool few_meshes = mesh_limit <= 16;
   const __m512i mesh_first_table =
-      few_meshes ? _mm512_maskz_loadu_epi32(static_cast<__mmask16>((1u << mesh_limit) - 1u), mesh_first)
+      few_meshes ? _mm512_maskz_loadu_epi32(firstLanes(mesh_limit), mesh_first)
                  : _mm512_setzero_si512();
   const auto* ref64 = reinterpret_cast<const long long*>(tab.raster_ref);
   const __m512i even = _mm512_setr_epi32(0, 2, 4, 6, 8, 10, 12, 14, 16, 18, 20, 22, 24, 26, 28, 30);
@@ -227,8 +227,6 @@ LL_AVX512_FN HitCredit creditAvx512(const rt::RayFan& fan, const rt::HitArrays& 
 
 }  // namespace
 
-bool hitCreditHasAvx512() { return cpuHasAvx512(); }
-
 std::vector<std::uint32_t> doubleSidedByMesh(const scene::Scene& scene) {
   std::vector<std::uint32_t> double_sided(scene.meshes.size());
   for (std::size_t m = 0; m < scene.meshes.size(); ++m)
@@ -237,7 +235,7 @@ std::vector<std::uint32_t> doubleSidedByMesh(const scene::Scene& scene) {
 }
 
 HitCreditKernel hitCreditKernelRun(HitCreditKernel requested) {
-  return requested != HitCreditKernel::kScalar && hitCreditHasAvx512() ? HitCreditKernel::kAvx512
+  return requested != HitCreditKernel::kScalar && cpuHasAvx512() ? HitCreditKernel::kAvx512
                                                                         : HitCreditKernel::kScalar;
 }
 

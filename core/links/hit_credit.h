@@ -33,9 +33,6 @@ struct HitCredit {
 
 enum class HitCreditKernel { kBest, kScalar, kAvx512 };
 
-// Whether this CPU (and this build) can run the AVX-512 kernel.
-bool hitCreditHasAvx512();
-
 // The kernel creditHits runs when asked for `requested`: kAvx512 or kScalar.
 HitCreditKernel hitCreditKernelRun(HitCreditKernel requested);
 

@@ -10,6 +10,11 @@
 namespace lightlink::links {
 namespace {
 
+// A pass sorts at most this many bits (2^11 buckets).
+constexpr std::uint32_t kSortPassBits = 11;
+
+constexpr std::uint32_t ceilDiv(std::uint32_t a, std::uint32_t b) { return (a + b - 1) / b; }
+
 // Sixteen bucket counters as one GCC vector, for bucketStarts below.
 typedef std::uint32_t Counts16 __attribute__((vector_size(64)));
 
@@ -72,14 +77,14 @@ LL_MULTIVERSION void bucketStarts(std::uint32_t* __restrict count_a, std::uint32
 // link time, precompute_bench's phase timers on CornellBox-Original: 5.9-6.5 % -> 5.2-5.3 %,
 // Zen 5 VM; docs/results.md, issue 4 tenth pass).
 Sample* sortSamples(Sample* keys, Sample* buffer, std::size_t n, std::uint32_t surfel_bits, std::uint8_t* seen) {
-  const std::uint32_t passes = std::max<std::uint32_t>(1, (surfel_bits + kSortPassBits - 1) / kSortPassBits);
-  const std::uint32_t bits = (surfel_bits + passes - 1) / passes;
+  const std::uint32_t passes = std::max<std::uint32_t>(1, ceilDiv(surfel_bits, kSortPassBits));
+  const std::uint32_t bits = ceilDiv(surfel_bits, passes);
   alignas(64) std::uint32_t count_a[1u << kSortPassBits], count_b[1u << kSortPassBits];
   const std::size_t half = n / 2;  // the second half, [half, n), has the odd key
   const std::uint32_t low_bits = surfel_bits - bits;  // the last pass sorts the most bits
   for (std::uint32_t pass = 0, done = 0; pass < passes; ++pass) {
-    const std::uint32_t pass_bits =
-        pass + 1 == passes ? bits : (low_bits - done + (passes - 1 - pass) - 1) / (passes - 1 - pass);
+    // The passes before the last share low_bits as evenly as they can.
+    const std::uint32_t pass_bits = pass + 1 == passes ? bits : ceilDiv(low_bits - done, passes - 1 - pass);
     const std::uint32_t shift = 32 + done;
     const std::uint32_t buckets = 1u << pass_bits;
     done += pass_bits;

@@ -11,9 +11,6 @@
 
 namespace lightlink::links {
 
-// A pass sorts at most this many bits (2^11 buckets).
-inline constexpr std::uint32_t kSortPassBits = 11;
-
 // Sorts n samples, given in ray order with surfels below 2^surfel_bits (surfel_bits >= 1),
 // by (surfel, ray). `keys` and `buffer` hold n samples each; returns the one that holds the
 // result. seen[surfel] is set to 1 for every sample's surfel.

@@ -12,7 +12,6 @@ namespace {
 // page, across reallocations; its blocks of 2 MiB or more start on a 2 MiB boundary (the
 // point of it: the whole block can be given huge pages).
 TEST(Memory, HugeVectorKeepsTheVectorsContractAndAlignsBigBlocks) {
-  constexpr std::size_t kHuge = std::size_t(2) << 20;
   for (const std::size_t n : {std::size_t(0), std::size_t(1000), std::size_t(1) << 19, (std::size_t(3) << 20) + 7}) {
     HugeVector<std::uint32_t> v = {7, 8, 9};
     v.reserve(n);
@@ -20,8 +19,8 @@ TEST(Memory, HugeVectorKeepsTheVectorsContractAndAlignsBigBlocks) {
     ASSERT_EQ(v.size(), 3u);
     EXPECT_EQ(v[0], 7u);
     EXPECT_EQ(v[2], 9u);
-    if (v.capacity() * sizeof(std::uint32_t) >= kHuge) {
-      EXPECT_EQ(reinterpret_cast<std::uintptr_t>(v.data()) % kHuge, 0u) << n << " words";
+    if (v.capacity() * sizeof(std::uint32_t) >= kHugePageBytes) {
+      EXPECT_EQ(reinterpret_cast<std::uintptr_t>(v.data()) % kHugePageBytes, 0u) << n << " words";
     }
     const std::uint32_t* before = v.data();
     for (std::size_t i = 3; i < n; ++i) v.push_back(static_cast<std::uint32_t>(i * 2654435761u));
