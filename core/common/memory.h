@@ -16,6 +16,8 @@
 
 #include <cstddef>
 #include <new>
+#include <type_traits>
+#include <utility>
 #include <vector>
 
 namespace lightlink {
@@ -45,13 +47,25 @@ struct HugePageAllocator {
     return static_cast<T*>(allocateHuge(n * sizeof(T)));
   }
   void deallocate(T* p, std::size_t n) noexcept { freeHuge(p, n * sizeof(T)); }
+  // Elements made without a value are default-initialised, not zeroed: resize(n) writes
+  // nothing, so a stage can size an array for its worst case and pay page faults only for
+  // what it fills (link generation's output).
+  template <typename U>
+  void construct(U* p) noexcept(std::is_nothrow_default_constructible_v<U>) {
+    ::new (static_cast<void*>(p)) U;
+  }
+  template <typename U, typename... Args>
+  void construct(U* p, Args&&... args) {
+    ::new (static_cast<void*>(p)) U(std::forward<Args>(args)...);
+  }
   template <typename U>
   bool operator==(const HugePageAllocator<U>&) const noexcept {
     return true;
   }
 };
 
-// A vector whose big buffers are huge-page blocks: reserve the final size once, then fill.
+// A vector whose big buffers are huge-page blocks: reserve (or resize: no zeroing) the final
+// size once, then fill. HugeVector<T>(n) and resize(n) leave trivial elements unset.
 template <typename T>
 using HugeVector = std::vector<T, HugePageAllocator<T>>;
 

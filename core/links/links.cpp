@@ -11,11 +11,14 @@
 #include <x86intrin.h>
 #endif
 #include <numbers>
+#include <mutex>
+#include <shared_mutex>
 
 #if defined(__SSE2__)
 #include <immintrin.h>
 #endif
 
+#include <tbb/concurrent_queue.h>
 #include <tbb/enumerable_thread_specific.h>
 #include <tbb/parallel_pipeline.h>
 #include <tbb/task_arena.h>
@@ -718,43 +721,63 @@ Expected<Links> generateLinks(const scene::Scene& scene, const rt::Accel& accel,
   const std::size_t coeffs_per_link = static_cast<std::size_t>(options.bands * options.bands);
   Links links;
   links.bands = options.bands;
-  // Every cache has at most max_links links, so up to kReserveLinks links the arrays are
-  // reserved once for the worst case and filled without a reallocation (a copy into fresh
-  // pages); the part never written is never faulted in. With huge pages asked for, filling
-  // them costs a fault per 2 MiB instead of per 4 KiB (core/common/memory.h).
-  constexpr std::size_t kReserveLinks = std::size_t(1) << 26;
-  const std::size_t reserve = std::min(n * static_cast<std::size_t>(options.max_links), kReserveLinks);
-  links.offsets.reserve(n + 1);
-  links.offsets.push_back(0);
-  links.node.reserve(reserve);
-  links.coeffs.reserve(reserve * coeffs_per_link);
-  links.direction.reserve(reserve);
-  links.solid_angle.reserve(reserve);
-  links.sky.reserve(n * coeffs_per_link);
+  // Chunks go through a pipeline: linked in parallel into a slot of the ring, given their
+  // place in the output by a serial stage (in chunk order, so the layout does not depend on
+  // the scheduling), and copied there in parallel. At most `tokens` chunks are in flight, so
+  // a chunk takes a free slot when it enters and frees it when its copy is done (copies end
+  // in any order), and the ring's buffers are reused, warm, for the whole run.
+  // (Keeping every chunk's result until the end, as before, wrote all links twice into fresh
+  // memory: on the Zen 5 VM this stage then took 0.47 s on CornellBox-Original instead of
+  // 0.31, with 25k page faults instead of 9k; docs/results.md, issue 4 tenth pass.) The copy
+  // runs in the parallel stage, mostly on the thread that linked the chunk, while its result
+  // is still in that core's cache; the first write to each output page (a page fault) then
+  // stalls one chunk's thread instead of the in-order stage all chunks wait on (docs/results.md,
+  // issue 4 seventeenth pass).
+  // The output arrays are sized up front for the worst case (every cache max_links links, up
+  // to options.output_links_up_front) without being written (HugePageAllocator
+  // default-initialises), so the part never written is never faulted in; past that they
+  // grow, while no copy runs.
+  const std::size_t max_links = static_cast<std::size_t>(options.max_links);
+  links.offsets.resize(n + 1);
+  links.offsets[0] = 0;
+  links.sky.resize(n * coeffs_per_link);
+  const auto sizeOutput = [&](std::size_t link_count) {
+    links.node.resize(link_count);
+    links.coeffs.resize(link_count * coeffs_per_link);
+    links.direction.resize(link_count);
+    links.solid_angle.resize(link_count);
+  };
+  sizeOutput(std::min(n * max_links, std::max<std::size_t>(1, options.output_links_up_front)));
+  std::shared_mutex output_mutex;  // shared: copies into the output; exclusive: growing it
 
-  // Chunks go through a pipeline: linked in parallel, appended to `links` in chunk order by
-  // a serial stage. At most `tokens` chunks are in flight, and those are consecutive (the
-  // last stage takes them in order), so chunk c's result lives in ring slot c % tokens and
-  // the ring's buffers are reused, warm, for the whole run. (Keeping every chunk's result
-  // until the end, as before, wrote all links twice into fresh memory: on the Zen 5 VM
-  // this stage then took 0.47 s on CornellBox-Original instead of 0.31, with 25k page
-  // faults instead of 9k; docs/results.md, issue 4 tenth pass.)
   const std::size_t tokens = 4 * static_cast<std::size_t>(std::max(1, tbb::this_task_arena::max_concurrency()));
-  std::vector<ChunkResult> ring(tokens);
-  std::size_t next_chunk = 0;
+  struct Slot {
+    ChunkResult result;
+    std::size_t chunk = 0;
+    std::size_t at = 0;  // the output index of the chunk's first link
+  };
+  std::vector<Slot> ring(tokens);
+  tbb::concurrent_queue<Slot*> free_slots;
+  for (Slot& slot : ring) free_slots.push(&slot);
+  std::size_t next_chunk = 0, placed_links = 0;
   tbb::parallel_pipeline(
       tokens,
-      tbb::make_filter<void, std::size_t>(tbb::filter_mode::serial_in_order,
-                                          [&](tbb::flow_control& fc) -> std::size_t {
-                                            if (next_chunk == chunks || sink.cancelled()) {
-                                              fc.stop();
-                                              return 0;
-                                            }
-                                            return next_chunk++;
-                                          }) &
-          tbb::make_filter<std::size_t, std::size_t>(
+      tbb::make_filter<void, Slot*>(tbb::filter_mode::serial_in_order,
+                                    [&](tbb::flow_control& fc) -> Slot* {
+                                      Slot* slot = nullptr;
+                                      if (next_chunk == chunks || sink.cancelled()) {
+                                        fc.stop();
+                                        return slot;
+                                      }
+                                      // Fewer than `tokens` chunks are in flight: one is free.
+                                      LL_CHECK(free_slots.try_pop(slot));
+                                      slot->chunk = next_chunk++;
+                                      return slot;
+                                    }) &
+          tbb::make_filter<Slot*, Slot*>(
               tbb::filter_mode::parallel,
-              [&](std::size_t chunk) {
+              [&](Slot* slot) {
+                const std::size_t chunk = slot->chunk;
                 thread_local Scratch scratch;
                 std::uint8_t* seen = seen_by_thread.local().data();
                 for (auto* v : {&scratch.hit_mesh, &scratch.hit_triangle}) v->resize(pattern.count());
@@ -767,16 +790,15 @@ Expected<Links> generateLinks(const scene::Scene& scene, const rt::Accel& accel,
                 for (auto* v : {&scratch.dir_x, &scratch.dir_y, &scratch.dir_z, &scratch.escaped})
                   v->resize(skyPadded(pattern.count()));
                 scratch.poly.resize(std::size_t(skyPadded(pattern.count())) * polyRows(options.bands) * 8);
-                scratch.link_sums.resize((std::size_t(options.max_links) + 1) * polyRows(options.bands) * 8);
-                scratch.coeff_values.resize(std::size_t(options.max_links) * coeffs_per_link);
-                scratch.solid_values.resize(std::size_t(options.max_links));
-                for (auto* v : {&scratch.link_x, &scratch.link_y, &scratch.link_z})
-                  v->resize(std::size_t(options.max_links));
-                ChunkResult& out = ring[chunk % tokens];
+                scratch.link_sums.resize((max_links + 1) * polyRows(options.bands) * 8);
+                scratch.coeff_values.resize(max_links * coeffs_per_link);
+                scratch.solid_values.resize(max_links);
+                for (auto* v : {&scratch.link_x, &scratch.link_y, &scratch.link_z}) v->resize(max_links);
+                ChunkResult& out = slot->result;
                 out.clear();
                 const std::size_t end = std::min(n, (chunk + 1) * kChunk);
                 // Worst case up front (a no-op once the slot has held a full chunk).
-                const std::size_t most = (end - chunk * kChunk) * static_cast<std::size_t>(options.max_links);
+                const std::size_t most = (end - chunk * kChunk) * max_links;
                 out.node.reserve(most);
                 out.coeffs.reserve(most * coeffs_per_link);
                 out.direction.reserve(most);
@@ -785,23 +807,45 @@ Expected<Links> generateLinks(const scene::Scene& scene, const rt::Accel& accel,
                   link_cache(c, caches.position[c], caches.normal[c], double_sided.data(), accel, cut_tree, locator,
                              options, pattern, surfel_bits, scratch, seen, out);
                 counter.add(end - chunk * kChunk);
-                return chunk;
+                return slot;
               }) &
-          tbb::make_filter<std::size_t, void>(tbb::filter_mode::serial_in_order, [&](std::size_t chunk) {
-            const ChunkResult& r = ring[chunk % tokens];
-            for (std::uint32_t c : r.count) links.offsets.push_back(links.offsets.back() + c);
-            links.node.insert(links.node.end(), r.node.begin(), r.node.end());
-            links.coeffs.insert(links.coeffs.end(), r.coeffs.begin(), r.coeffs.end());
-            links.direction.insert(links.direction.end(), r.direction.begin(), r.direction.end());
-            links.solid_angle.insert(links.solid_angle.end(), r.solid_angle.begin(), r.solid_angle.end());
-            links.sky.insert(links.sky.end(), r.sky.begin(), r.sky.end());
-            links.stats.rays += r.stats.rays;
-            links.stats.front_hits += r.stats.front_hits;
-            links.stats.back_hits += r.stats.back_hits;
-            links.stats.escaped += r.stats.escaped;
-            links.stats.unowned += r.stats.unowned;
-            for (int k = 0; k < kLinkPhases; ++k) links.stats.phase_ticks[k] += r.stats.phase_ticks[k];
+          tbb::make_filter<Slot*, Slot*>(
+              tbb::filter_mode::serial_in_order,
+              [&](Slot* slot) {
+                const std::size_t chunk = slot->chunk;
+                const ChunkResult& r = slot->result;
+                slot->at = placed_links;
+                for (std::size_t k = 0; k < r.count.size(); ++k) {
+                  const std::size_t c = chunk * kChunk + k;
+                  links.offsets[c + 1] = links.offsets[c] + r.count[k];
+                }
+                placed_links += r.node.size();
+                if (placed_links > links.node.size()) {
+                  const std::unique_lock grow(output_mutex);
+                  sizeOutput(std::max(placed_links, 2 * links.node.size()));
+                }
+                links.stats.rays += r.stats.rays;
+                links.stats.front_hits += r.stats.front_hits;
+                links.stats.back_hits += r.stats.back_hits;
+                links.stats.escaped += r.stats.escaped;
+                links.stats.unowned += r.stats.unowned;
+                for (int k = 0; k < kLinkPhases; ++k) links.stats.phase_ticks[k] += r.stats.phase_ticks[k];
+                return slot;
+              }) &
+          tbb::make_filter<Slot*, void>(tbb::filter_mode::parallel, [&](Slot* slot) {
+            const ChunkResult& r = slot->result;
+            const std::size_t at = slot->at;
+            {
+              const std::shared_lock copying(output_mutex);
+              std::copy(r.node.begin(), r.node.end(), links.node.begin() + at);
+              std::copy(r.coeffs.begin(), r.coeffs.end(), links.coeffs.begin() + at * coeffs_per_link);
+              std::copy(r.direction.begin(), r.direction.end(), links.direction.begin() + at);
+              std::copy(r.solid_angle.begin(), r.solid_angle.end(), links.solid_angle.begin() + at);
+              std::copy(r.sky.begin(), r.sky.end(), links.sky.begin() + slot->chunk * kChunk * coeffs_per_link);
+            }
+            free_slots.push(slot);
           }));
+  if (!sink.cancelled()) sizeOutput(placed_links);
   sink.end();
   if (sink.cancelled()) return Status(Code::kInternal, "link generation cancelled");
   links.seen.assign(locator.surfelCount(), 0);

@@ -57,6 +57,10 @@ struct LinkOptions {
   // Which hit-credit kernel runs: the best this CPU has, or the scalar one (both give the
   // same bits; precompute_bench --hit-credit scalar times the difference).
   HitCreditKernel hit_credit = HitCreditKernel::kBest;
+  // Links the output arrays are sized for before the first cache (as if every cache had
+  // max_links, up to this many; sized, not written: pages are faulted in as links land).
+  // Past it they grow while no chunk is being copied in; the result is the same.
+  std::size_t output_links_up_front = std::size_t(1) << 26;
 };
 
 // The caches to link: positions, and a unit normal for a hemisphere (lightmap) cache or a

@@ -282,6 +282,20 @@ TEST(Links, ManyChunksComeOutInCacheOrder) {
   // Neighbouring caches differ, so a chunk's links in another chunk's place would show.
   EXPECT_NE(std::vector<std::uint32_t>(all.node.begin() + all.offsets[0], all.node.begin() + all.offsets[1]),
             std::vector<std::uint32_t>(all.node.begin() + all.offsets[600], all.node.begin() + all.offsets[601]));
+  // Output arrays sized for 50 links up front grow many times while chunks are copied in on
+  // two threads, and hold the same links.
+  LinkOptions small = opt;
+  small.output_links_up_front = 50;
+  const Links grown = [&] {
+    tbb::global_control limit(tbb::global_control::max_allowed_parallelism, 2);
+    return fixture.link(p, n, small);
+  }();
+  EXPECT_EQ(grown.offsets, all.offsets);
+  EXPECT_EQ(grown.node, all.node);
+  EXPECT_EQ(grown.coeffs, all.coeffs);
+  EXPECT_EQ(grown.direction, all.direction);
+  EXPECT_EQ(grown.solid_angle, all.solid_angle);
+  EXPECT_EQ(grown.sky, all.sky);
 }
 
 // Every phase of linking a cache is timed (the report's phase shares and the benchmark's
