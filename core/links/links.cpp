@@ -209,14 +209,16 @@ constexpr SkyFn skyPolynomials = Bands == 1 ? sky1 : Bands == 2 ? sky2 : Bands =
 // samples instead, with no branch: the sample that starts a link (kLinkStart set in its ray
 // word) moves the output to the next link and clears the running sums; every sample stores
 // them, the link's last one leaving its total. A loop per link ended on a data-dependent
-// branch for each of ~125 links per cache. The samples are walked as two chains, [0, mid)
-// and [mid, n) (mid the first sample of link `link_mid`), one step of each in turn, so that
-// one chain's adds do not wait on the other's.
+// branch for each of ~125 links per cache. The samples are walked as kSumChains chains,
+// chain j from first[j] (the first sample of link link_first[j]; first[0] = 0) to the next
+// chain's first sample (the last to n), one step of each in turn, so that one chain's adds
+// do not wait on another's.
 // Ray indices stay below 2^20 (generateLinks rejects more rays), so the top bit is free.
 constexpr std::uint32_t kLinkStart = 0x80000000u;
+constexpr int kSumChains = 4;
 template <int Bands>
 __attribute__((always_inline)) inline void linkSumsImpl(const Sample* __restrict sorted, std::uint32_t n,
-                                                        std::uint32_t mid, std::uint32_t link_mid,
+                                                        const std::uint32_t* first, const std::uint32_t* link_first,
                                                         const float* __restrict poly, float* __restrict sums) {
   constexpr int kRows = polyRows(Bands);
   constexpr std::size_t kStride = std::size_t(kRows) * 8;
@@ -241,21 +243,26 @@ __attribute__((always_inline)) inline void linkSumsImpl(const Sample* __restrict
       std::memcpy(c.out + r * 8, &c.acc[r], sizeof(Lanes8));
     }
   };
-  // Sample 0 and sample mid each start a link, which moves each chain onto its first link.
-  Chain a{{}, sums}, b{{}, sums + std::size_t(link_mid) * kStride};
-  const std::uint32_t both = std::min(mid, n - mid);
-  for (std::uint32_t i = 0; i < both; ++i) {
-    step(a, i);
-    step(b, mid + i);
+  // The first sample of each chain's range starts a link, which moves the chain onto it.
+  Chain c[kSumChains];
+  std::uint32_t at[kSumChains], end[kSumChains], common = n;
+  for (int j = 0; j < kSumChains; ++j) {
+    c[j] = {{}, sums + std::size_t(link_first[j]) * kStride};
+    at[j] = first[j];
+    end[j] = j + 1 < kSumChains ? first[j + 1] : n;
+    common = std::min(common, end[j] - at[j]);
   }
-  for (std::uint32_t k = both; k < mid; ++k) step(a, k);
-  for (std::uint32_t k = mid + both; k < n; ++k) step(b, k);
+  for (std::uint32_t i = 0; i < common; ++i)
+    for (int j = 0; j < kSumChains; ++j) step(c[j], at[j] + i);
+  for (int j = 0; j < kSumChains; ++j)
+    for (std::uint32_t k = at[j] + common; k < end[j]; ++k) step(c[j], k);
 }
-using LinkSumsFn = void (*)(const Sample*, std::uint32_t, std::uint32_t, std::uint32_t, const float*, float*);
-#define LL_SUMS_ENTRY(B)                                                                                       \
-  LL_MULTIVERSION void linkSums##B(const Sample* sorted, std::uint32_t n, std::uint32_t mid, std::uint32_t link_mid, \
-                                   const float* poly, float* sums) {                                          \
-    linkSumsImpl<B>(sorted, n, mid, link_mid, poly, sums);                                                     \
+using LinkSumsFn = void (*)(const Sample*, std::uint32_t, const std::uint32_t*, const std::uint32_t*, const float*,
+                            float*);
+#define LL_SUMS_ENTRY(B)                                                                                   \
+  LL_MULTIVERSION void linkSums##B(const Sample* sorted, std::uint32_t n, const std::uint32_t* first,        \
+                                   const std::uint32_t* link_first, const float* poly, float* sums) {        \
+    linkSumsImpl<B>(sorted, n, first, link_first, poly, sums);                                             \
   }
 LL_SUMS_ENTRY(2)
 LL_SUMS_ENTRY(3)
@@ -366,9 +373,12 @@ void linkCache(std::size_t cache, const glm::vec3& p, const glm::vec3& normal, c
     if (links > 0) {
       // The sorted keys are scratch: a link's first sample carries the start flag from here.
       for (const CutEntry& e : s.cut) sorted[e.first] |= kLinkStart;
-      const auto link_mid = static_cast<std::uint32_t>(links / 2);
-      linkSums<Bands>(sorted, static_cast<std::uint32_t>(sampled), s.cut[link_mid].first, link_mid, poly,
-                      link_sums);
+      std::uint32_t first[kSumChains], link_first[kSumChains];
+      for (int j = 0; j < kSumChains; ++j) {
+        link_first[j] = static_cast<std::uint32_t>(links * std::size_t(j) / kSumChains);
+        first[j] = s.cut[link_first[j]].first;
+      }
+      linkSums<Bands>(sorted, static_cast<std::uint32_t>(sampled), first, link_first, poly, link_sums);
     }
   }
   float scale[kCoeffs];
