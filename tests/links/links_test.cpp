@@ -53,6 +53,17 @@ struct LinkFixture {
   }
 };
 
+// Every array of two link sets the same (the seen surfels included).
+void expectSameLinks(const Links& a, const Links& b) {
+  EXPECT_EQ(a.seen, b.seen);
+  EXPECT_EQ(a.offsets, b.offsets);
+  EXPECT_EQ(a.node, b.node);
+  EXPECT_EQ(a.coeffs, b.coeffs);
+  EXPECT_EQ(a.direction, b.direction);
+  EXPECT_EQ(a.solid_angle, b.solid_angle);
+  EXPECT_EQ(a.sky, b.sky);
+}
+
 float linkSolidAngle(const Links& l, std::size_t cache) {
   float sum = 0.0f;
   for (std::uint32_t k = l.offsets[cache]; k < l.offsets[cache + 1]; ++k) sum += fromHalf(l.solid_angle[k]) * kPi;
@@ -182,13 +193,7 @@ TEST(Links, DeterministicAcrossThreadCounts) {
     tbb::global_control limit(tbb::global_control::max_allowed_parallelism, threads);
     return fixture.link(p, n, {.rays = 256, .max_links = 32});
   };
-  const Links a = run(1), b = run(2);
-  EXPECT_EQ(a.seen, b.seen);
-  EXPECT_EQ(a.offsets, b.offsets);
-  EXPECT_EQ(a.node, b.node);
-  EXPECT_EQ(a.coeffs, b.coeffs);
-  EXPECT_EQ(a.direction, b.direction);
-  EXPECT_EQ(a.sky, b.sky);
+  expectSameLinks(run(1), run(2));
 }
 
 TEST(Links, RuntimeFormApproximatesTheProjectedForm) {
@@ -290,12 +295,7 @@ TEST(Links, ManyChunksComeOutInCacheOrder) {
     tbb::global_control limit(tbb::global_control::max_allowed_parallelism, 2);
     return fixture.link(p, n, small);
   }();
-  EXPECT_EQ(grown.offsets, all.offsets);
-  EXPECT_EQ(grown.node, all.node);
-  EXPECT_EQ(grown.coeffs, all.coeffs);
-  EXPECT_EQ(grown.direction, all.direction);
-  EXPECT_EQ(grown.solid_angle, all.solid_angle);
-  EXPECT_EQ(grown.sky, all.sky);
+  expectSameLinks(grown, all);
 }
 
 // Every phase of linking a cache is timed (the report's phase shares and the benchmark's
