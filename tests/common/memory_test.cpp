@@ -2,11 +2,11 @@
 
 #include <cstdint>
 #include <fstream>
+#include <vector>
 
 #if defined(__linux__)
 #include <unistd.h>
 #endif
-#include <vector>
 
 #include <gtest/gtest.h>
 
@@ -53,8 +53,9 @@ std::size_t residentBytes() {
 }
 
 // Sizing a HugeVector writes nothing (link generation sizes its output for the worst case
-// and pays page faults only for the links it writes): 256 MiB resized in place of 4 KiB
-// stay out of resident memory, and a value given to resize is still written.
+// and pays page faults only for the links it writes): resizing one to 256 MiB adds less
+// than 32 MiB to resident memory (zeroing would add all of it), and a value given to resize
+// is still written.
 TEST(Memory, HugeVectorSizingWritesNothing) {
   const std::size_t bytes = std::size_t(256) << 20;
   HugeVector<std::uint8_t> v;
