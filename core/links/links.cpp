@@ -70,12 +70,14 @@ struct Scratch {
   std::vector<float> link_x, link_y, link_z;  // per link of the cache: the direction to encode
 };
 
+// The link arrays are HugeVectors for their allocator's default-initialising resize: each
+// cache's links are written right after they are sized, so zeroing them first was wasted.
 struct ChunkResult {
   std::vector<std::uint32_t> count;  // links per cache
-  std::vector<std::uint32_t> node;
-  std::vector<half_bits> coeffs;
-  std::vector<std::uint32_t> direction;
-  std::vector<half_bits> solid_angle;
+  HugeVector<std::uint32_t> node;
+  HugeVector<half_bits> coeffs;
+  HugeVector<std::uint32_t> direction;
+  HugeVector<half_bits> solid_angle;
   std::vector<float> sky;
   LinkStats stats;
   // Empty again, capacity kept: ring slots are reused chunk after chunk.
