@@ -750,8 +750,7 @@ Expected<Links> generateLinks(const scene::Scene& scene, const rt::Accel& accel,
   // default-initialises), so the part never written is never faulted in; past that they
   // grow, while no copy runs.
   const std::size_t max_links = static_cast<std::size_t>(options.max_links);
-  links.offsets.resize(n + 1);
-  links.offsets[0] = 0;
+  links.offsets.resize(n + 1);  // offsets[0] = 0
   links.sky.resize(n * coeffs_per_link);
   const auto sizeOutput = [&](std::size_t link_count) {
     links.node.resize(link_count);
@@ -771,7 +770,7 @@ Expected<Links> generateLinks(const scene::Scene& scene, const rt::Accel& accel,
   std::vector<Slot> ring(tokens);
   tbb::concurrent_queue<Slot*> free_slots;
   for (Slot& slot : ring) free_slots.push(&slot);
-  std::size_t next_chunk = 0, placed_links = 0;
+  std::size_t next_chunk = 0;
   tbb::parallel_pipeline(
       tokens,
       tbb::make_filter<void, Slot*>(tbb::filter_mode::serial_in_order,
@@ -782,7 +781,8 @@ Expected<Links> generateLinks(const scene::Scene& scene, const rt::Accel& accel,
                                         return slot;
                                       }
                                       // Fewer than `tokens` chunks are in flight: one is free.
-                                      LL_CHECK(free_slots.try_pop(slot));
+                                      const bool got = free_slots.try_pop(slot);
+                                      LL_CHECK(got);
                                       slot->chunk = next_chunk++;
                                       return slot;
                                     }) &
@@ -824,17 +824,15 @@ Expected<Links> generateLinks(const scene::Scene& scene, const rt::Accel& accel,
           tbb::make_filter<Slot*, Slot*>(
               tbb::filter_mode::serial_in_order,
               [&](Slot* slot) {
-                const std::size_t chunk = slot->chunk;
+                const std::size_t first_cache = slot->chunk * kChunk;
                 const ChunkResult& r = slot->result;
-                slot->at = placed_links;
-                for (std::size_t k = 0; k < r.count.size(); ++k) {
-                  const std::size_t c = chunk * kChunk + k;
-                  links.offsets[c + 1] = links.offsets[c] + r.count[k];
-                }
-                placed_links += r.node.size();
-                if (placed_links > links.node.size()) {
+                slot->at = links.offsets[first_cache];
+                for (std::size_t k = 0; k < r.count.size(); ++k)
+                  links.offsets[first_cache + k + 1] = links.offsets[first_cache + k] + r.count[k];
+                const std::size_t placed = links.offsets[first_cache + r.count.size()];
+                if (placed > links.node.size()) {
                   const std::unique_lock grow(output_mutex);
-                  sizeOutput(std::max(placed_links, 2 * links.node.size()));
+                  sizeOutput(std::max(placed, 2 * links.node.size()));
                 }
                 links.stats.rays += r.stats.rays;
                 links.stats.front_hits += r.stats.front_hits;
@@ -857,7 +855,7 @@ Expected<Links> generateLinks(const scene::Scene& scene, const rt::Accel& accel,
             }
             free_slots.push(slot);
           }));
-  if (!sink.cancelled()) sizeOutput(placed_links);
+  if (!sink.cancelled()) sizeOutput(links.offsets[n]);
   sink.end();
   if (sink.cancelled()) return Status(Code::kInternal, "link generation cancelled");
   links.seen.assign(locator.surfelCount(), 0);
