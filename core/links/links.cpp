@@ -741,8 +741,7 @@ Expected<Links> generateLinks(const scene::Scene& scene, const rt::Accel& accel,
   // (Keeping every chunk's result until the end, as before, wrote all links twice into fresh
   // memory: on the Zen 5 VM this stage then took 0.47 s on CornellBox-Original instead of
   // 0.31, with 25k page faults instead of 9k; docs/results.md, issue 4 tenth pass.) The copy
-  // runs in the parallel stage, mostly on the thread that linked the chunk, while its result
-  // is still in that core's cache; the first write to each output page (a page fault) then
+  // runs in the parallel stage, so the first write to each output page (a page fault)
   // stalls one chunk's thread instead of the in-order stage all chunks wait on (docs/results.md,
   // issue 4 seventeenth pass).
   // The output arrays are sized up front for the worst case (every cache max_links links, up
