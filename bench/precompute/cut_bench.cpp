@@ -8,13 +8,10 @@
 // time per cache (each cache's samples hot in cache, as the sort leaves them), and what the
 // cut did (links per cache, a checksum of the chosen nodes), and how often consecutive hits
 // (in ray order) fall on the same surfel. --cut-kernel scalar times the
-// one-node-at-a-time splits (links::CutKernel::kScalar: the code on CPUs without AVX-512);
-// --blocks off searches every split in the node's whole range instead of starting from the
-// sort's block starts (links::BlockStarts), as link generation does.
+// one-node-at-a-time splits (links::CutKernel::kScalar: the code on CPUs without AVX-512).
 // Usage: cut_bench [--scene F] [--surfels N] [--links N] [--bands B] [--rays N] [--resolution R] [--hierarchy hac|fast]
-//                  [--caches N] [--repeats N] [--cut-kernel best|scalar] [--blocks on|off] [--json OUT]
+//                  [--caches N] [--repeats N] [--cut-kernel best|scalar] [--json OUT]
 #include <algorithm>
-#include <bit>
 #include <cstdio>
 #include <cstring>
 #include <fstream>
@@ -28,7 +25,6 @@
 #include "core/links/cut.h"
 #include "core/links/hit_credit.h"
 #include "core/links/links.h"
-#include "core/links/sample_sort.h"
 #include "core/links/surfel_locator.h"
 #include "core/precompute/precompute.h"
 #include "core/scene/load.h"
@@ -43,7 +39,6 @@ struct Args {
   std::size_t caches = 4096;  // evenly spaced over the lightmap caches
   int repeats = 15;
   links::CutKernel kernel = links::CutKernel::kBest;
-  bool blocks = true;
   precompute::PrecomputeOptions options;
 };
 
@@ -59,8 +54,6 @@ bool parse(int argc, char** argv, Args& a) {
     else if (k == "--repeats") a.repeats = std::max(1, std::stoi(v));
     else if (k == "--cut-kernel" && (std::strcmp(v, "best") == 0 || std::strcmp(v, "scalar") == 0))
       a.kernel = std::strcmp(v, "scalar") == 0 ? links::CutKernel::kScalar : links::CutKernel::kBest;
-    else if (k == "--blocks" && (std::strcmp(v, "on") == 0 || std::strcmp(v, "off") == 0))
-      a.blocks = std::strcmp(v, "on") == 0;
     else if (!bench::parsePrecomputeFlag(k, v, a.options)) return false;
   }
   return true;
@@ -73,7 +66,7 @@ int main(int argc, char** argv) {
   if (!parse(argc, argv, args)) {
     std::fprintf(stderr, "usage: cut_bench [--scene F] [--surfels N] [--links N] [--bands B] [--rays N] [--resolution R] "
                          "[--hierarchy hac|fast] "
-                         "[--caches N] [--repeats N] [--cut-kernel best|scalar] [--blocks on|off] [--json OUT]\n");
+                         "[--caches N] [--repeats N] [--cut-kernel best|scalar] [--json OUT]\n");
     return 1;
   }
   auto scene = scene::loadGltf(args.scene);
@@ -87,24 +80,17 @@ int main(int argc, char** argv) {
   const std::uint32_t n = pattern.count();
   const std::vector<std::uint32_t> double_sided = links::doubleSidedByMesh(*scene);
 
-  // Every cache's samples, sorted by (surfel, ray) by link generation's radix sort, and the
-  // block starts it leaves for the cut.
+  // Every cache's samples, sorted by (surfel, ray) as link generation's radix sort leaves
+  // them (the keys are unique, so any sort gives the same order).
   const std::size_t lightmap = p->lightmap.size();
   const std::size_t caches = std::min(args.caches, lightmap);
-  const auto surfel_count = static_cast<std::uint32_t>(p->surfels.size());
-  const auto surfel_bits = std::max<std::uint32_t>(1, static_cast<std::uint32_t>(std::bit_width(surfel_count - 1)));
-  const std::uint32_t block_shift = links::sortBlockShift(surfel_bits);
-  const std::size_t block_entries = (std::size_t(1) << (surfel_bits - block_shift)) + 1;
   std::vector<links::Sample> all;
-  std::vector<std::uint32_t> all_blocks;
   std::vector<std::size_t> begin{0};
   std::size_t same_as_previous = 0;
   {
     std::vector<float> dx(n + 16), dy(n + 16), dz(n + 16), u(n), v(n), t(n), nx(n), ny(n), nz(n), escaped(n);
     std::vector<std::uint32_t> mesh(n), tri(n), slots(n);
-    std::vector<links::Sample> samples(n + links::kHitCreditSlack), buffer(n);
-    std::vector<std::uint8_t> seen(surfel_count);
-    std::vector<std::uint32_t> block_start(block_entries);
+    std::vector<links::Sample> samples(n + links::kHitCreditSlack);
     const rt::HitArrays hits{mesh.data(), tri.data(), u.data(), v.data(), t.data(), nx.data(), ny.data(), nz.data()};
     for (std::size_t k = 0; k < caches; ++k) {
       const std::size_t c = k * lightmap / caches;
@@ -116,10 +102,8 @@ int main(int argc, char** argv) {
       // In ray order, as the sort receives them: how often a hit's surfel is the previous hit's.
       for (std::uint32_t i = 1; i < credit.sampled; ++i)
         same_as_previous += links::surfelOf(samples[i]) == links::surfelOf(samples[i - 1]) ? 1 : 0;
-      const links::Sample* sorted = links::sortSamples(samples.data(), buffer.data(), credit.sampled, surfel_bits,
-                                                       seen.data(), block_start.data());
-      all.insert(all.end(), sorted, sorted + credit.sampled);
-      all_blocks.insert(all_blocks.end(), block_start.begin(), block_start.end());
+      std::sort(samples.begin(), samples.begin() + credit.sampled);
+      all.insert(all.end(), samples.begin(), samples.begin() + credit.sampled);
       begin.push_back(all.size());
     }
   }
@@ -134,7 +118,6 @@ int main(int argc, char** argv) {
   // cache's samples are copied into one hot buffer first, outside the timed part, so that the
   // cut is not timed on samples streamed from memory.
   std::vector<links::Sample> hot(n);
-  std::vector<std::uint32_t> hot_blocks(block_entries);
   for (int r = 0; r < args.repeats; ++r) {
     double cut_s = 0.0;
     std::size_t total = 0;
@@ -142,11 +125,9 @@ int main(int argc, char** argv) {
     for (std::size_t k = 0; k < caches; ++k) {
       const std::size_t m = begin[k + 1] - begin[k];
       std::copy(all.begin() + begin[k], all.begin() + begin[k + 1], hot.begin());
-      std::copy_n(all_blocks.begin() + static_cast<std::ptrdiff_t>(k * block_entries), block_entries, hot_blocks.begin());
-      const links::BlockStarts blocks{args.blocks ? hot_blocks.data() : nullptr, block_shift};
       const auto t0 = bench::Clock::now();
       links::chooseCut(tree, std::span<const links::Sample>(hot.data(), m), args.options.links, scratch, cut,
-                       args.kernel, blocks);
+                       args.kernel);
       cut_s += bench::secondsSince(t0);
       total += cut.size();
       for (const links::CutEntry& e : cut) chosen = chosen * 31 + e.node;
@@ -176,7 +157,6 @@ int main(int argc, char** argv) {
     j["median_cut_ns_per_cache"] = cut_med;
     j["checksum"] = checksum;
     j["cut_kernel"] = args.kernel == links::CutKernel::kScalar ? "scalar" : "best";
-    j["blocks"] = args.blocks;
     std::ofstream(args.json) << j.dump(2) << "\n";
   }
   return 0;

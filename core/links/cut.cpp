@@ -41,8 +41,6 @@ constexpr std::size_t kVectorFrom = 6;
 struct Search {
   const CutNode* nodes;
   const Sample* samples;
-  const std::uint32_t* block;  // BlockStarts, or null
-  std::uint32_t shift;
   std::uint32_t threshold;
   CutScratch& s;
   // Records: node (with kLeafChild for a leaf), samples, first sample, parent's samples and
@@ -53,8 +51,8 @@ struct Search {
   std::uint32_t *gc, *gn;       // growing
   std::size_t records = 0, head = 0, tail = 0, pending = 0, growing = 0;
 
-  Search(const CutNode* n, const Sample* sm, BlockStarts b, std::uint32_t t, CutScratch& scratch)
-      : nodes(n), samples(sm), block(b.start), shift(b.shift), threshold(t), s(scratch) {
+  Search(const CutNode* n, const Sample* sm, std::uint32_t t, CutScratch& scratch)
+      : nodes(n), samples(sm), threshold(t), s(scratch) {
     grow(std::max<std::size_t>(s.field[0].size(), 256));
   }
   void bind() {
@@ -111,16 +109,8 @@ void splitScalar(Search& x, std::size_t m) {
     const CutNode& tn = x.nodes[node];
     const std::uint32_t left = leftChild(tn.children), right = rightChild(tn.children);
     // The left child's surfels come first in the parent's range, so its samples are a
-    // prefix of the parent's: one binary search inside the parent's samples, narrowed to
-    // those in the split surfel's block where the blocks are known (the first sample of the
-    // split surfel or after lies in both ranges).
-    std::uint32_t lo = first, hi = first + count;
-    if (x.block != nullptr) {
-      const std::uint32_t b = tn.split >> x.shift;
-      lo = std::max(lo, x.block[b]), hi = std::min(hi, x.block[b + 1]);
-    }
-    const std::uint32_t cl = lo - first + (hi > lo ? lowerBound(x.samples + lo, hi - lo, makeSample(tn.split, 0)) : 0u);
-    const std::uint32_t cr = count - cl;
+    // prefix of the parent's: one binary search inside the parent's samples.
+    const std::uint32_t cl = lowerBound(x.samples + first, count, makeSample(tn.split, 0)), cr = count - cl;
     if (cl > 0) x.record(left, cl, first, count, node);
     if (cr > 0) x.record(right, cr, first + cl, count, node);
     if (cl > 0 && cr > 0) {
@@ -178,42 +168,31 @@ LL_AVX512_FN inline Lanes loadLanes(const Search& x, std::size_t at, std::size_t
 }
 
 // The binary searches of V vectors of nodes, interleaved: V independent chains of gathers,
-// each as long as the largest range needs. With the blocks known, a lane's range is the
-// node's samples in its split surfel's block (splitScalar), possibly empty.
+// each as long as the largest range needs.
 template <int V>
 LL_AVX512_FN inline void searchLanes(const Search& x, Lanes* l) {
   // The surfel of sample k is the high word of the 8-byte key.
   const int* surfels = reinterpret_cast<const int*>(x.samples) + 1;
-  const auto* block = reinterpret_cast<const int*>(x.block);
   const __m512i zero = _mm512_setzero_si512(), one = _mm512_set1_epi32(1);
   std::uint32_t widest = 0;
   __m512i base[V], n[V];
-  __mmask16 search[V];
   for (int v = 0; v < V; ++v) {
+    widest = std::max(widest, static_cast<std::uint32_t>(_mm512_mask_reduce_max_epu32(l[v].lanes, l[v].count)));
     base[v] = l[v].first, n[v] = l[v].count;
-    if (block != nullptr) {
-      const __m512i b = _mm512_srli_epi32(l[v].split, static_cast<unsigned>(x.shift));
-      const __m512i lo = _mm512_max_epu32(base[v], _mm512_mask_i32gather_epi32(zero, l[v].lanes, b, block, 4));
-      const __m512i hi = _mm512_min_epu32(_mm512_add_epi32(base[v], n[v]),
-                                          _mm512_mask_i32gather_epi32(zero, l[v].lanes, _mm512_add_epi32(b, one), block, 4));
-      base[v] = lo, n[v] = _mm512_maskz_sub_epi32(l[v].lanes, hi, lo);
-    }
-    search[v] = _mm512_mask_cmpneq_epi32_mask(l[v].lanes, n[v], zero);
-    widest = std::max(widest, static_cast<std::uint32_t>(_mm512_mask_reduce_max_epu32(l[v].lanes, n[v])));
   }
   for (std::uint32_t w = widest; w > 1; w -= w / 2) {
     for (int v = 0; v < V; ++v) {
       const __m512i half = _mm512_srli_epi32(n[v], 1);
       const __m512i probe = _mm512_add_epi32(base[v], half);
-      const __m512i s = _mm512_mask_i32gather_epi32(zero, search[v], probe, surfels, 8);
-      base[v] = _mm512_mask_mov_epi32(base[v], _mm512_mask_cmplt_epu32_mask(search[v], s, l[v].split), probe);
+      const __m512i s = _mm512_mask_i32gather_epi32(zero, l[v].lanes, probe, surfels, 8);
+      base[v] = _mm512_mask_mov_epi32(base[v], _mm512_cmplt_epu32_mask(s, l[v].split), probe);
       n[v] = _mm512_sub_epi32(n[v], half);
     }
   }
   for (int v = 0; v < V; ++v) {
-    const __m512i s = _mm512_mask_i32gather_epi32(zero, search[v], base[v], surfels, 8);
+    const __m512i s = _mm512_mask_i32gather_epi32(zero, l[v].lanes, base[v], surfels, 8);
     const __m512i below = _mm512_sub_epi32(base[v], l[v].first);
-    l[v].cl = _mm512_mask_add_epi32(below, _mm512_mask_cmplt_epu32_mask(search[v], s, l[v].split), below, one);
+    l[v].cl = _mm512_mask_add_epi32(below, _mm512_cmplt_epu32_mask(s, l[v].split), below, one);
   }
 }
 
@@ -368,7 +347,7 @@ LL_AVX512_FN void markAvx512(const Search& x, std::uint32_t stop_count, std::uin
 }  // namespace
 
 void chooseCut(const CutTree& tree, std::span<const Sample> samples, int max_links, CutScratch& s,
-               std::vector<CutEntry>& cut, CutKernel kernel, BlockStarts blocks) {
+               std::vector<CutEntry>& cut, CutKernel kernel) {
   cut.clear();
   const std::span<const CutNode> nodes = tree.nodes;
   if (samples.empty() || nodes.empty()) return;
@@ -405,7 +384,7 @@ void chooseCut(const CutTree& tree, std::span<const Sample> samples, int max_lin
   // the same) and is lowered while fewer were found; the cut does not depend on T. The
   // splits need no order among themselves, so they run 16 at a time (splitAvx512).
   const auto limit = static_cast<std::uint32_t>(max_links);
-  Search x(nodes.data(), samples.data(), blocks, s.stop_count > 1 ? s.stop_count - 1 : 0, s);
+  Search x(nodes.data(), samples.data(), s.stop_count > 1 ? s.stop_count - 1 : 0, s);
   x.record(0, static_cast<std::uint32_t>(samples.size()), 0, ~0u, 0);
 #if LL_AVX512
   const bool vector = kernel == CutKernel::kBest && cpuHasAvx512();

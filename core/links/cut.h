@@ -69,19 +69,6 @@ struct CutScratch {
   std::vector<std::uint64_t> starts;    // per sample, one bit: a cut entry starts there
 };
 
-// Where each block of 2^shift consecutive surfels starts among the sorted samples:
-// start[b] is the number of samples whose surfel is below b << shift, for every block b of
-// the surfel range and one past the last (= the sample count). The sort's last radix pass
-// computes exactly these as its bucket starts (sample_sort.h), so they cost link generation
-// nothing; with them a node's split is searched only among the samples of its split surfel's
-// block that lie in the node's range, a few halving steps instead of log2(node's samples),
-// and the searches are chains of dependent loads the cut waits on. Empty (start null): the
-// node's whole range is searched.
-struct BlockStarts {
-  const std::uint32_t* start = nullptr;
-  std::uint32_t shift = 0;
-};
-
 // Which code splits the nodes: the best this CPU has (16 nodes at a time with AVX-512 where
 // present), or one node at a time. Both choose the same cut (tests run both).
 enum class CutKernel { kBest, kScalar };
@@ -89,9 +76,8 @@ enum class CutKernel { kBest, kScalar };
 // Chooses the cut of at most max_links (>= 1) nodes over `samples`, sorted ascending (by
 // surfel, then ray). `cut` receives the nodes with their sample ranges, ordered by first
 // sample (= by surfel range, the order links are stored in). The cut does not depend on
-// what the scratch held before, nor on whether `blocks` is given (it must describe
-// `samples` if it is).
+// what the scratch held before.
 void chooseCut(const CutTree& tree, std::span<const Sample> samples, int max_links, CutScratch& scratch,
-               std::vector<CutEntry>& cut, CutKernel kernel = CutKernel::kBest, BlockStarts blocks = {});
+               std::vector<CutEntry>& cut, CutKernel kernel = CutKernel::kBest);
 
 }  // namespace lightlink::links

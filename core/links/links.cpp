@@ -58,7 +58,6 @@ struct Scratch {
   std::vector<float> hit_u, hit_v, hit_t, hit_ng_x, hit_ng_y, hit_ng_z;
   std::vector<Sample> samples;
   std::vector<Sample> sort_buffer;
-  std::vector<std::uint32_t> block_start;  // the sort's blocks for the cut (BlockStarts)
   std::vector<CutEntry> cut;
   CutScratch cut_scratch;
   std::vector<std::uint32_t> slots;     // per ray: owner raster slot or ray class
@@ -359,11 +358,9 @@ void linkCache(std::size_t cache, const glm::vec3& p, const glm::vec3& normal, c
   float sky[kCoeffs];
   for (int q = 0; q < kCoeffs; ++q) sky[q] = w * sh::kBasisScale[q] * sky_poly[q];
   clock.lap(kPhaseSky);
-  Sample* const sorted =
-      sortSamples(s.samples.data(), s.sort_buffer.data(), sampled, surfel_bits, seen, s.block_start.data());
+  Sample* const sorted = sortSamples(s.samples.data(), s.sort_buffer.data(), sampled, surfel_bits, seen);
   clock.lap(kPhaseSort);
-  chooseCut(cut_tree, std::span<const Sample>(sorted, sampled), options.max_links, s.cut_scratch, s.cut,
-            CutKernel::kBest, {s.block_start.data(), sortBlockShift(surfel_bits)});
+  chooseCut(cut_tree, std::span<const Sample>(sorted, sampled), options.max_links, s.cut_scratch, s.cut);
   clock.lap(kPhaseCut);
 
   // Each link's SH is w * sum over its hits of Y_q(dir) = w * kBasisScale[q] * (sum of the
@@ -801,7 +798,6 @@ Expected<Links> generateLinks(const scene::Scene& scene, const rt::Accel& accel,
                 scratch.slots.resize(pattern.count());
                 scratch.samples.resize(pattern.count() + kHitCreditSlack);
                 scratch.sort_buffer.resize(pattern.count());
-                scratch.block_start.resize((std::size_t(1) << (surfel_bits - sortBlockShift(surfel_bits))) + 1);
                 for (auto* v : {&scratch.dir_x, &scratch.dir_y, &scratch.dir_z, &scratch.escaped})
                   v->resize(skyPadded(pattern.count()));
                 scratch.poly.resize(std::size_t(skyPadded(pattern.count())) * polyRows(options.bands) * 8);

@@ -59,12 +59,6 @@ LL_MULTIVERSION void bucketStarts(std::uint32_t* __restrict count_a, std::uint32
 
 }  // namespace
 
-// The last pass sorts the most bits: ceil(surfel_bits / passes) of them, the top ones.
-std::uint32_t sortBlockShift(std::uint32_t surfel_bits) {
-  const std::uint32_t passes = std::max<std::uint32_t>(1, ceilDiv(surfel_bits, kSortPassBits));
-  return surfel_bits - ceilDiv(surfel_bits, passes);
-}
-
 // Stable LSD radix sort of the samples by surfel: they are appended in ray order, so the
 // result equals a sort by (surfel, ray). Two or three passes over ~1k keys beat a comparison
 // sort by 4-5x here (the sort runs once per cache). A pass has no more buckets than its bits
@@ -82,8 +76,7 @@ std::uint32_t sortBlockShift(std::uint32_t surfel_bits) {
 // bucket waited on each other; two halves make two chains that overlap (the sort's share of
 // link time, precompute_bench's phase timers on CornellBox-Original: 5.9-6.5 % -> 5.2-5.3 %,
 // Zen 5 VM; docs/results.md, issue 4 tenth pass).
-Sample* sortSamples(Sample* keys, Sample* buffer, std::size_t n, std::uint32_t surfel_bits, std::uint8_t* seen,
-                    std::uint32_t* block_start) {
+Sample* sortSamples(Sample* keys, Sample* buffer, std::size_t n, std::uint32_t surfel_bits, std::uint8_t* seen) {
   const std::uint32_t passes = std::max<std::uint32_t>(1, ceilDiv(surfel_bits, kSortPassBits));
   const std::uint32_t bits = ceilDiv(surfel_bits, passes);
   alignas(64) std::uint32_t count_a[1u << kSortPassBits], count_b[1u << kSortPassBits];
@@ -116,12 +109,6 @@ Sample* sortSamples(Sample* keys, Sample* buffer, std::size_t n, std::uint32_t s
     else
       count(std::false_type{});
     bucketStarts(count_a, count_b, buckets);
-    // The last pass's buckets are the blocks of 2^sortBlockShift surfels, and count_a now
-    // holds where each starts.
-    if (block_start != nullptr && pass + 1 == passes) {
-      std::copy(count_a, count_a + buckets, block_start);
-      block_start[buckets] = static_cast<std::uint32_t>(n);
-    }
     for (std::size_t i = 0; i < half; ++i) {
       const Sample ka = keys[i], kb = keys[half + i];
       buffer[count_a[bucket(ka)]++] = ka;

@@ -11,16 +11,9 @@
 
 namespace lightlink::links {
 
-// The sort's last pass orders the samples by their surfels' top bits, blocks of
-// 2^sortBlockShift(surfel_bits) surfels: 2^(surfel_bits - shift) blocks.
-std::uint32_t sortBlockShift(std::uint32_t surfel_bits);
-
 // Sorts n samples, given in ray order with surfels below 2^surfel_bits (surfel_bits >= 1),
 // by (surfel, ray). `keys` and `buffer` hold n samples each; returns the one that holds the
-// result. seen[surfel] is set to 1 for every sample's surfel. If block_start is given (one
-// entry per block and one more), it receives the cut's BlockStarts (cut.h) with the shift
-// sortBlockShift(surfel_bits): the last pass's bucket starts, and n.
-Sample* sortSamples(Sample* keys, Sample* buffer, std::size_t n, std::uint32_t surfel_bits, std::uint8_t* seen,
-                    std::uint32_t* block_start = nullptr);
+// result. seen[surfel] is set to 1 for every sample's surfel.
+Sample* sortSamples(Sample* keys, Sample* buffer, std::size_t n, std::uint32_t surfel_bits, std::uint8_t* seen);
 
 }  // namespace lightlink::links

@@ -2,14 +2,11 @@
 // with the most samples first (ties: the lower node index), children counted by a scan,
 // straight from the tree's arrays. chooseCut takes shortcuts (the leaves directly when there
 // are no more surfels than the budget, one integer key per open node, a heap, split
-// positions by binary search, started inside the sort's surfel blocks where it gives them,
-// the final order through a table); the nodes, counts and sample ranges must be these all
-// the same.
+// positions by binary search, the final order through a table); the nodes, counts and
+// sample ranges must be these all the same.
 #include "core/links/cut.h"
 
 #include <algorithm>
-#include <array>
-#include <string>
 #include <random>
 #include <tuple>
 
@@ -77,17 +74,6 @@ std::vector<Sample> hitSamples(std::uint32_t surfels, std::uint32_t clusters, st
   return out;
 }
 
-// BlockStarts counted literally: start[b] = samples with a surfel below b << shift, one entry
-// per block of [0, surfels) and one more.
-std::vector<std::uint32_t> literalBlocks(const std::vector<Sample>& samples, std::uint32_t surfels, std::uint32_t shift) {
-  const std::uint32_t blocks = ((surfels - 1) >> shift) + 1;
-  std::vector<std::uint32_t> start(blocks + 1, 0);
-  for (std::uint32_t b = 0; b <= blocks; ++b)
-    for (const Sample k : samples) start[b] += std::uint64_t(surfelOf(k)) < (std::uint64_t(b) << shift) ? 1 : 0;
-  start[blocks] = static_cast<std::uint32_t>(samples.size());
-  return start;
-}
-
 void expectLiteralCut(hierarchy::Builder builder) {
   scene::Scene s;
   lightlink::testing::addBox(s, {0, 0, 0}, {2, 2, 2}, /*inward=*/true);
@@ -108,14 +94,9 @@ void expectLiteralCut(hierarchy::Builder builder) {
     const std::vector<Sample> samples = hitSamples(n, 1 + rng() % 12, rng() % 300, rng);
     for (int max_links : {1, 2, 3, 8, 64, 128, 4096}) {
       const std::vector<CutEntry> want = literalCut(*tree, samples, std::size_t(max_links));
-      // Without blocks, with one surfel per block, with blocks of 32 and with one block for all.
-      const std::uint32_t shift = std::array<std::uint32_t, 4>{0, 0, 5, 12}[trial % 4];
-      const std::vector<std::uint32_t> blocks = literalBlocks(samples, n, shift);
-      const BlockStarts block_starts{trial % 4 == 0 ? nullptr : blocks.data(), shift};
       for (const CutKernel kernel : {CutKernel::kBest, CutKernel::kScalar}) {
-        const std::string name = std::string(kernel == CutKernel::kBest ? "best" : "scalar") +
-                                 (block_starts.start != nullptr ? ", blocks of 2^" + std::to_string(shift) : "");
-        chooseCut(cut_tree, samples, max_links, scratch[kernel == CutKernel::kBest ? 0 : 1], cut, kernel, block_starts);
+        const char* name = kernel == CutKernel::kBest ? "best" : "scalar";
+        chooseCut(cut_tree, samples, max_links, scratch[kernel == CutKernel::kBest ? 0 : 1], cut, kernel);
         ASSERT_EQ(cut.size(), want.size()) << "trial " << trial << ", nL " << max_links << ", " << name;
         for (std::size_t k = 0; k < want.size(); ++k) {
           EXPECT_EQ(cut[k].node, want[k].node) << "trial " << trial << ", nL " << max_links << ", link " << k << ", " << name;

@@ -1,5 +1,5 @@
-// The samples' radix sort against std::sort, and its seen marks and block starts against the
-// samples, at every pass count it has (one pass up to 11 surfel bits, two up to 22, three beyond).
+// The samples' radix sort against std::sort, and its seen marks against the samples, at
+// every pass count it has (one pass up to 11 surfel bits, two up to 22, three beyond).
 #include "core/links/sample_sort.h"
 
 #include <algorithm>
@@ -29,15 +29,9 @@ TEST(SampleSort, SortsBySurfelThenRayAndMarksTheSeenSurfels) {
       std::sort(want.begin(), want.end());
       std::vector<std::uint8_t> seen(surfels, 0), want_seen(surfels, 0);
       for (const Sample k : keys) want_seen[surfelOf(k)] = 1;
-      const std::uint32_t shift = sortBlockShift(surfel_bits);
-      const std::uint32_t blocks = 1u << (surfel_bits - shift);
-      std::vector<std::uint32_t> block_start(blocks + 1, 0xdeadbeefu), want_blocks(blocks + 1, 0);
-      for (std::uint32_t b = 0; b <= blocks; ++b)
-        for (const Sample k : keys) want_blocks[b] += surfelOf(k) < (std::uint64_t(b) << shift) ? 1 : 0;
-      const Sample* sorted = sortSamples(keys.data(), buffer.data(), n, surfel_bits, seen.data(), block_start.data());
+      const Sample* sorted = sortSamples(keys.data(), buffer.data(), n, surfel_bits, seen.data());
       ASSERT_TRUE(std::equal(want.begin(), want.end(), sorted)) << surfel_bits << " bits, " << n << " samples";
       EXPECT_EQ(seen, want_seen) << surfel_bits << " bits, " << n << " samples";
-      EXPECT_EQ(block_start, want_blocks) << surfel_bits << " bits, " << n << " samples";
     }
   }
 }
