@@ -35,16 +35,21 @@ int DaemonProcess::signalAndWait(int sig, std::chrono::milliseconds limit) {
   return daemon_ ? daemon_->signalAndWait(sig, limit) : -1;
 }
 
-std::shared_ptr<grpc::Channel> DaemonProcess::channel() const {
+std::shared_ptr<grpc::Channel> DaemonProcess::channel(std::chrono::milliseconds connect_wait) const {
   grpc::ChannelArguments args;
   args.SetMaxReceiveMessageSize(8 << 20);
   args.SetMaxSendMessageSize(128 << 20);
   // A distinct channel per call site: separate connections, i.e. separate gRPC peers.
   args.SetInt("lightlink.test.unique", static_cast<int>(std::random_device{}()));
-  return grpc::CreateCustomChannel(target(), grpc::InsecureChannelCredentials(), args);
+  auto channel = grpc::CreateCustomChannel(target(), grpc::InsecureChannelCredentials(), args);
+  // Not connected in time: the test's own call reports the failure.
+  if (connect_wait.count() > 0) (void)channel->WaitForConnected(std::chrono::system_clock::now() + connect_wait);
+  return channel;
 }
 
-std::unique_ptr<LightlinkRpc> DaemonProcess::rpc() const { return v1::Lightlink::NewStub(channel()); }
+std::unique_ptr<LightlinkRpc> DaemonProcess::rpc(std::chrono::milliseconds connect_wait) const {
+  return v1::Lightlink::NewStub(channel(connect_wait));
+}
 
 int runDaemonToExit(const std::vector<std::string>& args, std::string* output, std::chrono::milliseconds limit) {
   std::vector<std::string> argv = {LIGHTLINKD_PATH};

@@ -46,8 +46,14 @@ class DaemonProcess {
   // when killed by one, -1 on timeout.
   int signalAndWait(int sig, std::chrono::milliseconds limit = std::chrono::milliseconds(10000));
 
-  std::unique_ptr<LightlinkRpc> rpc() const;
-  std::shared_ptr<grpc::Channel> channel() const;
+  // A new connection to the daemon, waited for (up to `connect_wait`) before it is returned,
+  // as the client library's Client::connect does: a call on a channel whose first connect
+  // attempt failed fails at once (UNAVAILABLE) instead of retrying. Without the wait, one
+  // of Daemon.TwentyConcurrentClients...'s 20 first calls failed that way in about 1 of 40
+  // runs ("failed to connect to all addresses" on 127.0.0.1). A test that expects the
+  // connection to fail passes 0.
+  std::unique_ptr<LightlinkRpc> rpc(std::chrono::milliseconds connect_wait = std::chrono::milliseconds(10000)) const;
+  std::shared_ptr<grpc::Channel> channel(std::chrono::milliseconds connect_wait = std::chrono::milliseconds(10000)) const;
 
  private:
   std::unique_ptr<client::LocalDaemon> daemon_;

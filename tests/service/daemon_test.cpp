@@ -855,7 +855,7 @@ TEST(Daemon, ServesTlsWithTheGivenCertificate) {
   EXPECT_TRUE(st.ok()) << st.error_message();
   EXPECT_EQ(h.status(), v1::HealthResponse::STATUS_SERVING);
   // A plaintext client cannot talk to a TLS daemon.
-  EXPECT_FALSE(d.rpc()->Health(context(3000, "tls-token").get(), {}, &h).ok());
+  EXPECT_FALSE(d.rpc(std::chrono::milliseconds(0))->Health(context(3000, "tls-token").get(), {}, &h).ok());
 }
 
 TEST(Daemon, RefusesToListenBeyondLoopbackWithoutToken) {
