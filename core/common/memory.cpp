@@ -1,7 +1,10 @@
 #include "core/common/memory.h"
 
+#include <algorithm>
 #include <cstdint>
 #include <cstdlib>
+#include <mutex>
+#include <vector>
 
 #if defined(__linux__)
 #include <sys/mman.h>
@@ -21,10 +24,64 @@ void adviseHugePages(const void* p, std::size_t bytes) {
 #endif
 }
 
+namespace {
+
+std::size_t roundedToHugePages(std::size_t bytes) { return (bytes + kHugePageBytes - 1) & ~(kHugePageBytes - 1); }
+
+// Freed huge blocks kept for the next allocation of about their size (the header says why).
+struct BlockCache {
+  std::mutex mutex;
+  std::vector<std::pair<void*, std::size_t>> blocks;  // block, rounded bytes
+  std::size_t bytes = 0;
+
+  // The smallest kept block that holds `rounded` bytes without wasting more than as much
+  // again, or null.
+  void* take(std::size_t rounded) {
+    const std::lock_guard lock(mutex);
+    std::size_t best = blocks.size();
+    for (std::size_t i = 0; i < blocks.size(); ++i)
+      if (blocks[i].second >= rounded && blocks[i].second / 2 <= rounded &&
+          (best == blocks.size() || blocks[i].second < blocks[best].second))
+        best = i;
+    if (best == blocks.size()) return nullptr;
+    void* p = blocks[best].first;
+    bytes -= blocks[best].second;
+    blocks.erase(blocks.begin() + static_cast<std::ptrdiff_t>(best));
+    return p;
+  }
+  // Keeps the block if it fits under the cap; false: the caller frees it.
+  bool keep(void* p, std::size_t rounded) {
+    const std::lock_guard lock(mutex);
+    if (rounded > kHugeBlockCacheBytes - bytes) return false;
+    try {
+      blocks.push_back({p, rounded});
+    } catch (const std::bad_alloc&) {
+      return false;
+    }
+    bytes += rounded;
+    return true;
+  }
+  void release() {
+    const std::lock_guard lock(mutex);
+    for (const auto& [p, size] : blocks) std::free(p);
+    blocks.clear();
+    bytes = 0;
+  }
+};
+
+// Never destroyed: a HugeVector may be freed during static or thread-local destruction.
+BlockCache& blockCache() {
+  static BlockCache* const cache = new BlockCache;
+  return *cache;
+}
+
+}  // namespace
+
 void* allocateHuge(std::size_t bytes) {
   if (bytes < kHugePageBytes) return ::operator new(bytes);
   if (bytes > std::size_t(-1) - kHugePageBytes) throw std::bad_alloc();
-  const std::size_t rounded = (bytes + kHugePageBytes - 1) & ~(kHugePageBytes - 1);
+  const std::size_t rounded = roundedToHugePages(bytes);
+  if (void* kept = blockCache().take(rounded)) return kept;
   void* p = std::aligned_alloc(kHugePageBytes, rounded);
   if (p == nullptr) throw std::bad_alloc();
   adviseHugePages(p, rounded);
@@ -34,8 +91,16 @@ void* allocateHuge(std::size_t bytes) {
 void freeHuge(void* p, std::size_t bytes) noexcept {
   if (bytes < kHugePageBytes)
     ::operator delete(p);
-  else
+  else if (!blockCache().keep(p, roundedToHugePages(bytes)))
     std::free(p);
 }
+
+std::size_t cachedHugeBytes() {
+  BlockCache& cache = blockCache();
+  const std::lock_guard lock(cache.mutex);
+  return cache.bytes;
+}
+
+void releaseCachedHugeBlocks() { blockCache().release(); }
 
 }  // namespace lightlink

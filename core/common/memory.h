@@ -12,6 +12,17 @@
 // page faults before, 7,146-7,258 after, `/usr/bin/time`; docs/results.md, issue 4
 // sixteenth pass).
 // They are hints: nothing changes but the time where the kernel says no.
+//
+// Freed huge blocks are kept (up to kHugeBlockCacheBytes in all) and handed to the next
+// allocation of about their size, pages already in place. Fresh memory costs more than the
+// zeroing of its pages on the VMs we measure on: a process's first touch of 37 MiB took
+// 14-18 ms in small pages, 4.4-4.8 ms in huge pages, and 29-98 ms in huge pages now and then
+// (when the kernel hands out memory the VM never touched). So a process that generates links
+// more than once (precompute_bench's pairs, `lightlink compare`, the accuracy study) paid
+// that for every run: with the cache, precompute_bench's link runs after the first spent
+// 0.9-1.5 % of their wall time outside link generation's phases, against 1.9-12.5 % without
+// (CornellBox-Original; docs/results.md, issue 4 nineteenth pass). A one-shot
+// `lightlink precompute` still pays for its output's first touch.
 #pragma once
 
 #include <cstddef>
@@ -34,6 +45,13 @@ void adviseHugePages(const void* p, std::size_t bytes);
 // std::bad_alloc.
 void* allocateHuge(std::size_t bytes);
 void freeHuge(void* p, std::size_t bytes) noexcept;
+
+// The most bytes of freed huge blocks kept for reuse; a block that does not fit under it is
+// returned to the system. Kept blocks are reused for requests of at least half their size.
+inline constexpr std::size_t kHugeBlockCacheBytes = std::size_t(512) << 20;
+// Bytes of freed huge blocks kept now; releases them all to the system.
+std::size_t cachedHugeBytes();
+void releaseCachedHugeBlocks();
 
 template <typename T>
 struct HugePageAllocator {

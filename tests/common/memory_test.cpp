@@ -72,6 +72,46 @@ TEST(Memory, HugeVectorSizingWritesNothing) {
 }
 #endif
 
+// A freed huge block is kept and handed to the next request of about its size (link
+// generation run again in one process writes into pages already in place); one far smaller
+// gets a block of its own; and no more than kHugeBlockCacheBytes are ever kept.
+TEST(Memory, FreedHugeBlocksAreReusedUnderACap) {
+  releaseCachedHugeBlocks();
+  ASSERT_EQ(cachedHugeBytes(), 0u);
+  const std::size_t bytes = (std::size_t(6) << 20) + 123;
+  void* a = allocateHuge(bytes);
+  static_cast<char*>(a)[bytes - 1] = 1;
+  freeHuge(a, bytes);
+  EXPECT_EQ(cachedHugeBytes(), std::size_t(8) << 20);  // rounded up to whole huge pages
+  void* small = allocateHuge(std::size_t(2) << 20);    // under half of the kept block: a new one
+  EXPECT_NE(small, a);
+  void* b = allocateHuge(std::size_t(7) << 20);  // the kept block fits it
+  EXPECT_EQ(b, a);
+  EXPECT_EQ(cachedHugeBytes(), 0u);
+  EXPECT_EQ(reinterpret_cast<std::uintptr_t>(b) % kHugePageBytes, 0u);
+  freeHuge(small, std::size_t(2) << 20);
+  freeHuge(b, std::size_t(7) << 20);
+  EXPECT_EQ(cachedHugeBytes(), std::size_t(10) << 20);
+  // Past the cap, freed blocks go back to the system.
+  std::vector<void*> blocks;
+  const std::size_t each = std::size_t(64) << 20;  // never written: no memory is touched
+  for (std::size_t k = 0; k < kHugeBlockCacheBytes / each + 2; ++k) blocks.push_back(allocateHuge(each));
+  for (void* p : blocks) freeHuge(p, each);
+  EXPECT_LE(cachedHugeBytes(), kHugeBlockCacheBytes);
+  EXPECT_GT(cachedHugeBytes(), kHugeBlockCacheBytes - each);
+  // A vector released and made again gets the same block.
+  releaseCachedHugeBlocks();
+  const std::uint32_t* first = nullptr;
+  {
+    HugeVector<std::uint32_t> v(std::size_t(1) << 20);
+    first = v.data();
+  }
+  HugeVector<std::uint32_t> again(std::size_t(1) << 20);
+  EXPECT_EQ(again.data(), first);
+  releaseCachedHugeBlocks();
+  EXPECT_EQ(cachedHugeBytes(), 0u);
+}
+
 TEST(Memory, AdviceOnAnyRangeIsHarmless) {
   std::vector<char> small(100, 'x');
   adviseHugePages(small.data(), small.size());  // nothing inside it is a whole 2 MiB page
