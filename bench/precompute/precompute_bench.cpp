@@ -26,6 +26,7 @@
 #include <fmt/format.h>
 #include <nlohmann/json.hpp>
 #include <tbb/info.h>
+#include <tbb/task_arena.h>
 
 #include "bench/common/bench_common.h"
 #include "bench/rt/throughput.h"
@@ -156,7 +157,7 @@ int main(int argc, char** argv) {
   const links::SurfelLocator locator(p->surfels, *scene);
   const double locator_s = seconds(t0);
   nlohmann::ordered_json pair_rows = nlohmann::ordered_json::array();
-  std::vector<double> pair_ratios, pair_api_ratios;
+  std::vector<double> pair_ratios, pair_api_ratios, pair_outside;
   // Link generation's phases summed over the pairs: shares, and timer ticks per cache (rdtsc
   // on x86: a phase's own cost, steadier between runs than its share, which moves with the
   // tracing's noise; for A/B runs of one phase).
@@ -170,11 +171,18 @@ int main(int argc, char** argv) {
     pair_ratios.push_back(rrps > 0 ? lrps / rrps : 0.0);
     pair_api_ratios.push_back(arps > 0 ? lrps / arps : 0.0);
     for (int q = 0; q < links::kLinkPhases; ++q) pair_phase_ticks[q] += l->stats.phase_ticks[q];
+    // The share of the link run's wall time (on every thread) that its phases do not account
+    // for: the output's page faults, the pipeline's waits, the threads' start.
+    double phase_ticks = 0.0;
+    for (const std::uint64_t t : l->stats.phase_ticks) phase_ticks += double(t);
+    const double busy = double(tbb::this_task_arena::max_concurrency()) * l->stats.seconds;
+    pair_outside.push_back(busy > 0 ? 1.0 - phase_ticks / links::linkPhaseTicksPerSecond() / busy : 0.0);
     pair_rows.push_back({{"link_rays_per_second", lrps},
                          {"raw_rays_per_second", rrps},
                          {"ratio", pair_ratios.back()},
                          {"raw_ray_api_rays_per_second", arps},
-                         {"ratio_to_ray_api", pair_api_ratios.back()}});
+                         {"ratio_to_ray_api", pair_api_ratios.back()},
+                         {"outside_phases_share", pair_outside.back()}});
   }
   double phase_total = 0.0;
   for (const std::uint64_t t : pair_phase_ticks) phase_total += double(t);
@@ -256,6 +264,9 @@ int main(int argc, char** argv) {
     fmt::print("back-to-back runs (links, raw fans, raw ray records):");
     for (std::size_t k = 0; k < pair_ratios.size(); ++k) fmt::print(" {:.2f} ({:.2f})", pair_ratios[k], pair_api_ratios[k]);
     fmt::print(": median ratio {:.2f} ({:.2f} to ray records)\n", median_ratio, median_api_ratio);
+    fmt::print("share of each link run's wall time outside its phases:");
+    for (const double o : pair_outside) fmt::print(" {:.1f} %", 100.0 * o);
+    fmt::print("\n");
     fmt::print("link phases over the pairs (hit credit {}):", hitCreditName(args.hit_credit));
     for (const auto& [phase, share] : pair_phase_share.items()) fmt::print(" {} {:.1f} %", phase, 100.0 * share.get<double>());
     fmt::print("; own work per unit of tracing {:.2f}\n", pair_own_work);

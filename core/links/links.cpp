@@ -300,8 +300,6 @@ class PhaseClock {
     ticks_[phase] += t - last_;
     last_ = t;
   }
-
- private:
   static std::uint64_t now() {
 #if defined(__x86_64__) || defined(__i386__)
     return __rdtsc();
@@ -311,6 +309,8 @@ class PhaseClock {
                                           .count());
 #endif
   }
+
+ private:
   std::array<std::uint64_t, kLinkPhases>& ticks_;
   std::uint64_t last_;
 };
@@ -438,6 +438,22 @@ LinkCacheFn linkCacheFor(int bands) {
 }
 
 }  // namespace
+
+double linkPhaseTicksPerSecond() {
+#if defined(__x86_64__) || defined(__i386__)
+  static const double rate = [] {
+    const auto t0 = std::chrono::steady_clock::now();
+    const std::uint64_t c0 = PhaseClock::now();
+    std::chrono::duration<double> elapsed{};
+    while ((elapsed = std::chrono::steady_clock::now() - t0).count() < 0.02) {
+    }
+    return double(PhaseClock::now() - c0) / elapsed.count();
+  }();
+  return rate;
+#else
+  return 1e9;
+#endif
+}
 
 LinkRays::LinkRays(const LinkOptions& options) : strata_(strataFor(options)), seed_(options.seed) {
   // The base pattern: one jittered sample per stratum, seeded by the link seed alone. Its

@@ -90,6 +90,11 @@ struct LinkStats {
   std::array<std::uint64_t, kLinkPhases> phase_ticks{};
 };
 
+// phase_ticks per second on this machine (x86: the timestamp counter's rate, measured
+// against steady_clock over ~20 ms on the first call; elsewhere 1e9). For a bench that sets
+// the phases' time against the wall time.
+double linkPhaseTicksPerSecond();
+
 // Read-only view of link arrays, wherever they live (a Links in memory, or an artifact
 // mapping): what relight consumes.
 struct LinksView {
