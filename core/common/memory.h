@@ -16,13 +16,14 @@
 // Freed huge blocks are kept (up to kHugeBlockCacheBytes in all) and handed to the next
 // allocation of about their size, pages already in place. Fresh memory costs more than the
 // zeroing of its pages on the VMs we measure on: a process's first touch of 37 MiB took
-// 14-18 ms in small pages, 4.4-4.8 ms in huge pages, and 29-98 ms in huge pages now and then
-// (when the kernel hands out memory the VM never touched). So a process that generates links
+// 3.8-4.5 ms in huge pages in most processes and 9-82 ms in the others, 15-34 ms in small
+// pages (docs/data/precompute/session20_zen4/first_touch_throwaway.txt; memory the guest
+// gave back is slow to get again). So a process that generates links
 // more than once (precompute_bench's pairs, `lightlink compare`, the accuracy study) paid
 // that for every run: with the cache, precompute_bench's link runs after the first spent
-// 0.9-1.5 % of their wall time outside link generation's phases, against 1.9-12.5 % without
-// (CornellBox-Original; docs/results.md, issue 4 nineteenth pass). A one-shot
-// `lightlink precompute` still pays for its output's first touch.
+// 1.0-2.0 % of their wall time outside link generation's phases, against 19.0-25.7 % without
+// (CornellBox-Original, four alternated rounds; docs/results.md, issue 4 nineteenth pass). A
+// one-shot `lightlink precompute` still pays for its output's first touch.
 #pragma once
 
 #include <cstddef>
