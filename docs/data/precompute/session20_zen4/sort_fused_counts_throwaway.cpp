@@ -1,4 +1,5 @@
 #include "core/links/sample_sort.h"
+#include "read_samples_throwaway.h"
 #include <cstdio>
 #include <vector>
 #include <algorithm>
@@ -39,10 +40,7 @@ Sample* sortFused(Sample* keys, Sample* buffer, std::size_t n, std::uint8_t* see
 }
 }
 int main() {
-  FILE* f = fopen("/tmp/samples_rayorder.bin", "rb");
-  std::vector<std::vector<Sample>> caches;
-  std::uint32_t m;
-  while (fread(&m, 4, 1, f) == 1) { std::vector<Sample> v(m); fread(v.data(), 8, m, f); caches.push_back(std::move(v)); }
+  const auto caches = readSamples("/tmp/samples_rayorder.bin");
   std::vector<std::uint8_t> seen(1 << 16);
   std::vector<Sample> a(2048), b(2048), a2(2048), b2(2048);
   for (int round = 0; round < 4; ++round) {

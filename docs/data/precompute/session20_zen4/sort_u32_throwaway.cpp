@@ -1,4 +1,5 @@
 #include "core/links/sample_sort.h"
+#include "read_samples_throwaway.h"
 #include <cstdio>
 #include <vector>
 #include <chrono>
@@ -46,10 +47,7 @@ std::uint32_t* sort32(std::uint32_t* keys, std::uint32_t* buffer, std::size_t n,
 }
 }
 int main() {
-  FILE* f = fopen("/tmp/samples_rayorder.bin", "rb");
-  std::vector<std::vector<Sample>> caches;
-  std::uint32_t m;
-  while (fread(&m, 4, 1, f) == 1) { std::vector<Sample> v(m); fread(v.data(), 8, m, f); caches.push_back(std::move(v)); }
+  const auto caches = readSamples("/tmp/samples_rayorder.bin");
   std::vector<std::uint8_t> seen(1 << 16);
   std::vector<Sample> a(2048), b(2048);
   std::vector<std::uint32_t> a32(2048), b32(2048);
