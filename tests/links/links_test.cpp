@@ -10,6 +10,7 @@
 
 #include <gtest/gtest.h>
 #include <tbb/global_control.h>
+#include <tbb/task_arena.h>
 
 #include "core/common/sampling.h"
 #include "core/links/surfel_locator.h"
@@ -308,6 +309,16 @@ TEST(Links, EveryPhaseIsTimed) {
   std::vector<glm::vec3> p(64, glm::vec3(1.2f, 1.2f, 1.5f)), n(64, glm::vec3(0));
   const Links links = fixture.link(p, n, {.rays = 256, .max_links = 16});
   for (int k = 0; k < kLinkPhases; ++k) EXPECT_GT(links.stats.phase_ticks[k], 0u) << kLinkPhaseNames[k];
+  // In seconds (precompute_bench sets them against the wall time), the phases of all threads
+  // together take no longer than the run on every thread the process may use, and not
+  // nothing. (A 10 % margin for the rate's own measurement.)
+  const double rate = linkPhaseTicksPerSecond();
+  ASSERT_GT(rate, 0.0);
+  EXPECT_EQ(rate, linkPhaseTicksPerSecond());  // measured once
+  double phases = 0.0;
+  for (const std::uint64_t t : links.stats.phase_ticks) phases += double(t) / rate;
+  EXPECT_GT(phases, 0.0);
+  EXPECT_LE(phases, 1.1 * links.stats.seconds * double(tbb::this_task_arena::max_concurrency()));
 }
 
 // A caller that cancels (a closed client, a deadline) stops link generation between chunks,
