@@ -1,6 +1,5 @@
 #include "core/common/memory.h"
 
-#include <algorithm>
 #include <cstdint>
 #include <cstdlib>
 #include <mutex>
@@ -34,20 +33,19 @@ struct BlockCache {
   std::vector<std::pair<void*, std::size_t>> blocks;  // block, rounded bytes
   std::size_t bytes = 0;
 
-  // The smallest kept block that holds `rounded` bytes without wasting more than as much
-  // again, or null.
+  // A kept block of exactly `rounded` bytes (the most recently kept one), or null. Only
+  // equal sizes: the block comes back through freeHuge with the size asked of it, which is
+  // then its true size, so the cap counts what is really kept.
   void* take(std::size_t rounded) {
     const std::lock_guard lock(mutex);
-    std::size_t best = blocks.size();
-    for (std::size_t i = 0; i < blocks.size(); ++i)
-      if (blocks[i].second >= rounded && blocks[i].second / 2 <= rounded &&
-          (best == blocks.size() || blocks[i].second < blocks[best].second))
-        best = i;
-    if (best == blocks.size()) return nullptr;
-    void* p = blocks[best].first;
-    bytes -= blocks[best].second;
-    blocks.erase(blocks.begin() + static_cast<std::ptrdiff_t>(best));
-    return p;
+    for (std::size_t i = blocks.size(); i-- > 0;) {
+      if (blocks[i].second != rounded) continue;
+      void* p = blocks[i].first;
+      bytes -= rounded;
+      blocks.erase(blocks.begin() + static_cast<std::ptrdiff_t>(i));
+      return p;
+    }
+    return nullptr;
   }
   // Keeps the block if it fits under the cap; false: the caller frees it.
   bool keep(void* p, std::size_t rounded) {

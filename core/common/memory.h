@@ -14,7 +14,7 @@
 // They are hints: nothing changes but the time where the kernel says no.
 //
 // Freed huge blocks are kept (up to kHugeBlockCacheBytes in all) and handed to the next
-// allocation of about their size, pages already in place. Fresh memory costs more than the
+// allocation of their size (in whole huge pages), pages already in place. Fresh memory costs more than the
 // zeroing of its pages on the VMs we measure on: a process's first touch of 37 MiB took
 // 3.8-4.5 ms in huge pages in most processes and 9-82 ms in the others, 15-34 ms in small
 // pages (docs/data/precompute/session20_zen4/first_touch_throwaway.txt; memory the guest
@@ -48,7 +48,8 @@ void* allocateHuge(std::size_t bytes);
 void freeHuge(void* p, std::size_t bytes) noexcept;
 
 // The most bytes of freed huge blocks kept for reuse; a block that does not fit under it is
-// returned to the system. Kept blocks are reused for requests of at least half their size.
+// returned to the system. A kept block is reused for a request of its size in whole huge
+// pages.
 inline constexpr std::size_t kHugeBlockCacheBytes = std::size_t(512) << 20;
 // Bytes of freed huge blocks kept now; releases them all to the system.
 std::size_t cachedHugeBytes();

@@ -72,9 +72,10 @@ TEST(Memory, HugeVectorSizingWritesNothing) {
 }
 #endif
 
-// A freed huge block is kept and handed to the next request of about its size (link
-// generation run again in one process writes into pages already in place); one far smaller
-// gets a block of its own; and no more than kHugeBlockCacheBytes are ever kept.
+// A freed huge block is kept and handed to the next request of its size in whole huge pages
+// (link generation run again in one process writes into pages already in place); a request
+// of another size gets a block of its own; and no more than kHugeBlockCacheBytes are ever
+// kept.
 TEST(Memory, FreedHugeBlocksAreReusedUnderACap) {
   releaseCachedHugeBlocks();
   ASSERT_EQ(cachedHugeBytes(), 0u);
@@ -83,9 +84,9 @@ TEST(Memory, FreedHugeBlocksAreReusedUnderACap) {
   static_cast<char*>(a)[bytes - 1] = 1;
   freeHuge(a, bytes);
   EXPECT_EQ(cachedHugeBytes(), std::size_t(8) << 20);  // rounded up to whole huge pages
-  void* small = allocateHuge(std::size_t(2) << 20);    // under half of the kept block: a new one
+  void* small = allocateHuge(std::size_t(2) << 20);    // another size: a new block
   EXPECT_NE(small, a);
-  void* b = allocateHuge(std::size_t(7) << 20);  // the kept block fits it
+  void* b = allocateHuge(std::size_t(7) << 20);  // 8 MiB in huge pages, as the kept block
   EXPECT_EQ(b, a);
   EXPECT_EQ(cachedHugeBytes(), 0u);
   EXPECT_EQ(reinterpret_cast<std::uintptr_t>(b) % kHugePageBytes, 0u);
