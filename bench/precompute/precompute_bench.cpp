@@ -173,10 +173,9 @@ int main(int argc, char** argv) {
     for (int q = 0; q < links::kLinkPhases; ++q) pair_phase_ticks[q] += l->stats.phase_ticks[q];
     // The share of the link run's wall time (on every thread) that its phases do not account
     // for: the output's page faults, the pipeline's waits, the threads' start.
-    double phase_ticks = 0.0;
-    for (const std::uint64_t t : l->stats.phase_ticks) phase_ticks += double(t);
+    const double phase_seconds = double(l->stats.totalPhaseTicks()) / links::linkPhaseTicksPerSecond();
     const double busy = double(tbb::this_task_arena::max_concurrency()) * l->stats.seconds;
-    pair_outside.push_back(busy > 0 ? 1.0 - phase_ticks / links::linkPhaseTicksPerSecond() / busy : 0.0);
+    pair_outside.push_back(busy > 0 ? 1.0 - phase_seconds / busy : 0.0);
     pair_rows.push_back({{"link_rays_per_second", lrps},
                          {"raw_rays_per_second", rrps},
                          {"ratio", pair_ratios.back()},

@@ -88,6 +88,11 @@ struct LinkStats {
   // Per LinkPhase: ticks summed over all threads (x86: the timestamp counter; elsewhere
   // steady_clock nanoseconds). Their unit varies by machine; their shares do not.
   std::array<std::uint64_t, kLinkPhases> phase_ticks{};
+  std::uint64_t totalPhaseTicks() const {
+    std::uint64_t total = 0;
+    for (const std::uint64_t t : phase_ticks) total += t;
+    return total;
+  }
 };
 
 // phase_ticks per second on this machine (x86: the timestamp counter's rate, measured

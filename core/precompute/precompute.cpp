@@ -100,8 +100,7 @@ nlohmann::ordered_json linkStatsJson(const links::Links& l) {
   j["rays_per_second"] = l.stats.seconds > 0 ? double(l.stats.rays) / l.stats.seconds : 0.0;
   // Where the time went, as shares of the phases' sum (their ticks have no fixed unit), and
   // link generation's own work per unit of Embree time.
-  double total = 0.0;
-  for (const std::uint64_t t : l.stats.phase_ticks) total += double(t);
+  const double total = double(l.stats.totalPhaseTicks());
   nlohmann::ordered_json share = nlohmann::ordered_json::object();
   for (int k = 0; k < links::kLinkPhases; ++k)
     share[links::kLinkPhaseNames[k]] = total > 0 ? double(l.stats.phase_ticks[k]) / total : 0.0;
