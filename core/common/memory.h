@@ -17,8 +17,8 @@
 // allocation of their size (in whole huge pages), pages already in place. Fresh memory costs more than the
 // zeroing of its pages on the VMs we measure on: a process's first touch of 37 MiB took
 // 3.8-4.5 ms in huge pages in most processes and 9-82 ms in the others, 15-34 ms in small
-// pages (docs/data/precompute/session20_zen4/first_touch_throwaway.txt; memory the guest
-// gave back is slow to get again). A process that generates links more than once
+// pages (docs/data/precompute/session20_zen4/first_touch_throwaway.txt; why some processes
+// get slow memory was not measured). A process that generates links more than once
 // (precompute_bench's pairs, `lightlink compare`, the accuracy study) paid that for every
 // run: with the cache, precompute_bench's link runs after the first spent 1.0-2.0 % of their
 // wall time outside link generation's phases, against 19.0-25.7 % without
