@@ -13,6 +13,7 @@
 #include <numbers>
 #include <mutex>
 #include <shared_mutex>
+#include <type_traits>
 
 #if defined(__SSE2__)
 #include <immintrin.h>
@@ -466,6 +467,7 @@ LinkRays::LinkRays(const LinkOptions& options) : strata_(strataFor(options)), se
   base_jitter_.resize(count);
   base_cos_.resize(count);
   base_sin_.resize(count);
+  base_stratum_.resize(count);
   for (std::uint32_t i = 0; i < count; ++i) {
     const glm::vec2 jitter = stratifiedJitter32(i, pattern_seed);
     const float azimuth = (static_cast<float>(i / strata_) + jitter.y) / static_cast<float>(strata_);
@@ -473,6 +475,7 @@ LinkRays::LinkRays(const LinkOptions& options) : strata_(strataFor(options)), se
     base_jitter_[i] = jitter.x;
     base_cos_[i] = static_cast<float>(std::cos(phi));
     base_sin_[i] = static_cast<float>(std::sin(phi));
+    base_stratum_[i] = static_cast<float>(i % strata_);
   }
 }
 
@@ -503,9 +506,11 @@ struct RowSetup {
 // One loop with no hashing or trigonometry that vectorises (sqrt does: the module builds
 // with -fno-math-errno). The generator it replaced hashed two jitters per ray and took the
 // azimuth's cosine and sine per ray (docs/results.md, seventh pass: its perf samples halved).
+// `strata` rays from bj/bc/bs (the base pattern) and bsx (each ray's polar stratum as a
+// float): one row, or a whole fan at once (rows follow each other in the arrays).
 LL_MULTIVERSION void rowDirections(const RowSetup& r, const float* __restrict bj, const float* __restrict bc,
-                                   const float* __restrict bs, std::uint32_t strata, float* __restrict dx,
-                                   float* __restrict dy, float* __restrict dz) {
+                                   const float* __restrict bs, const float* __restrict bsx, std::uint32_t strata,
+                                   float* __restrict dx, float* __restrict dy, float* __restrict dz) {
   // Everything the loop reads of `r` in locals: the stores through dx/dy/dz could alias it
   // otherwise, and the reloads keep the loop from vectorising.
   const float shift = r.shift, inv = r.inv, z_scale = r.z_scale;
@@ -516,7 +521,7 @@ LL_MULTIVERSION void rowDirections(const RowSetup& r, const float* __restrict bj
     // `sum >= 1 ? sum - 1 : sum` and `sum - (sum >= 1 ? 1 : 0)`. (sum - 1 is exact here.)
     const float wrapped = sum - 1.0f;
     const float jitter = wrapped < 0.0f ? sum : wrapped;
-    const float u = (static_cast<float>(sx) + jitter) * inv;
+    const float u = (bsx[sx] + jitter) * inv;
     const float z = 1.0f - z_scale * u;
     // No clamp: u <= 1, so |z| <= 1 and z * z <= 1 in floats too. (sx + jitter rounds to at
     // most strata, rounding is monotone, and strata * (1 / strata) <= 1 in floats for every
@@ -600,13 +605,23 @@ glm::vec3 LinkRays::forEachRow(const rt::Accel& accel, std::size_t cache, const 
   // Every hemisphere direction leaves on the normal's side, so one offset origin serves all.
   const glm::vec3 origin = hemisphere ? accel.offsetOrigin(p, n, n) : p;
   const std::uint32_t strata = strata_;
+  if constexpr (std::is_same_v<std::decay_t<RowSink>, WholeFan>) {
+    // A fan has no per-row sink: all rows in one call, the polar stratum of each ray read
+    // from a table. Per row, the calls' set-up and their loops' tails took a fifth of the
+    // rays phase (1.76-1.86k -> 1.50-1.60k ticks per cache, CornellBox-Original, four
+    // alternated rounds; docs/results.md, issue 4 twentieth pass). The same bits: the table
+    // holds float(sx) exactly.
+    rowDirections(setup, base_jitter_.data(), base_cos_.data(), base_sin_.data(), base_stratum_.data(),
+                  strata * strata, directions->x, directions->y, directions->z);
+    return origin;
+  }
   float bx[1024], by[1024], bz[1024];  // a row (strata <= 1024: rays <= 2^20)
   for (std::uint32_t first = 0; first < strata * strata; first += strata) {
     float* x = directions ? directions->x + first : bx;
     float* y = directions ? directions->y + first : by;
     float* z = directions ? directions->z + first : bz;
-    rowDirections(setup, base_jitter_.data() + first, base_cos_.data() + first, base_sin_.data() + first, strata,
-                  x, y, z);
+    rowDirections(setup, base_jitter_.data() + first, base_cos_.data() + first, base_sin_.data() + first,
+                  base_stratum_.data(), strata, x, y, z);
     sink(origin, x, y, z, first, strata);
   }
   return origin;
@@ -622,8 +637,7 @@ void LinkRays::generate(const rt::Accel& accel, std::size_t cache, const glm::ve
 rt::RayFan LinkRays::fan(const rt::Accel& accel, std::size_t cache, const glm::vec3& p, const glm::vec3& normal,
                          const Directions& directions) const {
   rt::RayFan fan;
-  fan.origin = forEachRow(accel, cache, p, normal, &directions,
-                          [](const glm::vec3&, const float*, const float*, const float*, std::uint32_t, std::uint32_t) {});
+  fan.origin = forEachRow(accel, cache, p, normal, &directions, WholeFan{});
   fan.dir_x = directions.x;
   fan.dir_y = directions.y;
   fan.dir_z = directions.z;

@@ -185,6 +185,12 @@ class LinkRays {
   // The base pattern, per ray: the polar jitter in [0, 1) inside its stratum, and the
   // azimuth's cos and sin.
   std::vector<float> base_jitter_, base_cos_, base_sin_;
+  std::vector<float> base_stratum_;  // per ray: its polar stratum (i % strata) as a float
+  // The sink fan() passes forEachRow: it wants the directions only, so forEachRow makes them
+  // in one call instead of row by row.
+  struct WholeFan {
+    void operator()(const glm::vec3&, const float*, const float*, const float*, std::uint32_t, std::uint32_t) const {}
+  };
 };
 
 // Zonal SH coefficients z_l (l < bands) of the indicator of a spherical cap of solid angle
