@@ -55,6 +55,13 @@ inline constexpr std::size_t kHugeBlockCacheBytes = std::size_t(512) << 20;
 std::size_t cachedHugeBytes();
 void releaseCachedHugeBlocks();
 
+// memcpy for a destination that will not be read soon (link generation's output, written
+// once behind the chunks that produced it): non-temporal stores where the CPU has them, so
+// the destination's lines are not read from memory first (a plain copy reads every line
+// it writes). Ordered before the caller's later stores (a store fence). dst and src must
+// not overlap.
+void copyStreaming(void* dst, const void* src, std::size_t bytes) noexcept;
+
 template <typename T>
 struct HugePageAllocator {
   using value_type = T;

@@ -876,11 +876,18 @@ Expected<Links> generateLinks(const scene::Scene& scene, const rt::Accel& accel,
             const std::size_t at = slot->at;
             {
               const std::shared_lock copying(output_mutex);
-              std::copy(r.node.begin(), r.node.end(), links.node.begin() + at);
-              std::copy(r.coeffs.begin(), r.coeffs.end(), links.coeffs.begin() + at * coeffs_per_link);
-              std::copy(r.direction.begin(), r.direction.end(), links.direction.begin() + at);
-              std::copy(r.solid_angle.begin(), r.solid_angle.end(), links.solid_angle.begin() + at);
-              std::copy(r.sky.begin(), r.sky.end(), links.sky.begin() + slot->chunk * kChunk * coeffs_per_link);
+              // Streaming stores: nothing reads the output until the stage is over, and a
+              // plain copy first read every line it wrote (the copies took 746-913 ticks per
+              // cache, streaming 457-928, median 507; CornellBox-Original, four alternated
+              // rounds; docs/results.md, issue 4 twentieth pass).
+              auto stream = [](auto& to, std::size_t to_at, const auto& from) {
+                copyStreaming(to.data() + to_at, from.data(), from.size() * sizeof(from[0]));
+              };
+              stream(links.node, at, r.node);
+              stream(links.coeffs, at * coeffs_per_link, r.coeffs);
+              stream(links.direction, at, r.direction);
+              stream(links.solid_angle, at, r.solid_angle);
+              stream(links.sky, slot->chunk * kChunk * coeffs_per_link, r.sky);
             }
             free_slots.push(slot);
           }));

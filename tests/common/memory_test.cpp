@@ -113,6 +113,26 @@ TEST(Memory, FreedHugeBlocksAreReusedUnderACap) {
   EXPECT_EQ(cachedHugeBytes(), 0u);
 }
 
+// The streaming copy writes exactly [dst, dst + bytes) with src's bytes, whatever the
+// destination's alignment (its head, the 64-byte loop, the 16-byte steps and the tail) and
+// below the size where it falls back to memcpy, and nothing around it.
+TEST(Memory, StreamingCopyCopiesExactlyTheBytesAtAnyAlignment) {
+  std::vector<unsigned char> src(5000);
+  for (std::size_t i = 0; i < src.size(); ++i) src[i] = static_cast<unsigned char>(i * 131 + 7);
+  for (const std::size_t bytes : {std::size_t(0), std::size_t(1), std::size_t(255), std::size_t(256),
+                                  std::size_t(257), std::size_t(1000), std::size_t(4093)})
+    for (std::size_t dst_at = 0; dst_at < 19; ++dst_at)
+      for (const std::size_t src_at : {std::size_t(0), std::size_t(3)}) {
+        std::vector<unsigned char> dst(bytes + 64, 0xAB);
+        copyStreaming(dst.data() + dst_at, src.data() + src_at, bytes);
+        for (std::size_t i = 0; i < dst.size(); ++i) {
+          const bool inside = i >= dst_at && i < dst_at + bytes;
+          const unsigned char want = inside ? src[src_at + i - dst_at] : 0xAB;
+          ASSERT_EQ(dst[i], want) << bytes << " bytes to offset " << dst_at << " from " << src_at << ", byte " << i;
+        }
+      }
+}
+
 TEST(Memory, AdviceOnAnyRangeIsHarmless) {
   std::vector<char> small(100, 'x');
   adviseHugePages(small.data(), small.size());  // nothing inside it is a whole 2 MiB page
