@@ -13,7 +13,6 @@
 #include <numbers>
 #include <mutex>
 #include <shared_mutex>
-#include <type_traits>
 
 #if defined(__SSE2__)
 #include <immintrin.h>
@@ -605,21 +604,19 @@ glm::vec3 LinkRays::forEachRow(const rt::Accel& accel, std::size_t cache, const 
   // Every hemisphere direction leaves on the normal's side, so one offset origin serves all.
   const glm::vec3 origin = hemisphere ? accel.offsetOrigin(p, n, n) : p;
   const std::uint32_t strata = strata_;
-  if constexpr (std::is_same_v<std::decay_t<RowSink>, WholeFan>) {
-    // A fan has no per-row sink: all rows in one call, the polar stratum of each ray read
-    // from a table. Per row, the calls' set-up and their loops' tails took a fifth of the
-    // rays phase (1.76-1.86k -> 1.50-1.60k ticks per cache, CornellBox-Original, four
-    // alternated rounds; docs/results.md, issue 4 twentieth pass). The same bits: the table
-    // holds float(sx) exactly.
+  if (directions != nullptr) {
+    // All rows in one call, the polar stratum of each ray read from a table, then the rows
+    // handed on: one call per row cost 1.76-1.86k ticks per cache for the rays phase, this
+    // 1.50-1.60k (CornellBox-Original, four alternated rounds; docs/results.md, issue 4
+    // twentieth pass). The same bits: the table holds float(sx) exactly.
     rowDirections(setup, base_jitter_.data(), base_cos_.data(), base_sin_.data(), base_stratum_.data(),
                   strata * strata, directions->x, directions->y, directions->z);
+    for (std::uint32_t first = 0; first < strata * strata; first += strata)
+      sink(origin, directions->x + first, directions->y + first, directions->z + first, first, strata);
     return origin;
   }
-  float bx[1024], by[1024], bz[1024];  // a row (strata <= 1024: rays <= 2^20)
+  float x[1024], y[1024], z[1024];  // a row (strata <= 1024: rays <= 2^20)
   for (std::uint32_t first = 0; first < strata * strata; first += strata) {
-    float* x = directions ? directions->x + first : bx;
-    float* y = directions ? directions->y + first : by;
-    float* z = directions ? directions->z + first : bz;
     rowDirections(setup, base_jitter_.data() + first, base_cos_.data() + first, base_sin_.data() + first,
                   base_stratum_.data(), strata, x, y, z);
     sink(origin, x, y, z, first, strata);
@@ -637,7 +634,8 @@ void LinkRays::generate(const rt::Accel& accel, std::size_t cache, const glm::ve
 rt::RayFan LinkRays::fan(const rt::Accel& accel, std::size_t cache, const glm::vec3& p, const glm::vec3& normal,
                          const Directions& directions) const {
   rt::RayFan fan;
-  fan.origin = forEachRow(accel, cache, p, normal, &directions, WholeFan{});
+  fan.origin = forEachRow(accel, cache, p, normal, &directions,
+                          [](const glm::vec3&, const float*, const float*, const float*, std::uint32_t, std::uint32_t) {});
   fan.dir_x = directions.x;
   fan.dir_y = directions.y;
   fan.dir_z = directions.z;

@@ -174,8 +174,9 @@ class LinkRays {
                  const Directions& directions) const;
 
  private:
-  // Computes the directions row by row (into `directions` when given) and hands each row to
-  // sink(origin, x, y, z, first ray, rays in the row); returns the origin.
+  // Computes the directions (into `directions` when given, all rows at once; else row by row
+  // on the stack) and hands each row to sink(origin, x, y, z, first ray, rays in the row);
+  // returns the origin.
   template <typename RowSink>
   glm::vec3 forEachRow(const rt::Accel& accel, std::size_t cache, const glm::vec3& position,
                        const glm::vec3& normal, const Directions* directions, RowSink&& sink) const;
@@ -186,11 +187,6 @@ class LinkRays {
   // azimuth's cos and sin.
   std::vector<float> base_jitter_, base_cos_, base_sin_;
   std::vector<float> base_stratum_;  // per ray: its polar stratum (i % strata) as a float
-  // The sink fan() passes forEachRow: it wants the directions only, so forEachRow makes them
-  // in one call instead of row by row.
-  struct WholeFan {
-    void operator()(const glm::vec3&, const float*, const float*, const float*, std::uint32_t, std::uint32_t) const {}
-  };
 };
 
 // Zonal SH coefficients z_l (l < bands) of the indicator of a spherical cap of solid angle
