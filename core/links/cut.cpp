@@ -436,7 +436,7 @@ void chooseCut(const CutTree& tree, std::span<const Sample> samples, int max_lin
   }
   const std::uint32_t stop_count = lo;
   const std::uint32_t rank = limit - countAtLeast(x.gc, x.growing, lo + 1);  // 1-based among the ties
-  std::vector<std::uint32_t>& ties = s.ties;
+  auto& ties = s.ties;
   ties.resize(x.growing);
   std::size_t n_ties = 0;
   for (std::size_t i = 0; i < x.growing; ++i) {

@@ -14,6 +14,7 @@
 #include <span>
 #include <vector>
 
+#include "core/common/aligned_vector.h"
 #include "core/hierarchy/tree.h"
 
 namespace lightlink::links {
@@ -62,11 +63,11 @@ struct CutEntry {
 // the final ordering's table and bitmap.
 inline constexpr std::size_t kCutFields = 13;
 struct CutScratch {
-  std::array<std::vector<std::uint32_t>, kCutFields> field;
-  std::vector<std::uint32_t> ties;
+  std::array<LineVector<std::uint32_t>, kCutFields> field;
+  LineVector<std::uint32_t> ties;
   std::uint32_t stop_count = 0;
-  std::vector<std::uint32_t> at_first;  // per sample: the record of the cut entry starting there
-  std::vector<std::uint64_t> starts;    // per sample, one bit: a cut entry starts there
+  LineVector<std::uint32_t> at_first;  // per sample: the record of the cut entry starting there
+  LineVector<std::uint64_t> starts;    // per sample, one bit: a cut entry starts there
 };
 
 // Which code splits the nodes: the best this CPU has (16 nodes at a time with AVX-512 where

@@ -23,6 +23,7 @@
 #include <tbb/parallel_pipeline.h>
 #include <tbb/task_arena.h>
 
+#include "core/common/aligned_vector.h"
 #include "core/common/check.h"
 #include "core/common/memory.h"
 #include "core/common/multiversion.h"
@@ -54,20 +55,20 @@ std::uint32_t strataFor(const LinkOptions& options) {
 // Per-thread scratch, reused across caches so the hot loop never allocates.
 struct Scratch {
   // The fan's hits, one array per field (rt::HitArrays).
-  std::vector<std::uint32_t> hit_mesh, hit_triangle;
-  std::vector<float> hit_u, hit_v, hit_t, hit_ng_x, hit_ng_y, hit_ng_z;
-  std::vector<Sample> samples;
-  std::vector<Sample> sort_buffer;
+  LineVector<std::uint32_t> hit_mesh, hit_triangle;
+  LineVector<float> hit_u, hit_v, hit_t, hit_ng_x, hit_ng_y, hit_ng_z;
+  LineVector<Sample> samples;
+  LineVector<Sample> sort_buffer;
   std::vector<CutEntry> cut;
   CutScratch cut_scratch;
-  std::vector<std::uint32_t> slots;     // per ray: owner raster slot or ray class
-  std::vector<float> dir_x, dir_y, dir_z;  // per ray, padded to a multiple of kSkyLanes
-  std::vector<float> escaped;           // per ray: 1 escaped, 0 not (0 in the padding)
-  std::vector<float> poly;              // per ray (padded), polyRows(bands) rows of 8: the basis polynomials q >= 1
-  std::vector<float> link_sums;         // a spare, then per link of the cache polyRows(bands) rows of 8: sums of those
-  std::vector<float> coeff_values;      // per link of the cache: its SH in float, then fp16
-  std::vector<float> solid_values;
-  std::vector<float> link_x, link_y, link_z;  // per link of the cache: the direction to encode
+  LineVector<std::uint32_t> slots;     // per ray: owner raster slot or ray class
+  LineVector<float> dir_x, dir_y, dir_z;  // per ray, padded to a multiple of kSkyLanes
+  LineVector<float> escaped;           // per ray: 1 escaped, 0 not (0 in the padding)
+  LineVector<float> poly;              // per ray (padded), polyRows(bands) rows of 8: the basis polynomials q >= 1
+  LineVector<float> link_sums;         // a spare, then per link of the cache polyRows(bands) rows of 8: sums of those
+  LineVector<float> coeff_values;      // per link of the cache: its SH in float, then fp16
+  LineVector<float> solid_values;
+  LineVector<float> link_x, link_y, link_z;  // per link of the cache: the direction to encode
 };
 
 // The link arrays are HugeVectors for their allocator's default-initialising resize: each

@@ -34,6 +34,7 @@
 
 #include <glm/glm.hpp>
 
+#include "core/common/aligned_vector.h"
 #include "core/common/half.h"
 #include "core/common/memory.h"
 #include "core/common/progress.h"
@@ -185,8 +186,8 @@ class LinkRays {
   std::uint64_t seed_;
   // The base pattern, per ray: the polar jitter in [0, 1) inside its stratum, and the
   // azimuth's cos and sin.
-  std::vector<float> base_jitter_, base_cos_, base_sin_;
-  std::vector<float> base_stratum_;  // per ray: its polar stratum (i % strata) as a float
+  LineVector<float> base_jitter_, base_cos_, base_sin_;
+  LineVector<float> base_stratum_;  // per ray: its polar stratum (i % strata) as a float
 };
 
 // Zonal SH coefficients z_l (l < bands) of the indicator of a spherical cap of solid angle
