@@ -1,6 +1,7 @@
 #include "service/session_store.h"
 
 #include <fcntl.h>
+#include <sys/stat.h>
 #include <unistd.h>
 
 #include <atomic>
@@ -28,6 +29,7 @@ Status writeFileAtomic(const std::string& path, std::string_view bytes, unsigned
       dir / fmt::format(".{}.tmp.{}.{}", final_path.filename().string(), ::getpid(), counter.fetch_add(1));
   const int fd = ::open(temp.c_str(), O_WRONLY | O_CREAT | O_EXCL | O_CLOEXEC, mode);
   if (fd < 0) return ioError("cannot create {}: {}", temp.string(), errnoText());
+  ::fchmod(fd, mode);  // the mode asked for, whatever the umask
   auto fail = [&](const char* what) {
     const std::string why = errnoText();
     ::close(fd);
