@@ -252,5 +252,15 @@ TEST(Cli, UnknownSubcommandIsUsageError) {
   EXPECT_EQ(r.exit_code, cli::kExitUsage) << r.output;
 }
 
+// A daemon token in argv is visible to every user in ps: refused before any connection,
+// naming the alternatives.
+TEST(Cli, DaemonTokenInArgvIsRefused) {
+  const auto r = runCommand(kCli + " watch --target 127.0.0.1:1 --scene s1 --scene-token t1 --count 1 --timeout 2000"
+                                   " --token 0123456789abcdef0123");
+  EXPECT_EQ(r.exit_code, cli::kExitBadInput) << r.output;
+  EXPECT_NE(r.output.find("--token-file"), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("LIGHTLINK_TOKEN"), std::string::npos) << r.output;
+}
+
 }  // namespace
 }  // namespace lightlink
