@@ -235,7 +235,8 @@ TEST(DaemonDisk, RestartListensAtOnceWhileASlowSceneIsRestored) {
   v1::ListScenesResponse list;
   ASSERT_TRUE(rpc->ListScenes(context(5000).get(), {}, &list).ok());
   const double answered_s = std::chrono::duration<double>(Clock::now() - start).count();
-  // The restore alone takes tens of seconds here; listening must not wait for it.
+  RecordProperty("answered_ms", static_cast<int>(answered_s * 1000));
+  // The restore alone takes about ten seconds on a 2-core machine; listening must not wait for it.
   EXPECT_LT(answered_s, 5.0) << d.log();
   ASSERT_EQ(list.scenes_size(), 1);
   EXPECT_EQ(list.scenes(0).scene_id(), opened.scene_id());
