@@ -233,7 +233,8 @@ grpc::Status LightlinkService::lookup(grpc::ServerContext* ctx, const v1::SceneR
     if (const auto token = registry_.restoringToken(ref.scene_id())) {
       if (!constantTimeEqual(ref.token(), *token))
         return grpcError(grpc::StatusCode::PERMISSION_DENIED, "token: does not match scene '" + shown + "'");
-      if (registry_.waitRestored(ref.scene_id(), waitDeadline(ctx) - kAnswerMargin,
+      // A wider margin than a long poll's: the restore keeps the cores busy meanwhile.
+      if (registry_.waitRestored(ref.scene_id(), waitDeadline(ctx) - std::chrono::milliseconds(250),
                                  [&] { return ctx->IsCancelled() || draining_.load(); }))
         return grpcError(grpc::StatusCode::UNAVAILABLE,
                          "scene '" + shown + "' is still being restored after the daemon's restart; retry shortly");
