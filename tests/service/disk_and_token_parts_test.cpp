@@ -198,5 +198,17 @@ TEST(PrivateFiles, AFifoNamedLikeAnArtifactIsRefusedWithoutBlocking) {
   EXPECT_NE(opened.status().message().find("FIFO"), std::string::npos) << opened.status().message();
 }
 
+TEST(PrivateFiles, AFifoAsSessionsFileIsAnErrorNotAHang) {
+  TempDir tmp;
+  const fs::path fifo = tmp / "sessions.json";
+  ASSERT_EQ(::mkfifo(fifo.c_str(), 0600), 0);
+  const auto loaded = loadSessions(fifo.string());
+  ASSERT_FALSE(loaded);
+  EXPECT_NE(loaded.status().message().find("FIFO"), std::string::npos) << loaded.status().message();
+  const auto missing = loadSessions((tmp / "none.json").string());
+  ASSERT_TRUE(missing);
+  EXPECT_TRUE(missing->empty());
+}
+
 }  // namespace
 }  // namespace lightlink::service
