@@ -110,7 +110,8 @@ void declareFlags(CLI::App& app, DaemonConfig& c, std::string& config_path, std:
   app.add_option("--cache-dir", c.cache_dir,
                  "Directory for artifacts, inline scenes and sessions.json (required)");
   // Declared only to refuse it with a useful message: argv is visible to every user in ps.
-  app.add_option("--token", argv_token, "Refused: a token in argv is visible in ps; use --token-file or $LIGHTLINKD_TOKEN");
+  app.add_option("--token", argv_token,
+                 "Refused: a token in argv is visible in ps; use --token-file or $LIGHTLINKD_TOKEN");
   app.add_option("--token-file", token_file,
                  "Read the bearer token clients must send ('authorization: Bearer <token>') from this file; "
                  "default: $LIGHTLINKD_TOKEN. At least 16 characters");

@@ -209,11 +209,13 @@ grpc::Status LightlinkService::admit(grpc::ServerContext* ctx, bool new_work) co
                                    std::chrono::ceil<std::chrono::seconds>(left).count()));
     if (std::string why = checkBearer(value, present, config_.token); !why.empty()) {
       logEvent(LogLevel::kWarn, "unauthenticated", {{"peer", ctx->peer()}, {"reason", why}});
-      if (auth_failures_.recordFailure(address))
+      if (auth_failures_.recordFailure(address)) {
+        const auto& limits = auth_failures_.limits();
         logEvent(LogLevel::kWarn, "auth_rate_limited",
                  {{"address", address},
-                  {"failures", auth_failures_.limits().max_failures},
-                  {"backoff_s", std::chrono::duration_cast<std::chrono::seconds>(auth_failures_.limits().backoff).count()}});
+                  {"failures", limits.max_failures},
+                  {"backoff_s", std::chrono::duration_cast<std::chrono::seconds>(limits.backoff).count()}});
+      }
       return grpcError(grpc::StatusCode::UNAUTHENTICATED, why);
     }
   }

@@ -178,7 +178,8 @@ int main(int argc, char** argv) {
   app.add_option("--session", a.session, "Session file written by `lightlink open --session`");
   app.add_option("--target", a.target, "Daemon address host:port");
   app.add_option("--token-file", a.token_file, "File holding the daemon bearer token (default: $LIGHTLINK_TOKEN)");
-  app.add_option("--token", a.token, "Refused: a token in argv is visible in ps; use --token-file or $LIGHTLINK_TOKEN");
+  app.add_option("--token", a.token,
+                 "Refused: a token in argv is visible in ps; use --token-file or $LIGHTLINK_TOKEN");
   app.add_option("--scene", a.scene_id, "Scene id (instead of --session)");
   app.add_option("--scene-token", a.scene_token, "Scene token (with --scene)");
   app.add_option("--scene-file", a.scene_path, "The glTF the daemon opened (default: the path the daemon reports)");
