@@ -1,10 +1,12 @@
 #include "service/config.h"
 
 #include <cmath>
+#include <cstdlib>
 #include <fstream>
 #include <sstream>
 
 #include <CLI/CLI.hpp>
+#include <fmt/format.h>
 #include <nlohmann/json.hpp>
 
 #include "service/auth.h"
@@ -49,7 +51,14 @@ Status applyConfigFile(const std::string& path, DaemonConfig& c) {
     if (key == "listen") s = str(c.listen);
     else if (key == "port_file") s = str(c.port_file);
     else if (key == "cache_dir") s = str(c.cache_dir);
-    else if (key == "token") s = str(c.token);
+    else if (key == "token") s = str(c.token);  // a config file is not visible in ps, argv is
+    else if (key == "allow_plaintext_token") {
+      if (!v.is_boolean()) return invalidInput("--config {}: 'allow_plaintext_token' must be true or false", path);
+      c.allow_plaintext_token = v.get<bool>();
+    } else if (key == "cache_quota") {
+      if (!v.is_number_unsigned()) return invalidInput("--config {}: 'cache_quota' must be a byte count", path);
+      c.cache_quota = v.get<std::uint64_t>();
+    }
     else if (key == "token_file") {
       std::string file;
       s = str(file);
@@ -92,7 +101,7 @@ Status applyConfigFile(const std::string& path, DaemonConfig& c) {
 
 // Declares every flag on `app`, bound to `c`. Called twice (see parseArgs).
 void declareFlags(CLI::App& app, DaemonConfig& c, std::string& config_path, std::string& token_file,
-                  std::string& log_format, bool& no_restore, bool& no_shared_memory) {
+                  std::string& argv_token, std::string& log_format, bool& no_restore, bool& no_shared_memory) {
   app.add_option("--config", config_path, "JSON config file; its keys are the flag names with '_' (flags override it)");
   app.add_option("--listen", c.listen,
                  "Address host:port to listen on; port 0 picks a free port. Anything but loopback requires --token")
@@ -100,8 +109,19 @@ void declareFlags(CLI::App& app, DaemonConfig& c, std::string& config_path, std:
   app.add_option("--port-file", c.port_file, "Write the bound port (a decimal number) to this file once listening");
   app.add_option("--cache-dir", c.cache_dir,
                  "Directory for artifacts, inline scenes and sessions.json (required)");
-  app.add_option("--token", c.token, "Bearer token clients must send (metadata 'authorization: Bearer <token>')");
-  app.add_option("--token-file", token_file, "Read the bearer token from this file (first line)");
+  // Declared only to refuse it with a useful message: argv is visible to every user in ps.
+  app.add_option("--token", argv_token,
+                 "Refused: a token in argv is visible in ps; use --token-file or $LIGHTLINKD_TOKEN");
+  app.add_option("--token-file", token_file,
+                 "Read the bearer token clients must send ('authorization: Bearer <token>') from this file; "
+                 "default: $LIGHTLINKD_TOKEN. At least 16 characters");
+  app.add_flag("--allow-plaintext-token", c.allow_plaintext_token,
+               "Allow a token on a non-loopback --listen without TLS (the token then crosses the network in clear)");
+  app.add_option("--cache-quota", c.cache_quota,
+                 "Bytes the cache's artifacts and inline scenes may take (suffixes KiB, MiB, GiB...; 0 = no limit); "
+                 "closed scenes' files are evicted least recently used first")
+      ->transform(CLI::AsSizeValue(false))
+      ->default_str("10GiB");
   app.add_option("--tls-cert", c.tls_cert, "PEM server certificate chain: serve TLS (with --tls-key)");
   app.add_option("--tls-key", c.tls_key, "PEM private key of --tls-cert");
   app.add_option("--backend", c.backend, "Default relight backend for OpenScene's BACKEND_AUTO: auto | cpu | gpu")
@@ -142,10 +162,17 @@ Status DaemonConfig::validate() const {
   if (listen.empty() || listen.rfind(':') == std::string::npos)
     return invalidInput("--listen '{}': expected host:port", listen);
   if (!loopbackOnly() && token.empty())
-    return invalidInput("--listen '{}' is not a loopback address: give --token or --token-file (refusing to serve "
-                        "an unauthenticated daemon beyond this machine)",
-                        listen);
+    return invalidInput("--listen '{}' is not a loopback address: give a token with --token-file or ${} (refusing "
+                        "to serve an unauthenticated daemon beyond this machine)",
+                        listen, kTokenEnvVar);
+  if (!token.empty() && token.size() < kMinTokenLength)
+    return invalidInput("token: {} characters is too short, at least {} are required (e.g. `openssl rand -hex 16`)",
+                        token.size(), kMinTokenLength);
   if (tls_cert.empty() != tls_key.empty()) return invalidInput("--tls-cert and --tls-key: give both or neither");
+  if (!token.empty() && !loopbackOnly() && tls_cert.empty() && !allow_plaintext_token)
+    return invalidInput("--listen '{}' is not a loopback address and TLS is off: the token would cross the network "
+                        "in clear; give --tls-cert and --tls-key, or --allow-plaintext-token to accept that",
+                        listen);
   if (backend != "auto" && backend != "cpu" && backend != "gpu")
     return invalidInput("--backend '{}' must be auto, cpu or gpu", backend);
   if (log_level != "trace" && log_level != "debug" && log_level != "info" && log_level != "warn" &&
@@ -170,9 +197,9 @@ ParsedArgs parseArgs(int argc, char** argv) {
   auto run = [&](DaemonConfig& c, std::string& config_path) -> bool {
     CLI::App app{"lightlinkd: keeps precomputed scenes resident and relights them over gRPC (lightlink.v1)"};
     app.set_version_flag("--version", "lightlinkd 0.1.0");
-    std::string token_file, log_format = c.log_format == LogFormat::kJson ? "json" : "text";
+    std::string token_file, argv_token, log_format = c.log_format == LogFormat::kJson ? "json" : "text";
     bool no_restore = false, no_shared_memory = false;
-    declareFlags(app, c, config_path, token_file, log_format, no_restore, no_shared_memory);
+    declareFlags(app, c, config_path, token_file, argv_token, log_format, no_restore, no_shared_memory);
     try {
       app.parse(argc, argv);
     } catch (const CLI::ParseError& e) {
@@ -186,6 +213,15 @@ ParsedArgs parseArgs(int argc, char** argv) {
       out.exit_now = true;
       out.exit_code = 2;
       out.output = "lightlinkd: --log-format '" + log_format + "' must be text or json\n";
+      return false;
+    }
+    if (app.count("--token") > 0) {
+      out.exit_now = true;
+      out.exit_code = 2;
+      out.output = fmt::format(
+          "lightlinkd: --token: a token on the command line is visible to every user of this machine (ps); give it "
+          "with --token-file FILE, the environment variable {}, or the config file key \"token\"\n",
+          kTokenEnvVar);
       return false;
     }
     c.log_format = log_format == "json" ? LogFormat::kJson : LogFormat::kText;
@@ -221,6 +257,10 @@ ParsedArgs parseArgs(int argc, char** argv) {
     if (!run(base, ignored)) return out;
     out.config = base;
   }
+  // The environment is the token's last source: a file (flag or config) or the config's
+  // own key take precedence.
+  if (out.config.token.empty())
+    if (const char* env = std::getenv(kTokenEnvVar); env != nullptr && *env != '\0') out.config.token = env;
   if (Status s = out.config.validate(); !s) {
     out.exit_now = true;
     out.exit_code = 2;

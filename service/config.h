@@ -2,8 +2,11 @@
 // config file (`--config FILE`; flags given on the command line override the file).
 //
 // Security defaults are conservative: the daemon listens on loopback; a non-loopback
-// `--listen` without a bearer token (`--token` / `--token-file`) refuses to start, and
-// TLS is used when a certificate and key are given (both or neither). Limits bound what
+// `--listen` without a bearer token refuses to start, and so does one with a token but
+// without TLS (unless `--allow-plaintext-token`). The token comes from `--token-file`, the
+// environment (LIGHTLINKD_TOKEN) or the config file, never from argv (visible in `ps`),
+// and has at least kMinTokenLength characters. TLS is used when a certificate and key are
+// given (both or neither). Limits bound what
 // one client can make the daemon hold (streams, scenes, message sizes). The JSON keys are
 // the flag names without the dashes, with '_' for '-' (docs/service.md lists them).
 #pragma once
@@ -19,11 +22,17 @@ namespace lightlink::service {
 
 enum class LogFormat { kText, kJson };
 
+// Shortest daemon bearer token accepted at start.
+inline constexpr std::size_t kMinTokenLength = 16;
+// Environment variable the daemon reads its bearer token from (when no file names one).
+inline constexpr const char* kTokenEnvVar = "LIGHTLINKD_TOKEN";
+
 struct DaemonConfig {
   std::string listen = "127.0.0.1:50051";  // host:port; port 0 picks a free one
   std::string port_file;                   // written (atomically) with the bound port
   std::string cache_dir;                   // artifacts, inline scenes, sessions.json
-  std::string token;                       // daemon bearer token (from --token or --token-file)
+  std::string token;                       // daemon bearer token (--token-file, $LIGHTLINKD_TOKEN, config)
+  bool allow_plaintext_token = false;      // a token on a non-loopback address without TLS
   std::string tls_cert, tls_key;           // PEM files: serve TLS when both are set
   std::string backend = "auto";            // default relight backend: auto | cpu | gpu
   LogFormat log_format = LogFormat::kText;
@@ -38,6 +47,9 @@ struct DaemonConfig {
   int relight_bounces = 8;                 // relight options of every scene
   bool progressive = false;                // bounce-free preview first, then the converged result
   bool restore_sessions = true;            // re-open the scenes of sessions.json at start
+  // Bytes the cache's artifacts and inline scenes may take; closed scenes' files are
+  // evicted least recently used first beyond it (service/cache_quota.h). 0: no limit.
+  std::uint64_t cache_quota = 10ull << 30;
   // Base directory (a memory file system) for results delivered through shared memory to
   // clients on this machine (service/shared_results.h); empty: that delivery is off.
   std::string shared_memory_dir = "/dev/shm";

@@ -15,6 +15,7 @@
 #include <grpcpp/grpcpp.h>
 #include <grpcpp/health_check_service_interface.h>
 
+#include "core/common/private_files.h"
 #include "service/config.h"
 #include "service/logging.h"
 #include "service/scene_registry.h"
@@ -49,7 +50,7 @@ Expected<std::shared_ptr<grpc::ServerCredentials>> credentialsFor(const DaemonCo
 // A daemon (or a bake) killed while writing leaves ".<name>.tmp.<pid>.<n>" files behind
 // (artifact.cpp, session_store.cpp). Those of processes that no longer exist are garbage;
 // those of live processes (a bake sharing the cache) are left alone.
-void removeStaleTempFiles(const std::string& cache_dir) {
+void removeStaleTempFiles(const fs::path& cache_dir) {
   std::error_code ec;
   for (const auto& e : fs::directory_iterator(cache_dir, ec)) {
     const std::string name = e.path().filename().string();
@@ -94,10 +95,10 @@ int runDaemon(int argc, char** argv) {
     std::fprintf(stderr, "lightlinkd: %s\n", s.message().c_str());
     return 2;
   }
-  std::error_code ec;
-  fs::create_directories(config.cache_dir, ec);
-  if (ec) return fail("start_failed", "--cache-dir " + config.cache_dir + ": " + ec.message());
+  if (Status s = createPrivateDirectories(config.cache_dir); !s)
+    return fail("start_failed", "--cache-dir " + config.cache_dir + ": " + s.message());
   removeStaleTempFiles(config.cache_dir);
+  removeStaleTempFiles(fs::path(config.cache_dir) / "inline");  // uploads staged while their scene opened
   auto creds = credentialsFor(config);
   if (!creds) return fail("start_failed", creds.status().message());
 
@@ -105,10 +106,13 @@ int runDaemon(int argc, char** argv) {
   if (const int stale = removeStaleSharedDirs(config.shared_memory_dir); stale > 0)
     logEvent(LogLevel::kInfo, "shared_memory_cleaned", {{"dir", config.shared_memory_dir}, {"removed", stale}});
   SceneRegistry registry(config);
+  // Returns at once: the scenes are re-opened in the background while the server answers.
   if (config.restore_sessions) registry.restore();
   LightlinkService service(config, registry);
 
-  grpc::EnableDefaultHealthCheckService(true);
+  // gRPC's standard health service cannot check the bearer token: with a token it is off
+  // and lightlink.v1 Health (behind the token) is the probe.
+  grpc::EnableDefaultHealthCheckService(config.token.empty());
   grpc::ServerBuilder builder;
   int port = 0;
   builder.AddListeningPort(config.listen, *creds, &port);
@@ -125,7 +129,7 @@ int runDaemon(int argc, char** argv) {
   std::unique_ptr<grpc::Server> server = builder.BuildAndStart();
   if (!server || port == 0) return fail("start_failed", "--listen " + config.listen + ": cannot listen there");
   if (!config.port_file.empty()) {
-    if (Status s = writeFileAtomic(config.port_file, std::to_string(port) + "\n"); !s) {
+    if (Status s = writeFileAtomic(config.port_file, std::to_string(port) + "\n", 0644); !s) {
       server->Shutdown();
       return fail("start_failed", "--port-file: " + s.message());
     }

@@ -1,5 +1,11 @@
 #include "service/scene_registry.h"
 
+#include <fcntl.h>
+#include <sys/stat.h>
+#include <unistd.h>
+
+#include <atomic>
+#include <cerrno>
 #include <cstring>
 #include <filesystem>
 
@@ -8,7 +14,9 @@
 #include <google/protobuf/util/json_util.h>
 
 #include "core/artifact/artifact.h"
+#include "core/common/private_files.h"
 #include "service/auth.h"
+#include "service/cache_quota.h"
 #include "service/logging.h"
 #include "service/session_store.h"
 #include "service/validation.h"
@@ -57,6 +65,46 @@ Status checkMaterials(const relight::LightSet& lights, std::size_t material_coun
   return {};
 }
 
+// Writes an upload to a new private temp file (fsynced); it becomes the stored scene only
+// once the open succeeded (SceneRegistry::openResident renames it).
+Status writeStagedFile(const std::string& path, std::string_view bytes) {
+  const int fd = ::open(path.c_str(), O_WRONLY | O_CREAT | O_EXCL | O_CLOEXEC, kPrivateFileMode);
+  if (fd < 0) return ioError("cannot create {}: {}", path, std::strerror(errno));
+  ::fchmod(fd, kPrivateFileMode);
+  std::size_t done = 0;
+  while (done < bytes.size()) {
+    const ssize_t n = ::write(fd, bytes.data() + done, bytes.size() - done);
+    if (n < 0 && errno == EINTR) continue;
+    if (n <= 0) {
+      const std::string why = std::strerror(errno);
+      ::close(fd);
+      ::unlink(path.c_str());
+      return ioError("cannot write {}: {}", path, why);
+    }
+    done += static_cast<std::size_t>(n);
+  }
+  const bool synced = ::fsync(fd) == 0;
+  ::close(fd);
+  if (!synced) {
+    ::unlink(path.c_str());
+    return ioError("cannot fsync {}", path);
+  }
+  return {};
+}
+
+// A background restore stops early when the daemon shuts down.
+class RestoreProgress final : public Progress {
+ public:
+  explicit RestoreProgress(const std::atomic<bool>& stop) : stop_(stop) {}
+  void begin(std::string_view, std::size_t) override {}
+  void update(std::size_t) override {}
+  void end() override {}
+  bool cancelled() const override { return stop_.load(); }
+
+ private:
+  const std::atomic<bool>& stop_;
+};
+
 }  // namespace
 
 SceneRegistry::SceneRegistry(const DaemonConfig& config)
@@ -70,6 +118,10 @@ SceneRegistry::~SceneRegistry() {
 }
 
 Status SceneRegistry::shutdown() {
+  // A background restore first: it must not add scenes once they are being closed. Scenes
+  // it did not reach stay in sessions.json (persistNow writes the restoring ones too).
+  restore_stop_ = true;
+  if (restore_thread_.joinable()) restore_thread_.join();
   // Stop the background writer first: after closeAll the registry is empty, and a late
   // write would record "no scenes" and lose every session.
   {
@@ -124,19 +176,30 @@ static Status checkSelfContained(const std::string& bytes, bool glb) {
   return Status::ok();
 }
 
-Expected<std::string> SceneRegistry::storeInlineScene(const std::string& bytes) {
+// The upload is validated before it is stored: it is written to a temp file that
+// openResident loads and renames to its content-hash name only once the scene opened, so
+// bytes that do not load never stay in the cache. `staged` receives the temp file (empty
+// when the same content is stored already).
+Expected<std::string> SceneRegistry::storeInlineScene(const std::string& bytes, std::string* staged) {
   if (bytes.size() < 4) return invalidInput("gltf_bytes: {} bytes is not a glTF or GLB file", bytes.size());
   const bool glb = bytes.compare(0, 4, "glTF") == 0;
   if (Status s = checkSelfContained(bytes, glb); !s) return s;
   const std::uint64_t hash = artifact::hashBytes(bytes.data(), bytes.size());
   const fs::path dir = fs::path(config_.cache_dir) / "inline";
-  std::error_code ec;
-  fs::create_directories(dir, ec);
-  if (ec) return ioError("cannot create {}: {}", dir.string(), ec.message());
+  if (Status s = createPrivateDirectories(dir.string()); !s) return s;
   const fs::path path = dir / (artifact::cacheKeyHex(hash) + (glb ? ".glb" : ".gltf"));
-  // Same content, same name: an existing file of the right size is this scene already.
-  if (fs::exists(path, ec) && fs::file_size(path, ec) == bytes.size()) return path.string();
-  if (Status s = writeFileAtomic(path.string(), bytes); !s) return s;
+  // Same content, same name: an existing regular file of the right size is this scene
+  // already (lstat: a FIFO or link planted under the name is not).
+  struct stat st {};
+  if (::lstat(path.c_str(), &st) == 0 && S_ISREG(st.st_mode) && static_cast<std::size_t>(st.st_size) == bytes.size()) {
+    touchLastUse(path.string());
+    return path.string();
+  }
+  enforceQuota(bytes.size());
+  static std::atomic<unsigned> counter{0};
+  const fs::path temp = dir / fmt::format(".{}.tmp.{}.{}", path.filename().string(), ::getpid(), counter++);
+  if (Status s = writeStagedFile(temp.string(), bytes); !s) return s;
+  *staged = temp.string();
   return path.string();
 }
 
@@ -147,6 +210,14 @@ Expected<std::shared_ptr<SceneSession>> SceneRegistry::open(const v1::OpenSceneR
   identity.id.resize(16);
   identity.token = randomToken();
   identity.name = request.name();
+  // An upload that did not open is removed (after a successful open it was renamed away).
+  std::string staged;
+  struct DropStaged {
+    const std::string& path;
+    ~DropStaged() {
+      if (!path.empty()) ::unlink(path.c_str());
+    }
+  } drop_staged{staged};
   if (request.source_case() == v1::OpenSceneRequest::kPath) {
     if (request.path().empty()) return invalidInput("path: must not be empty");
     if (request.path().size() > kMaxPathBytes) return invalidInput("path: longer than {} bytes", kMaxPathBytes);
@@ -155,7 +226,7 @@ Expected<std::shared_ptr<SceneSession>> SceneRegistry::open(const v1::OpenSceneR
     identity.source_path = request.path();
     identity.source_label = request.path();
   } else if (request.source_case() == v1::OpenSceneRequest::kGltfBytes) {
-    auto stored = storeInlineScene(request.gltf_bytes());
+    auto stored = storeInlineScene(request.gltf_bytes(), &staged);
     if (!stored) return stored.status();
     identity.source_path = *stored;
     identity.source_label = fmt::format("<inline {} bytes>", request.gltf_bytes().size());
@@ -167,7 +238,7 @@ Expected<std::shared_ptr<SceneSession>> SceneRegistry::open(const v1::OpenSceneR
   params.clear_source();
   params.clear_lightset_json();
   identity.params = params;
-  return openResident(std::move(identity), request, nullptr, 1, request.lightset_json(), progress);
+  return openResident(std::move(identity), request, nullptr, 1, request.lightset_json(), progress, staged);
 }
 
 Expected<std::shared_ptr<SceneSession>> SceneRegistry::openResident(SessionIdentity identity,
@@ -175,7 +246,8 @@ Expected<std::shared_ptr<SceneSession>> SceneRegistry::openResident(SessionIdent
                                                                    const relight::LightSet* restored_lights,
                                                                    std::uint64_t version,
                                                                    const std::string& lightset_json,
-                                                                   Progress* progress) {
+                                                                   Progress* progress,
+                                                                   const std::string& staged_upload) {
   auto options = precomputeOptionsFrom(request);
   if (!options) return options.status();
   if (!v1::Backend_IsValid(request.backend()))
@@ -189,7 +261,7 @@ Expected<std::shared_ptr<SceneSession>> SceneRegistry::openResident(SessionIdent
   }
 
   precompute::ResidentRequest rr;
-  rr.scene_path = identity.source_path;
+  rr.scene_path = staged_upload.empty() ? identity.source_path : staged_upload;
   rr.options = *options;
   rr.cache_dir = config_.cache_dir;
   // Two opens of the same scene and parameters precompute once: the second waits and reuses.
@@ -209,6 +281,14 @@ Expected<std::shared_ptr<SceneSession>> SceneRegistry::openResident(SessionIdent
     }
   }
   if (Status s = checkMaterials(lights, resident->scene().materials.size(), "lightset_json"); !s) return s;
+  if (!staged_upload.empty()) {
+    // The upload loaded: now it is stored under its content name.
+    if (::rename(staged_upload.c_str(), identity.source_path.c_str()) != 0)
+      return ioError("cannot store the uploaded scene as {}: {}", identity.source_path, std::strerror(errno));
+  }
+  // Last use of the scene's cache files, for the quota's eviction order.
+  touchLastUse(resident->artifactPath());
+  if (identity.source_path.rfind(config_.cache_dir, 0) == 0) touchLastUse(identity.source_path);
 
   SessionOptions so;
   so.backend = backendChoiceName(request.backend(), config_.backend);
@@ -234,6 +314,8 @@ Expected<std::shared_ptr<SceneSession>> SceneRegistry::openResident(SessionIdent
             {"backend_note", (*session)->backendNote()},
             {"version", version},
             {"open_s", open_s}});
+  // The new artifact may have taken the cache beyond its quota: closed scenes' files go.
+  enforceQuota(0);
   return session;
 }
 
@@ -243,7 +325,21 @@ void SceneRegistry::restore() {
     logEvent(LogLevel::kError, "sessions_unreadable", {{"path", sessions_path_}, {"error", records.status().message()}});
     return;
   }
-  for (const auto& r : *records) {
+  if (records->empty()) return;
+  {
+    std::lock_guard lock(mutex_);
+    for (const auto& r : *records) restoring_[r.id] = r;
+  }
+  logEvent(LogLevel::kInfo, "restore_started", {{"scenes", records->size()}});
+  // Re-opening decodes and maps every scene (seconds each for a large one): the daemon
+  // listens meanwhile, and calls naming a scene wait for it (waitRestored).
+  restore_thread_ = std::thread([this, r = std::move(records).value()]() mutable { restoreAll(std::move(r)); });
+}
+
+void SceneRegistry::restoreAll(std::vector<SessionRecord> records) {
+  RestoreProgress progress(restore_stop_);
+  for (const auto& r : records) {
+    if (restore_stop_) return;  // shutdown: the rest stays in sessions.json
     auto params = paramsFromJson(r.params);
     auto lights = relight::LightSet::fromJson(r.lights);
     Status why = !params ? params.status() : !lights ? lights.status() : Status{};
@@ -251,13 +347,68 @@ void SceneRegistry::restore() {
       SessionIdentity identity{r.id, r.token, r.name, r.source_path, r.source_label, *params};
       v1::OpenSceneRequest request = *params;
       request.set_path(r.source_path);
-      auto opened = openResident(identity, request, &*lights, std::max<std::uint64_t>(r.version, 1), "", nullptr);
-      if (opened) continue;
-      why = opened.status();
+      auto opened = openResident(identity, request, &*lights, std::max<std::uint64_t>(r.version, 1), "", &progress);
+      if (!opened) why = opened.status();
     }
-    logEvent(LogLevel::kWarn, "scene_not_restored", {{"scene", r.id}, {"source", r.source_label}, {"error", why.message()}});
+    if (restore_stop_ && !why) return;  // cancelled mid-open: the record stays
+    {
+      std::lock_guard lock(mutex_);
+      restoring_.erase(r.id);
+    }
+    restored_cv_.notify_all();
+    if (!why)
+      logEvent(LogLevel::kWarn, "scene_not_restored",
+               {{"scene", r.id}, {"source", r.source_label}, {"error", why.message()}});
   }
+  logEvent(LogLevel::kInfo, "restore_finished", {{"scenes", size()}});
   markDirty();  // the file now lists exactly the scenes that came back
+  enforceQuota(0);
+}
+
+std::vector<SceneRegistry::Restoring> SceneRegistry::restoring() const {
+  std::lock_guard lock(mutex_);
+  std::vector<Restoring> out;
+  for (const auto& [id, r] : restoring_)
+    if (scenes_.count(id) == 0) out.push_back({r.id, r.token, r.name, r.source_label, r.version});
+  return out;
+}
+
+std::optional<std::string> SceneRegistry::restoringToken(const std::string& id) const {
+  std::lock_guard lock(mutex_);
+  const auto it = restoring_.find(id);
+  if (it == restoring_.end()) return std::nullopt;
+  return it->second.token;
+}
+
+bool SceneRegistry::waitRestored(const std::string& id, std::chrono::steady_clock::time_point deadline,
+                                 const std::function<bool()>& stop) const {
+  std::unique_lock lock(mutex_);
+  while (restoring_.count(id) > 0) {
+    if (std::chrono::steady_clock::now() >= deadline || stop()) return true;
+    restored_cv_.wait_until(lock, std::min(deadline, std::chrono::steady_clock::now() + std::chrono::milliseconds(50)));
+  }
+  return false;
+}
+
+void SceneRegistry::enforceQuota(std::uint64_t incoming) {
+  if (config_.cache_quota == 0) return;
+  std::vector<std::string> keep;
+  {
+    std::lock_guard lock(mutex_);
+    // A scene still being restored has no known artifact path yet: evict nothing until
+    // the restore is over rather than remove what it is about to map.
+    if (!restoring_.empty()) return;
+    for (const auto& [id, s] : scenes_) {
+      keep.push_back(s->resident().artifactPath());
+      keep.push_back(s->identity().source_path);
+    }
+  }
+  const EvictionReport r = enforceCacheQuota(config_.cache_dir, config_.cache_quota, incoming, keep);
+  for (const auto& path : r.removed) logEvent(LogLevel::kInfo, "cache_evicted", {{"path", path}});
+  if (r.bytes_after + incoming > config_.cache_quota)
+    logEvent(LogLevel::kWarn, "cache_over_quota",
+             {{"bytes", r.bytes_after + incoming}, {"quota", config_.cache_quota},
+              {"reason", "the rest belongs to resident scenes"}});
 }
 
 std::shared_ptr<SceneSession> SceneRegistry::find(const std::string& id) const {
@@ -275,7 +426,9 @@ std::vector<std::shared_ptr<SceneSession>> SceneRegistry::list() const {
 
 std::size_t SceneRegistry::size() const {
   std::lock_guard lock(mutex_);
-  return scenes_.size();
+  std::size_t n = scenes_.size();
+  for (const auto& [id, r] : restoring_) n += scenes_.count(id) == 0 ? 1 : 0;
+  return n;
 }
 
 bool SceneRegistry::close(const std::string& id) {
@@ -287,7 +440,9 @@ bool SceneRegistry::close(const std::string& id) {
     s = it->second;
     scenes_.erase(it);
   }
+  const std::string artifact = s->resident().artifactPath();
   s->close();
+  touchLastUse(artifact);  // last use, for the quota's eviction order
   markDirty();
   logEvent(LogLevel::kInfo, "scene_closed", {{"scene", id}});
   return true;
@@ -312,7 +467,16 @@ void SceneRegistry::markDirty() {
 
 Status SceneRegistry::persistNow() {
   std::vector<SessionRecord> records;
-  for (const auto& s : list()) {
+  // Scenes not restored yet keep their record (one list, under the lock, so a scene that
+  // just came back is neither missed nor written twice).
+  std::vector<std::shared_ptr<SceneSession>> resident;
+  {
+    std::lock_guard lock(mutex_);
+    for (const auto& [id, s] : scenes_) resident.push_back(s);
+    for (const auto& [id, r] : restoring_)
+      if (scenes_.count(id) == 0) records.push_back(r);
+  }
+  for (const auto& s : resident) {
     const auto& id = s->identity();
     SessionRecord r;
     r.id = id.id;

@@ -4,12 +4,20 @@
 // Persistence runs on its own thread: a change marks the registry dirty and the thread
 // rewrites sessions.json (atomically) as soon as the previous write is done, so bursts of
 // UpdateLights cost one write, not one per update, and no handler waits for a disk.
+//
+// Restore is lazy: restore() only reads sessions.json and re-opens the scenes on a
+// background thread, so a restarted daemon listens at once. A scene still being restored
+// is listed and counted, and a call naming it waits for it (waitRestored).
 #pragma once
 
+#include <atomic>
+#include <chrono>
 #include <condition_variable>
+#include <functional>
 #include <map>
 #include <memory>
 #include <mutex>
+#include <optional>
 #include <string>
 #include <thread>
 #include <vector>
@@ -19,6 +27,7 @@
 #include "proto/lightlink.pb.h"
 #include "service/config.h"
 #include "service/scene_session.h"
+#include "service/session_store.h"
 
 namespace lightlink::service {
 
@@ -31,12 +40,26 @@ class SceneRegistry {
 
   // Opens a scene (request validated here); `progress` sees the precompute stages.
   Expected<std::shared_ptr<SceneSession>> open(const v1::OpenSceneRequest& request, Progress* progress);
-  // Re-opens the scenes of sessions.json (same ids, tokens, light sets, versions). Scenes
-  // that cannot be re-opened are logged and dropped.
+  // Re-opens the scenes of sessions.json (same ids, tokens, light sets, versions) on a
+  // background thread and returns at once. Scenes that cannot be re-opened are logged and
+  // dropped.
   void restore();
+  // A scene of sessions.json not re-opened yet, as ListScenes shows it.
+  struct Restoring {
+    std::string id, token, name, source_label;
+    std::uint64_t version = 0;
+  };
+  std::vector<Restoring> restoring() const;
+  // The scene token of `id` while it is being restored, nullopt otherwise.
+  std::optional<std::string> restoringToken(const std::string& id) const;
+  // Waits while `id` is being restored, until `deadline` or `stop()`; polls `stop` every
+  // ~50 ms. True when the scene is still being restored then.
+  bool waitRestored(const std::string& id, std::chrono::steady_clock::time_point deadline,
+                    const std::function<bool()>& stop) const;
 
   std::shared_ptr<SceneSession> find(const std::string& id) const;
   std::vector<std::shared_ptr<SceneSession>> list() const;
+  // Resident scenes plus those still being restored.
   std::size_t size() const;
   // Removes and closes a scene. False when no such scene.
   bool close(const std::string& id);
@@ -53,8 +76,12 @@ class SceneRegistry {
   Expected<std::shared_ptr<SceneSession>> openResident(SessionIdentity identity, const v1::OpenSceneRequest& request,
                                                        const relight::LightSet* restored_lights,
                                                        std::uint64_t restored_version,
-                                                       const std::string& lightset_json, Progress* progress);
-  Expected<std::string> storeInlineScene(const std::string& bytes);
+                                                       const std::string& lightset_json, Progress* progress,
+                                                       const std::string& staged_upload = {});
+  Expected<std::string> storeInlineScene(const std::string& bytes, std::string* staged);
+  void restoreAll(std::vector<SessionRecord> records);
+  // Removes closed scenes' cache files beyond the quota (`incoming`: bytes about to be written).
+  void enforceQuota(std::uint64_t incoming);
   std::shared_ptr<std::mutex> openMutexFor(const std::string& key);
   void persistLoop();
   void closeAll();
@@ -65,6 +92,10 @@ class SceneRegistry {
   std::map<std::string, std::shared_ptr<SceneSession>> scenes_;
   std::size_t opening_ = 0;  // opens in flight, counted against max_scenes
   std::map<std::string, std::shared_ptr<std::mutex>> open_mutexes_;
+  std::map<std::string, SessionRecord> restoring_;  // by id, until re-opened or dropped
+  mutable std::condition_variable restored_cv_;     // with mutex_: a restore finished
+  std::atomic<bool> restore_stop_{false};
+  std::thread restore_thread_;
 
   std::mutex persist_mutex_;
   std::condition_variable persist_cv_;

@@ -200,19 +200,49 @@ grpc::Status LightlinkService::admit(grpc::ServerContext* ctx, bool new_work) co
   const auto it = md.find("authorization");
   const bool present = it != md.end();
   const std::string_view value = present ? std::string_view(it->second.data(), it->second.size()) : std::string_view{};
-  if (std::string why = checkBearer(value, present, config_.token); !why.empty()) {
-    logEvent(LogLevel::kWarn, "unauthenticated", {{"peer", ctx->peer()}, {"reason", why}});
-    return grpcError(grpc::StatusCode::UNAUTHENTICATED, why);
+  if (!config_.token.empty()) {
+    // A blocked address is refused before the comparison: guesses teach it nothing.
+    const std::string address = peerAddress(ctx->peer());
+    if (const auto left = auth_failures_.blockedFor(address); left > AuthFailureLimiter::Clock::duration::zero())
+      return grpcError(grpc::StatusCode::RESOURCE_EXHAUSTED,
+                       fmt::format("authorization: too many failed attempts from this address; retry in {} s",
+                                   std::chrono::ceil<std::chrono::seconds>(left).count()));
+    if (std::string why = checkBearer(value, present, config_.token); !why.empty()) {
+      logEvent(LogLevel::kWarn, "unauthenticated", {{"peer", ctx->peer()}, {"reason", why}});
+      if (auth_failures_.recordFailure(address)) {
+        const auto& limits = auth_failures_.limits();
+        logEvent(LogLevel::kWarn, "auth_rate_limited",
+                 {{"address", address},
+                  {"failures", limits.max_failures},
+                  {"backoff_s", std::chrono::duration_cast<std::chrono::seconds>(limits.backoff).count()}});
+      }
+      return grpcError(grpc::StatusCode::UNAUTHENTICATED, why);
+    }
   }
   if (new_work && draining_.load())
     return grpcError(grpc::StatusCode::UNAVAILABLE, "daemon: draining (shutting down), no new work accepted");
   return grpc::Status::OK;
 }
 
-grpc::Status LightlinkService::lookup(const v1::SceneRef& ref, std::shared_ptr<SceneSession>* out) const {
+grpc::Status LightlinkService::lookup(grpc::ServerContext* ctx, const v1::SceneRef& ref,
+                                      std::shared_ptr<SceneSession>* out) const {
   if (ref.scene_id().empty()) return grpcError(grpc::StatusCode::INVALID_ARGUMENT, "scene.scene_id: required");
   auto s = registry_.find(ref.scene_id());
   const std::string shown = ref.scene_id().substr(0, 64);
+  if (!s) {
+    // A scene of sessions.json still being re-opened after a restart: the call waits for
+    // it within its deadline (token checked first, so a stranger does not wait).
+    if (const auto token = registry_.restoringToken(ref.scene_id())) {
+      if (!constantTimeEqual(ref.token(), *token))
+        return grpcError(grpc::StatusCode::PERMISSION_DENIED, "token: does not match scene '" + shown + "'");
+      // A wider margin than a long poll's: the restore keeps the cores busy meanwhile.
+      if (registry_.waitRestored(ref.scene_id(), waitDeadline(ctx) - std::chrono::milliseconds(250),
+                                 [&] { return ctx->IsCancelled() || draining_.load(); }))
+        return grpcError(grpc::StatusCode::UNAVAILABLE,
+                         "scene '" + shown + "' is still being restored after the daemon's restart; retry shortly");
+      s = registry_.find(ref.scene_id());
+    }
+  }
   if (!s) return grpcError(grpc::StatusCode::NOT_FOUND, "scene_id: no scene '" + shown + "'");
   if (!constantTimeEqual(ref.token(), s->identity().token))
     return grpcError(grpc::StatusCode::PERMISSION_DENIED, "token: does not match scene '" + shown + "'");
@@ -224,7 +254,7 @@ grpc::Status LightlinkService::beginResultCall(grpc::ServerContext* ctx, const v
                                                const v1::ResultSpec& spec, std::shared_ptr<SceneSession>* scene,
                                                std::optional<StreamSlot>* slot) {
   if (auto st = admit(ctx, true); !st.ok()) return st;
-  if (auto st = lookup(ref, scene); !st.ok()) return st;
+  if (auto st = lookup(ctx, ref, scene); !st.ok()) return st;
   if (Status v = validateSpec(spec, (*scene)->bands()); !v) return toGrpc(v);
   slot->emplace(*this, clientKey(ctx->peer()));
   if (!(*slot)->acquired())
@@ -288,7 +318,7 @@ grpc::Status LightlinkService::UpdateLights(grpc::ServerContext* ctx, const v1::
                                             v1::UpdateLightsResponse* response) {
   if (auto st = admit(ctx, true); !st.ok()) return st;
   std::shared_ptr<SceneSession> s;
-  if (auto st = lookup(request->scene(), &s); !st.ok()) return st;
+  if (auto st = lookup(ctx, request->scene(), &s); !st.ok()) return st;
   auto v = s->update(*request);
   if (!v) {
     logEvent(LogLevel::kDebug, "update_rejected", {{"scene", s->identity().id}, {"error", v.status().message()}});
@@ -425,6 +455,14 @@ grpc::Status LightlinkService::ListScenes(grpc::ServerContext* ctx, const v1::Li
     out->set_result_version(st.result_version);
     out->set_backend(s->backendName());
   }
+  for (const auto& r : registry_.restoring()) {
+    auto* out = response->add_scenes();
+    out->set_scene_id(r.id);
+    out->set_name(r.name);
+    out->set_source(r.source_label);
+    out->set_version(r.version);
+    out->set_backend("restoring");  // re-opened in the background after a restart
+  }
   return grpc::Status::OK;
 }
 
@@ -432,7 +470,7 @@ grpc::Status LightlinkService::CloseScene(grpc::ServerContext* ctx, const v1::Cl
                                           v1::CloseSceneResponse*) {
   if (auto st = admit(ctx, false); !st.ok()) return st;
   std::shared_ptr<SceneSession> s;
-  if (auto st = lookup(request->scene(), &s); !st.ok()) return st;
+  if (auto st = lookup(ctx, request->scene(), &s); !st.ok()) return st;
   if (!registry_.close(s->identity().id))
     return grpcError(grpc::StatusCode::NOT_FOUND, "scene_id: the scene was already closed");
   shared_.dropScene(s->identity().id);
@@ -466,7 +504,7 @@ grpc::Status LightlinkService::Stats(grpc::ServerContext* ctx, const v1::StatsRe
   response->set_shared_memory_bytes(shared_.byteCount());
   if (!request->scene().scene_id().empty()) {
     std::shared_ptr<SceneSession> s;
-    if (auto st = lookup(request->scene(), &s); !st.ok()) return st;
+    if (auto st = lookup(ctx, request->scene(), &s); !st.ok()) return st;
     const auto st = s->stats();
     auto* out = response->add_scene();
     out->set_scene_id(s->identity().id);

@@ -19,6 +19,7 @@
 #include <grpcpp/grpcpp.h>
 
 #include "proto/lightlink.grpc.pb.h"
+#include "service/auth_limiter.h"
 #include "service/config.h"
 #include "service/scene_registry.h"
 #include "service/shared_results.h"
@@ -77,7 +78,9 @@ class LightlinkService final : public v1::Lightlink::Service {
   };
 
   grpc::Status admit(grpc::ServerContext* ctx, bool new_work) const;
-  grpc::Status lookup(const v1::SceneRef& ref, std::shared_ptr<SceneSession>* out) const;
+  // Finds the scene and checks its token; waits (within the call's deadline) for a scene
+  // still being restored after a restart, UNAVAILABLE when it is not back in time.
+  grpc::Status lookup(grpc::ServerContext* ctx, const v1::SceneRef& ref, std::shared_ptr<SceneSession>* out) const;
   // The preamble of the calls that send results (Relight, GetTextures, Subscribe): admit
   // as new work, look the scene up and check its token, validate the spec, take a stream
   // slot of the client (released when `slot` is destroyed).
@@ -108,6 +111,7 @@ class LightlinkService final : public v1::Lightlink::Service {
   std::atomic<bool> draining_{false};
   std::atomic<int> active_streams_{0};
   std::atomic<int> opening_{0};
+  mutable AuthFailureLimiter auth_failures_;
   std::mutex streams_mutex_;
   std::map<std::string, int> streams_per_client_;
   const std::chrono::steady_clock::time_point started_ = std::chrono::steady_clock::now();

@@ -1,6 +1,7 @@
 #include "service/session_store.h"
 
 #include <fcntl.h>
+#include <sys/stat.h>
 #include <unistd.h>
 
 #include <atomic>
@@ -10,6 +11,8 @@
 #include <fstream>
 
 #include <fmt/format.h>
+
+#include "core/common/private_files.h"
 
 namespace lightlink::service {
 namespace {
@@ -28,6 +31,7 @@ Status writeFileAtomic(const std::string& path, std::string_view bytes, unsigned
       dir / fmt::format(".{}.tmp.{}.{}", final_path.filename().string(), ::getpid(), counter.fetch_add(1));
   const int fd = ::open(temp.c_str(), O_WRONLY | O_CREAT | O_EXCL | O_CLOEXEC, mode);
   if (fd < 0) return ioError("cannot create {}: {}", temp.string(), errnoText());
+  ::fchmod(fd, mode);  // the mode asked for, whatever the umask
   auto fail = [&](const char* what) {
     const std::string why = errnoText();
     ::close(fd);
@@ -60,9 +64,22 @@ Status writeFileAtomic(const std::string& path, std::string_view bytes, unsigned
 
 Expected<std::vector<SessionRecord>> loadSessions(const std::string& path) {
   std::vector<SessionRecord> out;
-  std::ifstream in(path, std::ios::binary);
-  if (!in) return out;
-  nlohmann::json j = nlohmann::json::parse(in, nullptr, /*allow_exceptions=*/false);
+  // Opened without blocking: a FIFO planted as sessions.json must not hang the start.
+  auto fd = openRegularFileForReading(path, "sessions file");
+  if (!fd) return fd.status().code() == Code::kNotFound ? Expected<std::vector<SessionRecord>>(out) : fd.status();
+  std::string text;
+  char buffer[65536];
+  for (ssize_t n; (n = ::read(*fd, buffer, sizeof(buffer))) != 0;) {
+    if (n < 0 && errno == EINTR) continue;
+    if (n < 0) {
+      const std::string why = errnoText();
+      ::close(*fd);
+      return ioError("cannot read {}: {}", path, why);
+    }
+    text.append(buffer, static_cast<std::size_t>(n));
+  }
+  ::close(*fd);
+  nlohmann::json j = nlohmann::json::parse(text, nullptr, /*allow_exceptions=*/false);
   if (j.is_discarded() || !j.is_object()) return invalidInput("{}: not a JSON object", path);
   if (j.value("version", 0) != kSessionsSchemaVersion)
     return invalidInput("{}: unsupported sessions schema version {}", path, j.value("version", 0));

@@ -32,7 +32,8 @@ struct SessionRecord {
 Expected<std::vector<SessionRecord>> loadSessions(const std::string& path);
 Status saveSessions(const std::string& path, const std::vector<SessionRecord>& records);
 
-// Writes `bytes` to `path` atomically (temp + fsync + rename + directory fsync).
-Status writeFileAtomic(const std::string& path, std::string_view bytes, unsigned mode = 0644);
+// Writes `bytes` to `path` atomically (temp + fsync + rename + directory fsync), with
+// exactly `mode` (set explicitly: the umask does not apply; private by default).
+Status writeFileAtomic(const std::string& path, std::string_view bytes, unsigned mode = 0600);
 
 }  // namespace lightlink::service

@@ -15,6 +15,8 @@
 
 #include <fmt/ranges.h>
 
+#include "core/common/private_files.h"
+
 namespace lightlink::client {
 namespace {
 
@@ -50,8 +52,8 @@ Expected<std::unique_ptr<LocalDaemon>> LocalDaemon::start(const Options& o) {
   fs::create_directories(d->dir_, ec);
   if (ec) return ioError("{}: cannot create: {}", d->dir_.string(), ec.message());
   const fs::path cache = o.cache_dir.empty() ? d->dir_ / "cache" : o.cache_dir;
-  fs::create_directories(cache, ec);
-  if (ec) return ioError("{}: cannot create cache directory: {}", cache.string(), ec.message());
+  // Private, as lightlinkd itself would create it (it never changes an existing one's mode).
+  if (Status s = createPrivateDirectories(cache.string()); !s) return ioError("cache directory: {}", s.message());
 
   std::vector<std::string> args = {o.binary};
   args.insert(args.end(), o.prefix.begin(), o.prefix.end());

@@ -3,6 +3,7 @@
 
 #include <sys/stat.h>
 
+#include <cstdlib>
 #include <filesystem>
 #include <fstream>
 #include <sstream>
@@ -73,6 +74,30 @@ Expected<Session> loadSession(const std::string& path) {
   }
   s.scene.info.set_scene_id(s.scene.id);
   return s;
+}
+
+}  // namespace lightlink::client
+
+namespace lightlink::client {
+
+Expected<std::string> bearerTokenFrom(const std::string& token_file) {
+  if (token_file.empty()) {
+    const char* env = std::getenv("LIGHTLINK_TOKEN");
+    return std::string(env != nullptr ? env : "");
+  }
+  std::ifstream in(token_file, std::ios::binary);
+  if (!in) return notFound("--token-file {}: cannot read", token_file);
+  std::string line;
+  std::getline(in, line);
+  const auto first = line.find_first_not_of(" \t\r\n");
+  const auto last = line.find_last_not_of(" \t\r\n");
+  if (first == std::string::npos) return invalidInput("--token-file {}: the first line is empty", token_file);
+  return line.substr(first, last - first + 1);
+}
+
+std::string tokenInArgvMessage(const std::string& flag) {
+  return flag + ": a token on the command line is visible to every user of this machine (ps); give it with "
+                "--token-file FILE or the environment variable LIGHTLINK_TOKEN";
 }
 
 }  // namespace lightlink::client

@@ -35,7 +35,7 @@ namespace fs = std::filesystem;
 using Clock = std::chrono::steady_clock;
 
 struct Args {
-  std::string session, target, token, scene_id, scene_token;
+  std::string session, target, token, token_file, scene_id, scene_token;
   std::string scene_path;   // default: the source path the daemon reports (ListScenes)
   std::string preset = "medium";
   std::string lights_path;
@@ -75,10 +75,11 @@ int run(const Args& a) {
     return fail(invalidInput("give --session FILE, or --target with --scene and --scene-token"));
   client::ConnectOptions co;
   co.target = session.target;
-  co.bearer_token = a.token;
+  if (!a.token.empty()) return fail(invalidInput("{}", client::tokenInArgvMessage("--token")));
+  auto bearer = client::bearerTokenFrom(a.token_file);
+  if (!bearer) return fail(bearer.status());
+  co.bearer_token = *bearer;
   co.shared_memory = a.shared_memory;
-  if (co.bearer_token.empty())
-    if (const char* env = std::getenv("LIGHTLINK_TOKEN")) co.bearer_token = env;
   auto c = client::Client::connect(co);
   if (!c) return fail(c.status());
 
@@ -176,7 +177,9 @@ int main(int argc, char** argv) {
   CLI::App app{"lightlink_game_client: polls a lightlink daemon and renders frames with its textures"};
   app.add_option("--session", a.session, "Session file written by `lightlink open --session`");
   app.add_option("--target", a.target, "Daemon address host:port");
-  app.add_option("--token", a.token, "Daemon bearer token (default: $LIGHTLINK_TOKEN)");
+  app.add_option("--token-file", a.token_file, "File holding the daemon bearer token (default: $LIGHTLINK_TOKEN)");
+  app.add_option("--token", a.token,
+                 "Refused: a token in argv is visible in ps; use --token-file or $LIGHTLINK_TOKEN");
   app.add_option("--scene", a.scene_id, "Scene id (instead of --session)");
   app.add_option("--scene-token", a.scene_token, "Scene token (with --scene)");
   app.add_option("--scene-file", a.scene_path, "The glTF the daemon opened (default: the path the daemon reports)");

@@ -59,9 +59,10 @@ Expected<Remote> connect(const RemoteArgs& a, bool need_scene) {
                         "--scene-token");
   client::ConnectOptions o;
   o.target = s.target;
-  o.bearer_token = a.token;
-  if (o.bearer_token.empty())
-    if (const char* env = std::getenv("LIGHTLINK_TOKEN")) o.bearer_token = env;
+  if (!a.token.empty()) return invalidInput("{}", client::tokenInArgvMessage("--token"));
+  auto bearer = client::bearerTokenFrom(a.token_file);
+  if (!bearer) return bearer.status();
+  o.bearer_token = *bearer;
   o.tls_root_cert = a.tls_ca;
   if (a.timeout_ms < 0) return invalidInput("--timeout {} must not be negative", a.timeout_ms);
   o.call_timeout = std::chrono::milliseconds(a.timeout_ms);

@@ -97,7 +97,8 @@ int runServe(const std::vector<std::string>& args);
 // --target with --scene/--scene-token.
 struct RemoteArgs {
   std::string target;        // host:port; default: the session's, else 127.0.0.1:50051
-  std::string token;         // daemon bearer token; default: $LIGHTLINK_TOKEN
+  std::string token;         // --token: refused (argv is visible in ps)
+  std::string token_file;    // daemon bearer token's file; default: $LIGHTLINK_TOKEN
   std::string tls_ca;        // PEM root certificate: TLS instead of plaintext
   std::string session;       // session file
   std::string scene_id, scene_token;

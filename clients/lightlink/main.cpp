@@ -12,7 +12,9 @@ namespace {
 void addRemoteOptions(CLI::App* cmd, lightlink::cli::RemoteArgs& r) {
   cmd->add_option("--session", r.session, "Session file written by `lightlink open --session`");
   cmd->add_option("--target", r.target, "Daemon address host:port (default: the session's, else 127.0.0.1:50051)");
-  cmd->add_option("--token", r.token, "Daemon bearer token (default: $LIGHTLINK_TOKEN)");
+  cmd->add_option("--token-file", r.token_file, "File holding the daemon bearer token (default: $LIGHTLINK_TOKEN)");
+  cmd->add_option("--token", r.token,
+                  "Refused: a token in argv is visible in ps; use --token-file or $LIGHTLINK_TOKEN");
   cmd->add_option("--tls-ca", r.tls_ca, "PEM root certificate: connect with TLS");
   cmd->add_option("--scene", r.scene_id, "Scene id (instead of --session)");
   cmd->add_option("--scene-token", r.scene_token, "Scene token (with --scene)");

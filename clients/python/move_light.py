@@ -143,7 +143,8 @@ def irradiance_preview(width, height, bands, sh, direct, valid):
 def main():
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--target", default="127.0.0.1:50051", help="daemon host:port")
-    ap.add_argument("--token", default=os.environ.get("LIGHTLINK_TOKEN", ""), help="daemon bearer token")
+    ap.add_argument("--token-file", default="",
+                    help="file holding the daemon bearer token (default: $LIGHTLINK_TOKEN; never in argv, where ps shows it)")
     ap.add_argument("--scene", required=True, help="glTF path (on the daemon's machine)")
     ap.add_argument("--preset", default="", help="draft | medium | high")
     ap.add_argument("--light", default="", help="id of the light to move (default: the scene's first)")
@@ -153,7 +154,11 @@ def main():
     ap.add_argument("--timeout", type=float, default=120.0, help="seconds for the whole script")
     args = ap.parse_args()
 
-    metadata = [("authorization", f"Bearer {args.token}")] if args.token else []
+    token = os.environ.get("LIGHTLINK_TOKEN", "")
+    if args.token_file:
+        with open(args.token_file, encoding="utf-8") as f:
+            token = f.readline().strip()
+    metadata = [("authorization", f"Bearer {token}")] if token else []
     deadline = time.monotonic() + args.timeout
     left = lambda: max(0.1, deadline - time.monotonic())  # noqa: E731
     options = [("grpc.max_receive_message_length", 8 << 20)]

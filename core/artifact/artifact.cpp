@@ -17,6 +17,8 @@
 #include <fmt/format.h>
 #include <xxhash.h>
 
+#include "core/common/private_files.h"
+
 namespace lightlink::artifact {
 namespace {
 
@@ -121,9 +123,10 @@ Status Writer::write(const std::string& path) const {
   static std::atomic<unsigned> counter{0};
   const fs::path temp = dir / fmt::format(".{}.tmp.{}.{}", final_path.filename().string(), ::getpid(),
                                           counter++);
-  int fd = ::open(temp.c_str(), O_WRONLY | O_CREAT | O_EXCL | O_CLOEXEC, 0644);
+  int fd = ::open(temp.c_str(), O_WRONLY | O_CREAT | O_EXCL | O_CLOEXEC, kPrivateFileMode);
   if (fd < 0) return ioError("cannot create {}: {}", temp.string(), errnoText());
   FdCloser closer(fd);
+  ::fchmod(fd, kPrivateFileMode);  // whatever the umask: artifacts hold scene data
   auto fail = [&](const std::string& what) {
     const std::string err = errnoText();
     ::unlink(temp.c_str());
@@ -162,11 +165,10 @@ Status Writer::write(const std::string& path) const {
 }
 
 Expected<Artifact> Artifact::open(const std::string& path, const OpenOptions& options) {
-  const int fd = ::open(path.c_str(), O_RDONLY | O_CLOEXEC);
-  if (fd < 0) {
-    if (errno == ENOENT) return notFound("artifact {} does not exist", path);
-    return ioError("cannot open artifact {}: {}", path, errnoText());
-  }
+  // Never blocks: a FIFO or device named like an artifact is refused, not read.
+  auto opened = openRegularFileForReading(path, "artifact");
+  if (!opened) return opened.status();
+  const int fd = *opened;
   FdCloser closer(fd);
   struct stat st {};
   if (::fstat(fd, &st) != 0) return ioError("cannot stat artifact {}: {}", path, errnoText());

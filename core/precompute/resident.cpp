@@ -7,6 +7,7 @@
 #include <fmt/format.h>
 
 #include "core/artifact/artifact.h"
+#include "core/common/private_files.h"
 #include "core/scene/load.h"
 
 namespace lightlink::precompute {
@@ -52,9 +53,8 @@ Expected<ResidentScene> ResidentScene::open(const ResidentRequest& request, Prog
   if (Status s = request.options.validate(); !s) return s;
   if (request.cache_dir.empty()) return invalidInput("cache directory: must not be empty");
   {
-    std::error_code ec;
-    fs::create_directories(request.cache_dir, ec);
-    if (ec) return ioError("cannot create cache directory {}: {}", request.cache_dir, ec.message());
+    if (Status s = createPrivateDirectories(request.cache_dir); !s)
+      return ioError("cache directory: {}", s.message());
   }
   auto state = std::make_unique<State>();
 

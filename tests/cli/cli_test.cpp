@@ -1,4 +1,5 @@
 // The `lightlink` CLI as a user runs it: real processes, exit codes, JSON on stdout.
+#include <sys/stat.h>
 #include <sys/wait.h>
 
 #include <array>
@@ -6,6 +7,7 @@
 #include <fstream>
 #include <sstream>
 #include <string>
+#include <vector>
 
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
@@ -163,6 +165,34 @@ TEST(Bake, WritesEverythingThenReusesTheArtifact) {
   EXPECT_EQ(report["artifact"].get<std::string>().rfind("reused", 0), 0u) << report["artifact"];
 }
 
+// The cache bake writes is private (0700 / 0600 whatever the umask), and a FIFO planted
+// under the artifact's name is refused without blocking: the bake recomputes and replaces
+// it. `timeout` bounds the run: before the fix the bake hung on opening the FIFO.
+TEST(Bake, CacheIsPrivateAndAFifoInItDoesNotHang) {
+  testing::TempDir dir;
+  const auto cache = dir / "out" / "cache";
+  const std::string cmd = "umask 0 && timeout 120 " + kCli + " bake " + demoScene().string() + " -o " +
+                          (dir / "out").string() + " --preset draft --bounces 1 -q";
+  const auto first = runCommand(cmd);
+  ASSERT_EQ(first.exit_code, 0) << first.output;
+  std::vector<std::filesystem::path> artifacts;
+  for (const auto& e : std::filesystem::directory_iterator(cache)) artifacts.push_back(e.path());
+  ASSERT_EQ(artifacts.size(), 1u);
+  const auto mode = [](const std::filesystem::path& p) {
+    struct stat st {};
+    return ::lstat(p.c_str(), &st) == 0 ? (st.st_mode & 07777) : 0xffffu;
+  };
+  EXPECT_EQ(mode(cache), 0700u);
+  EXPECT_EQ(mode(artifacts[0]), 0600u);
+  std::filesystem::remove(artifacts[0]);
+  ASSERT_EQ(::mkfifo(artifacts[0].c_str(), 0600), 0);
+  const auto second = runCommand(cmd);
+  ASSERT_EQ(second.exit_code, 0) << "exit 124 is the timeout: the bake hung on the FIFO\n" << second.output;
+  const auto report = nlohmann::json::parse(readAll(dir / "out" / "report.json"));
+  EXPECT_NE(report["artifact"].get<std::string>().find("FIFO"), std::string::npos) << report["artifact"];
+  EXPECT_TRUE(std::filesystem::is_regular_file(artifacts[0])) << "the FIFO was replaced by the recomputed artifact";
+}
+
 TEST(Render, DrawsTheBakedCornellBox) {
   testing::TempDir dir;
   const auto out = dir / "out";
@@ -220,6 +250,16 @@ TEST(Bake, BadLightSetAndPresetAreBadInput) {
 TEST(Cli, UnknownSubcommandIsUsageError) {
   const auto r = runCommand(kCli + " frobnicate");
   EXPECT_EQ(r.exit_code, cli::kExitUsage) << r.output;
+}
+
+// A daemon token in argv is visible to every user in ps: refused before any connection,
+// naming the alternatives.
+TEST(Cli, DaemonTokenInArgvIsRefused) {
+  const auto r = runCommand(kCli + " watch --target 127.0.0.1:1 --scene s1 --scene-token t1 --count 1 --timeout 2000"
+                                   " --token 0123456789abcdef0123");
+  EXPECT_EQ(r.exit_code, cli::kExitBadInput) << r.output;
+  EXPECT_NE(r.output.find("--token-file"), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("LIGHTLINK_TOKEN"), std::string::npos) << r.output;
 }
 
 }  // namespace

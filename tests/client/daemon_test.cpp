@@ -444,7 +444,7 @@ TEST(ClientAuth, BearerTokenOnEveryCall) {
   LocalDaemon::Options d;
   d.binary = LIGHTLINK_DAEMON_PATH;
   d.cache_dir = cache.path();
-  d.extra = {"--no-restore", "--token", "s3cret-token"};
+  d.extra = {"--no-restore", "--token-file", lightlink::testing::writeFile(cache.path() / "token", "s3cret-token-0123456789\n")};
   auto daemon = LocalDaemon::start(d);
   ASSERT_TRUE(daemon) << daemon.status().toString();
   ConnectOptions o;
@@ -459,7 +459,7 @@ TEST(ClientAuth, BearerTokenOnEveryCall) {
   auto wrong = Client::connect(o);
   ASSERT_TRUE(wrong);
   EXPECT_FALSE(wrong->health());
-  o.bearer_token = "s3cret-token";
+  o.bearer_token = "s3cret-token-0123456789";
   auto good = Client::connect(o);
   ASSERT_TRUE(good);
   auto health = good->health();

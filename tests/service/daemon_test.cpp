@@ -789,7 +789,7 @@ TEST(Daemon, HostileRequestsGetTheRightStatusAndTheDaemonKeepsServing) {
 TEST(Daemon, BearerTokenIsRequiredWhenConfigured) {
   Fixture f;
   auto flags = quickFlags();
-  flags.insert(flags.end(), {"--token", "s3cret-token"});
+  flags.insert(flags.end(), {"--token-file", writeFile(f.tmp / "token", "s3cret-token-0123456789\n")});
   DaemonProcess d(f.cache, flags);
   ASSERT_TRUE(d.ok()) << d.error();
   auto rpc = d.rpc();
@@ -797,24 +797,24 @@ TEST(Daemon, BearerTokenIsRequiredWhenConfigured) {
   EXPECT_EQ(rpc->Health(context().get(), {}, &h).error_code(), grpc::StatusCode::UNAUTHENTICATED);
   EXPECT_EQ(rpc->Health(context(20000, "wrong").get(), {}, &h).error_code(), grpc::StatusCode::UNAUTHENTICATED);
   EXPECT_EQ(openScene(*rpc, cornellRequest(), nullptr).error_code(), grpc::StatusCode::UNAUTHENTICATED);
-  EXPECT_TRUE(rpc->Health(context(20000, "s3cret-token").get(), {}, &h).ok());
+  EXPECT_TRUE(rpc->Health(context(20000, "s3cret-token-0123456789").get(), {}, &h).ok());
   EXPECT_EQ(h.protocol_version(), 1u);
 }
 
 TEST(Daemon, ConfigFileJsonLogsAndSceneLimit) {
   Fixture f;
   const std::string config = writeFile(f.tmp / "lightlinkd.json",
-                                       R"({"token": "from-file", "log_format": "json", "max_scenes": 1,
+                                       R"({"token": "from-file-0123456789", "log_format": "json", "max_scenes": 1,
                                            "bounces": 2, "log_level": "debug"})");
   DaemonProcess d(f.cache, {"--config", config});
   ASSERT_TRUE(d.ok()) << d.error();
   auto rpc = d.rpc();
   v1::HealthResponse h;
   EXPECT_EQ(rpc->Health(context().get(), {}, &h).error_code(), grpc::StatusCode::UNAUTHENTICATED);
-  ASSERT_TRUE(rpc->Health(context(20000, "from-file").get(), {}, &h).ok());
+  ASSERT_TRUE(rpc->Health(context(20000, "from-file-0123456789").get(), {}, &h).ok());
   v1::SceneOpened opened;
-  ASSERT_TRUE(openScene(*rpc, cornellRequest(), &opened, nullptr, "from-file").ok()) << d.log();
-  const auto st = openScene(*rpc, cornellRequest(), nullptr, nullptr, "from-file");
+  ASSERT_TRUE(openScene(*rpc, cornellRequest(), &opened, nullptr, "from-file-0123456789").ok()) << d.log();
+  const auto st = openScene(*rpc, cornellRequest(), nullptr, nullptr, "from-file-0123456789");
   EXPECT_EQ(st.error_code(), grpc::StatusCode::RESOURCE_EXHAUSTED) << st.error_message();
   // Every log line is one JSON object with a timestamp and an event name.
   std::istringstream lines(d.log());
@@ -842,7 +842,8 @@ TEST(Daemon, ServesTlsWithTheGivenCertificate) {
                            " -days 1 -subj /CN=localhost -addext subjectAltName=DNS:localhost,IP:127.0.0.1"
                            " > /dev/null 2>&1";
   if (std::system(make.c_str()) != 0) GTEST_SKIP() << "openssl not available to make a test certificate";
-  DaemonProcess d(tmp / "cache", {"--tls-cert", cert, "--tls-key", key, "--token", "tls-token"});
+  DaemonProcess d(tmp / "cache", {"--tls-cert", cert, "--tls-key", key, "--token-file",
+                                  writeFile(tmp / "token", "tls-token-0123456789\n")});
   ASSERT_TRUE(d.ok()) << d.error();
   std::ifstream in(cert);
   std::stringstream pem;
@@ -851,11 +852,11 @@ TEST(Daemon, ServesTlsWithTheGivenCertificate) {
   o.pem_root_certs = pem.str();
   auto tls = v1::Lightlink::NewStub(grpc::CreateChannel(d.target(), grpc::SslCredentials(o)));
   v1::HealthResponse h;
-  const auto st = tls->Health(context(20000, "tls-token").get(), {}, &h);
+  const auto st = tls->Health(context(20000, "tls-token-0123456789").get(), {}, &h);
   EXPECT_TRUE(st.ok()) << st.error_message();
   EXPECT_EQ(h.status(), v1::HealthResponse::STATUS_SERVING);
   // A plaintext client cannot talk to a TLS daemon.
-  EXPECT_FALSE(d.rpc(std::chrono::milliseconds(0))->Health(context(3000, "tls-token").get(), {}, &h).ok());
+  EXPECT_FALSE(d.rpc(std::chrono::milliseconds(0))->Health(context(3000, "tls-token-0123456789").get(), {}, &h).ok());
 }
 
 TEST(Daemon, RefusesToListenBeyondLoopbackWithoutToken) {
@@ -863,7 +864,7 @@ TEST(Daemon, RefusesToListenBeyondLoopbackWithoutToken) {
   std::string out;
   const int code = runDaemonToExit({"--listen", "0.0.0.0:0", "--cache-dir", (tmp / "c").string()}, &out);
   EXPECT_EQ(code, 2) << out;
-  EXPECT_NE(out.find("--token"), std::string::npos) << out;
+  EXPECT_NE(out.find("--token-file"), std::string::npos) << out;
 }
 
 TEST(Daemon, HelpDocumentsEveryFlag) {
