@@ -60,7 +60,10 @@ Status checkMaterials(const relight::LightSet& lights, std::size_t material_coun
 }  // namespace
 
 SceneRegistry::SceneRegistry(const DaemonConfig& config)
-    : config_(config), sessions_path_((fs::path(config.cache_dir) / "sessions.json").string()) {
+    : config_(config),
+      sessions_path_((fs::path(config.cache_dir) / "sessions.json").string()),
+      journal_(std::make_shared<UpdateJournal>((fs::path(config.cache_dir) / "sessions.journal").string())) {
+  journal_->onLarge(kCompactBytes, [this] { markDirty(); });
   persist_thread_ = std::thread([this] { persistLoop(); });
 }
 
@@ -79,7 +82,7 @@ Status SceneRegistry::shutdown() {
   persist_cv_.notify_all();
   if (persist_thread_.joinable()) persist_thread_.join();
   Status saved;
-  if (!shut_down_) saved = persistNow();
+  if (!shut_down_) saved = compact();
   shut_down_ = true;
   closeAll();
   return saved;
@@ -167,7 +170,15 @@ Expected<std::shared_ptr<SceneSession>> SceneRegistry::open(const v1::OpenSceneR
   params.clear_source();
   params.clear_lightset_json();
   identity.params = params;
-  return openResident(std::move(identity), request, nullptr, 1, request.lightset_json(), progress);
+  auto session = openResident(std::move(identity), request, nullptr, 1, request.lightset_json(), progress);
+  // The scene is durable before OpenScene answers: its updates are journaled against it.
+  if (session) {
+    if (Status s = persistNow(); !s) {
+      close((*session)->identity().id);
+      return ioError("sessions: cannot persist the new scene: {}", s.message());
+    }
+  }
+  return session;
 }
 
 Expected<std::shared_ptr<SceneSession>> SceneRegistry::openResident(SessionIdentity identity,
@@ -214,7 +225,7 @@ Expected<std::shared_ptr<SceneSession>> SceneRegistry::openResident(SessionIdent
   so.backend = backendChoiceName(request.backend(), config_.backend);
   so.relight.max_bounces = config_.relight_bounces;
   so.progressive = config_.progressive;
-  so.on_own_version = [this] { markDirty(); };
+  so.journal = journal_;
   const bool reused = resident->reused();
   const std::string note = resident->note();
   const double open_s = resident->openSeconds();
@@ -243,6 +254,13 @@ void SceneRegistry::restore() {
     logEvent(LogLevel::kError, "sessions_unreadable", {{"path", sessions_path_}, {"error", records.status().message()}});
     return;
   }
+  {
+    std::lock_guard lock(persist_mutex_);
+    restoring_ = true;
+  }
+  // The versions taken since the snapshot, in order.
+  if (const std::size_t n = replayJournal(*records, journal_->recovered()); n > 0)
+    logEvent(LogLevel::kInfo, "journal_replayed", {{"path", journal_->path()}, {"records", n}});
   for (const auto& r : *records) {
     auto params = paramsFromJson(r.params);
     auto lights = relight::LightSet::fromJson(r.lights);
@@ -256,6 +274,10 @@ void SceneRegistry::restore() {
       why = opened.status();
     }
     logEvent(LogLevel::kWarn, "scene_not_restored", {{"scene", r.id}, {"source", r.source_label}, {"error", why.message()}});
+  }
+  {
+    std::lock_guard lock(persist_mutex_);
+    restoring_ = false;
   }
   markDirty();  // the file now lists exactly the scenes that came back
 }
@@ -311,6 +333,8 @@ void SceneRegistry::markDirty() {
 }
 
 Status SceneRegistry::persistNow() {
+  // Snapshot and write under one lock: a later snapshot is never overwritten by an earlier.
+  std::lock_guard lock(write_mutex_);
   std::vector<SessionRecord> records;
   for (const auto& s : list()) {
     const auto& id = s->identity();
@@ -324,18 +348,21 @@ Status SceneRegistry::persistNow() {
     r.lights = s->persistentLights(&r.version);
     records.push_back(std::move(r));
   }
-  std::lock_guard lock(write_mutex_);
   return saveSessions(sessions_path_, records);
+}
+
+Status SceneRegistry::compact() {
+  return journal_->compact([this] { return persistNow(); });
 }
 
 void SceneRegistry::persistLoop() {
   std::unique_lock lock(persist_mutex_);
   while (true) {
-    persist_cv_.wait(lock, [&] { return dirty_ || persist_stop_; });
+    persist_cv_.wait(lock, [&] { return (dirty_ && !restoring_) || persist_stop_; });
     if (persist_stop_) return;  // shutdown() writes the final state itself
     dirty_ = false;
     lock.unlock();
-    if (Status s = persistNow(); !s)
+    if (Status s = compact(); !s)
       logEvent(LogLevel::kError, "sessions_write_failed", {{"path", sessions_path_}, {"error", s.message()}});
     lock.lock();
   }
