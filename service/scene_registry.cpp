@@ -259,7 +259,7 @@ void SceneRegistry::restore() {
     restoring_ = true;
   }
   // The versions taken since the snapshot, in order.
-  if (const std::size_t n = replayJournal(*records, journal_->recovered()); n > 0)
+  if (const std::size_t n = replayJournal(*records, journal_->takeRecovered()); n > 0)
     logEvent(LogLevel::kInfo, "journal_replayed", {{"path", journal_->path()}, {"records", n}});
   for (const auto& r : *records) {
     auto params = paramsFromJson(r.params);

@@ -164,7 +164,8 @@ Status UpdateJournal::writeAndSync(const std::string& bytes) {
   std::size_t done = 0;
   int error = 0;
   while (done < bytes.size()) {
-    const ssize_t n = ::pwrite(fd_, bytes.data() + done, bytes.size() - done, static_cast<off_t>(good_size_ + done));
+    const auto at = static_cast<off_t>(good_size_.load() + done);
+    const ssize_t n = ::pwrite(fd_, bytes.data() + done, bytes.size() - done, at);
     if (n < 0 && errno == EINTR) continue;
     if (n <= 0) {
       error = n < 0 ? errno : EIO;
@@ -273,10 +274,7 @@ void UpdateJournal::onLarge(std::uint64_t bytes, std::function<void()> callback)
   on_large_ = std::move(callback);
 }
 
-std::uint64_t UpdateJournal::bytes() const {
-  std::lock_guard lock(mutex_);
-  return good_size_;
-}
+std::uint64_t UpdateJournal::bytes() const { return good_size_.load(); }
 
 std::uint64_t UpdateJournal::commits() const {
   std::lock_guard lock(mutex_);

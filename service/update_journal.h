@@ -16,6 +16,7 @@
 // commit is in flight, so every record is covered by the snapshot or still in the journal.
 #pragma once
 
+#include <atomic>
 #include <condition_variable>
 #include <cstdint>
 #include <functional>
@@ -62,17 +63,21 @@ class UpdateJournal {
   struct Batch;                                    // one group commit
   using Ticket = std::shared_ptr<const Batch>;
 
-  // Reads `path` (kept as recovered()), cuts off a torn tail and opens it for appending
-  // (created 0600 when missing). An open that fails is retried by the next commit, which
-  // fails with the reason until it works.
+  // Reads `path` (the records are kept for takeRecovered()), cuts off a torn tail and opens
+  // it for appending (created 0600 when missing). An open that fails is retried by the next
+  // commit, which fails with the reason until it works.
   explicit UpdateJournal(std::string path);
   ~UpdateJournal();
   UpdateJournal(const UpdateJournal&) = delete;
   UpdateJournal& operator=(const UpdateJournal&) = delete;
 
   const std::string& path() const { return path_; }
-  // The records found when the journal was opened (for restore).
-  const std::vector<JournalRecord>& recovered() const { return recovered_; }
+  // The records found when the journal was opened (for restore; handed over once).
+  std::vector<JournalRecord> takeRecovered() {
+    std::vector<JournalRecord> out;
+    out.swap(recovered_);
+    return out;
+  }
 
   // Queues a record for the next commit. `after` is the ticket of the record this one was
   // built on (null: built on durable state); when that one has failed, nothing is queued
@@ -108,7 +113,7 @@ class UpdateJournal {
   bool busy_ = false;            // a leader (or compact) owns the file
   // The file (owned by whoever set busy_).
   int fd_ = -1;
-  std::uint64_t good_size_ = 0;  // synced, intact bytes
+  std::atomic<std::uint64_t> good_size_{0};  // synced, intact bytes (read by bytes() too)
   bool dirty_tail_ = false;      // bytes past good_size_ may exist: cut them before appending
   std::uint64_t commits_ = 0, records_ = 0;
   std::uint64_t large_bytes_ = 0;

@@ -43,7 +43,7 @@ TEST(UpdateJournal, RecordsComeBackInOrder) {
   const fs::path path = tmp / "sessions.journal";
   {
     UpdateJournal j(path.string());
-    EXPECT_TRUE(j.recovered().empty());
+    EXPECT_TRUE(j.takeRecovered().empty());
     for (std::uint64_t v = 2; v <= 4; ++v) {
       auto t = j.append(record("a", v, float(v)), nullptr);
       ASSERT_TRUE(t);
@@ -53,10 +53,11 @@ TEST(UpdateJournal, RecordsComeBackInOrder) {
     ASSERT_TRUE(j.wait(j.append(record("b", 7), nullptr)));
   }
   UpdateJournal again(path.string());
-  ASSERT_EQ(again.recovered().size(), 4u);
-  EXPECT_EQ(again.recovered()[0].version, 2u);
-  EXPECT_EQ(again.recovered()[2].lights, record("a", 4, 4.0f).lights);
-  EXPECT_EQ(again.recovered()[3].scene_id, "b");
+  const auto recovered = again.takeRecovered();
+  ASSERT_EQ(recovered.size(), 4u);
+  EXPECT_EQ(recovered[0].version, 2u);
+  EXPECT_EQ(recovered[2].lights, record("a", 4, 4.0f).lights);
+  EXPECT_EQ(recovered[3].scene_id, "b");
   EXPECT_EQ(fs::perms::none, fs::status(path).permissions() & (fs::perms::group_all | fs::perms::others_all));
 }
 
@@ -80,7 +81,7 @@ TEST(UpdateJournal, TornTailIsDroppedAndCutBeforeTheNextAppend) {
   EXPECT_FALSE(c->dropped_reason.empty());
   {
     UpdateJournal j(path.string());
-    EXPECT_EQ(j.recovered().size(), 2u);
+    EXPECT_EQ(j.takeRecovered().size(), 2u);
     EXPECT_EQ(fs::file_size(path), intact) << "the torn tail is cut off at open";
     ASSERT_TRUE(j.wait(j.append(record("a", 4), nullptr)));
   }
@@ -191,8 +192,9 @@ TEST(UpdateJournal, FailedWriteFailsItsRecordsAndLeavesTheFileIntact) {
   ASSERT_TRUE(j.wait(j.append(record("a", 3, 30.0f), nullptr)));
   EXPECT_EQ(versionsIn(path), (std::vector<std::uint64_t>{2, 3}));
   UpdateJournal reread(path.string());
-  ASSERT_EQ(reread.recovered().size(), 2u);
-  EXPECT_EQ(reread.recovered()[1].lights, record("a", 3, 30.0f).lights);
+  const auto recovered = reread.takeRecovered();
+  ASSERT_EQ(recovered.size(), 2u);
+  EXPECT_EQ(recovered[1].lights, record("a", 3, 30.0f).lights);
 }
 
 TEST(UpdateJournal, CompactEmptiesTheJournalOnlyWhenTheSnapshotIsWritten) {
