@@ -82,7 +82,11 @@ Status SceneRegistry::shutdown() {
   persist_cv_.notify_all();
   if (persist_thread_.joinable()) persist_thread_.join();
   Status saved;
-  if (!shut_down_) saved = compact();
+  if (!shut_down_) {
+    saved = compact();
+    // How well group commit shared the syncs over this run.
+    logEvent(LogLevel::kInfo, "journal_closed", {{"commits", journal_->commits()}, {"records", journal_->records()}});
+  }
   shut_down_ = true;
   closeAll();
   return saved;
