@@ -16,6 +16,7 @@
 #include <cstring>
 #include <filesystem>
 #include <fstream>
+#include <iterator>
 #include <map>
 #include <mutex>
 #include <random>
@@ -40,6 +41,15 @@ v1::SceneRef refOf(const v1::SceneOpened& o) {
   v1::SceneRef r;
   r.set_scene_id(o.scene_id());
   r.set_token(o.scene_token());
+  return r;
+}
+
+// The usual small Cornell box, sent inline (it is self-contained): the daemon needs no scene
+// root, and restores it from its cache.
+v1::OpenSceneRequest cornellInline() {
+  v1::OpenSceneRequest r = cornellRequest();
+  std::ifstream in(sourceDir() / "clients/demo/cornell_box.gltf", std::ios::binary);
+  r.set_gltf_bytes(std::string(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()));
   return r;
 }
 
@@ -198,7 +208,7 @@ TEST(Durability, KillNineDuringUpdateBurstsLosesNoAcknowledgedVersion) {
     auto rpc = d.rpc();
     if (round == 0) {
       v1::SceneOpened opened;
-      const grpc::Status st = openScene(*rpc, cornellRequest(), &opened);
+      const grpc::Status st = openScene(*rpc, cornellInline(), &opened);
       ASSERT_TRUE(st.ok()) << st.error_message() << "\n" << d.log();
       scene = refOf(opened);
       v1::UpdateLightsResponse r;  // a first marker, so "the newest acknowledged" always exists
@@ -262,7 +272,7 @@ TEST(Durability, FullDiskFailsUpdatesCleanlyAndReadsGoOn) {
     ASSERT_TRUE(d.ok()) << d.error();
     auto rpc = d.rpc();
     v1::SceneOpened opened;
-    ASSERT_TRUE(openScene(*rpc, cornellRequest(), &opened).ok()) << d.log();
+    ASSERT_TRUE(openScene(*rpc, cornellInline(), &opened).ok()) << d.log();
     scene = refOf(opened);
     v1::UpdateLightsResponse r;
     ASSERT_TRUE(rpc->UpdateLights(context().get(), markerUpdate(scene, k), &r).ok());
