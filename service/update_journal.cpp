@@ -5,6 +5,7 @@
 
 #include <cerrno>
 #include <cstring>
+#include <filesystem>
 #include <fstream>
 #include <iterator>
 #include <map>
@@ -16,6 +17,8 @@
 
 namespace lightlink::service {
 namespace {
+
+namespace fs = std::filesystem;
 
 // Record: magic, payload length (u32 LE), XXH3-64 of the payload (u64 LE), the payload
 // (JSON: {"scene", "version", "lights"}).
@@ -141,8 +144,19 @@ UpdateJournal::~UpdateJournal() {
 
 Status UpdateJournal::ensureOpen() {
   if (fd_ < 0) {
-    fd_ = ::open(path_.c_str(), O_WRONLY | O_CREAT | O_CLOEXEC, 0600);
-    if (fd_ < 0) return ioError("cannot open the journal: {}", errnoText(errno));
+    const int fd = ::open(path_.c_str(), O_WRONLY | O_CREAT | O_CLOEXEC, 0600);
+    if (fd < 0) return ioError("cannot open the journal: {}", errnoText(errno));
+    // A new file's name must be durable too, or a power loss could take the records with it.
+    const std::string dir = fs::path(path_).has_parent_path() ? fs::path(path_).parent_path().string() : ".";
+    const int dfd = ::open(dir.c_str(), O_RDONLY | O_DIRECTORY | O_CLOEXEC);
+    const bool synced = dfd >= 0 && ::fsync(dfd) == 0;
+    const int sync_errno = errno;
+    if (dfd >= 0) ::close(dfd);
+    if (!synced) {
+      ::close(fd);
+      return ioError("cannot sync the journal's directory: {}", errnoText(sync_errno));
+    }
+    fd_ = fd;
   }
   if (dirty_tail_) return cutBackTo(good_size_);
   return {};
