@@ -8,11 +8,13 @@
 // version is first appended to it and becomes visible (to the worker, readers, and the
 // client's answer) only once it is on disk; until then it is "in flight", and later updates
 // build on it. A failed write drops it and every in-flight version after it: the update
-// fails, the light set and the version counter stay where the durable state is. The worker always relights the *latest* light
-// set: updates that arrive while it runs are folded into the next relight, so a result
-// exists for the versions the worker computed, and the result for version v contains
-// every update acknowledged with a version <= v. Results are published as immutable
-// shared snapshots; waiting readers are woken on each publish.
+// fails, the light set and the version counter stay where the durable state is.
+//
+// The worker always relights the *latest* light set: updates that arrive while it runs are
+// folded into the next relight, so a result exists for the versions the worker computed,
+// and the result for version v contains every update acknowledged with a version <= v.
+// Results are published as immutable shared snapshots; waiting readers are woken on each
+// publish.
 //
 // Progressive (SessionOptions::progressive, with bounces enabled): the worker first relights
 // the newest light set without bounces and publishes that `preview`; then, if no update
@@ -131,9 +133,6 @@ class SceneSession {
   // Makes the in-flight versions whose commit is done visible, in order, and drops the rest
   // from the first failed one on. Needs mutex_ held.
   void settleInFlight() const;
-  // Journals version `v` of `lights` (built on the newest in-flight version, or the durable
-  // state when none) and waits for it; the version is visible when this returns OK.
-  Status commit(std::unique_lock<std::mutex>& lock, std::uint64_t v, relight::LightSet lights);
   // One relight of `lights` for version `v`, published as a snapshot; false when it failed
   // (logged, counted).
   bool relightAndPublish(const relight::LightSet& lights, std::uint64_t v, std::uint64_t coalesced,
