@@ -121,6 +121,7 @@ UpdateJournal::UpdateJournal(std::string path) : path_(std::move(path)) {
   auto contents = readJournal(path_);
   if (!contents) {
     logEvent(LogLevel::kError, "journal_unreadable", {{"path", path_}, {"error", contents.status().message()}});
+    dirty_tail_ = true;  // appends start a new journal rather than overwrite an unknown one
   } else {
     recovered_ = std::move(contents->records);
     good_size_ = contents->valid_bytes;
