@@ -108,7 +108,10 @@ class RestoreProgress final : public Progress {
 }  // namespace
 
 SceneRegistry::SceneRegistry(const DaemonConfig& config)
-    : config_(config), sessions_path_((fs::path(config.cache_dir) / "sessions.json").string()) {
+    : config_(config),
+      sessions_path_((fs::path(config.cache_dir) / "sessions.json").string()),
+      journal_(std::make_shared<UpdateJournal>((fs::path(config.cache_dir) / "sessions.journal").string())) {
+  journal_->onLarge(kCompactBytes, [this] { markDirty(); });
   persist_thread_ = std::thread([this] { persistLoop(); });
 }
 
@@ -131,7 +134,11 @@ Status SceneRegistry::shutdown() {
   persist_cv_.notify_all();
   if (persist_thread_.joinable()) persist_thread_.join();
   Status saved;
-  if (!shut_down_) saved = persistNow();
+  if (!shut_down_) {
+    saved = compact();
+    // How well group commit shared the syncs over this run.
+    logEvent(LogLevel::kInfo, "journal_closed", {{"commits", journal_->commits()}, {"records", journal_->records()}});
+  }
   shut_down_ = true;
   closeAll();
   return saved;
@@ -238,7 +245,15 @@ Expected<std::shared_ptr<SceneSession>> SceneRegistry::open(const v1::OpenSceneR
   params.clear_source();
   params.clear_lightset_json();
   identity.params = params;
-  return openResident(std::move(identity), request, nullptr, 1, request.lightset_json(), progress, staged);
+  auto session = openResident(std::move(identity), request, nullptr, 1, request.lightset_json(), progress, staged);
+  // The scene is durable before OpenScene answers: its updates are journaled against it.
+  if (session) {
+    if (Status s = persistNow(); !s) {
+      close((*session)->identity().id);
+      return ioError("sessions: cannot persist the new scene: {}", s.message());
+    }
+  }
+  return session;
 }
 
 Expected<std::shared_ptr<SceneSession>> SceneRegistry::openResident(SessionIdentity identity,
@@ -294,7 +309,7 @@ Expected<std::shared_ptr<SceneSession>> SceneRegistry::openResident(SessionIdent
   so.backend = backendChoiceName(request.backend(), config_.backend);
   so.relight.max_bounces = config_.relight_bounces;
   so.progressive = config_.progressive;
-  so.on_own_version = [this] { markDirty(); };
+  so.journal = journal_;
   const bool reused = resident->reused();
   const std::string note = resident->note();
   const double open_s = resident->openSeconds();
@@ -325,10 +340,17 @@ void SceneRegistry::restore() {
     logEvent(LogLevel::kError, "sessions_unreadable", {{"path", sessions_path_}, {"error", records.status().message()}});
     return;
   }
+  // The versions taken since the snapshot, in order, before anything can be journaled anew.
+  if (const std::size_t n = replayJournal(*records, journal_->takeRecovered()); n > 0)
+    logEvent(LogLevel::kInfo, "journal_replayed", {{"path", journal_->path()}, {"records", n}});
   if (records->empty()) return;
   {
     std::lock_guard lock(mutex_);
     for (const auto& r : *records) restoring_[r.id] = r;
+  }
+  {
+    std::lock_guard lock(persist_mutex_);
+    restore_running_ = true;
   }
   logEvent(LogLevel::kInfo, "restore_started", {{"scenes", records->size()}});
   // Re-opening decodes and maps every scene (seconds each for a large one): the daemon
@@ -361,6 +383,10 @@ void SceneRegistry::restoreAll(std::vector<SessionRecord> records) {
                {{"scene", r.id}, {"source", r.source_label}, {"error", why.message()}});
   }
   logEvent(LogLevel::kInfo, "restore_finished", {{"scenes", size()}});
+  {
+    std::lock_guard lock(persist_mutex_);
+    restore_running_ = false;
+  }
   markDirty();  // the file now lists exactly the scenes that came back
   enforceQuota(0);
 }
@@ -466,6 +492,8 @@ void SceneRegistry::markDirty() {
 }
 
 Status SceneRegistry::persistNow() {
+  // Snapshot and write under one lock: a later snapshot is never overwritten by an earlier.
+  std::lock_guard lock(write_mutex_);
   std::vector<SessionRecord> records;
   // Scenes not restored yet keep their record (one list, under the lock, so a scene that
   // just came back is neither missed nor written twice).
@@ -488,18 +516,21 @@ Status SceneRegistry::persistNow() {
     r.lights = s->persistentLights(&r.version);
     records.push_back(std::move(r));
   }
-  std::lock_guard lock(write_mutex_);
   return saveSessions(sessions_path_, records);
+}
+
+Status SceneRegistry::compact() {
+  return journal_->compact([this] { return persistNow(); });
 }
 
 void SceneRegistry::persistLoop() {
   std::unique_lock lock(persist_mutex_);
   while (true) {
-    persist_cv_.wait(lock, [&] { return dirty_ || persist_stop_; });
+    persist_cv_.wait(lock, [&] { return (dirty_ && !restore_running_) || persist_stop_; });
     if (persist_stop_) return;  // shutdown() writes the final state itself
     dirty_ = false;
     lock.unlock();
-    if (Status s = persistNow(); !s)
+    if (Status s = compact(); !s)
       logEvent(LogLevel::kError, "sessions_write_failed", {{"path", sessions_path_}, {"error", s.message()}});
     lock.lock();
   }

@@ -1,13 +1,17 @@
 // SceneRegistry: the daemon's resident scenes by id — opening (load or precompute through
-// ResidentScene, then a SceneSession), lookup, closing, and persistence to sessions.json.
-//
-// Persistence runs on its own thread: a change marks the registry dirty and the thread
-// rewrites sessions.json (atomically) as soon as the previous write is done, so bursts of
-// UpdateLights cost one write, not one per update, and no handler waits for a disk.
+// ResidentScene, then a SceneSession), lookup, closing, and persistence.
 //
 // Restore is lazy: restore() only reads sessions.json and re-opens the scenes on a
 // background thread, so a restarted daemon listens at once. A scene still being restored
 // is listed and counted, and a call naming it waits for it (waitRestored).
+//
+// Persistence: sessions.json is the snapshot (scenes, tokens, parameters, light sets) and
+// `sessions.journal` (UpdateJournal) every light-set version taken since. An open is in
+// sessions.json before OpenScene answers; an update is in the journal before UpdateLights
+// answers (SceneSession). A background thread compacts (rewrites sessions.json, empties the
+// journal) when the journal grows past kCompactBytes or a scene closes; shutdown compacts
+// a last time. Restore reads the snapshot and replays the journal over it (synchronously,
+// before listening) and only then re-opens the scenes in the background.
 #pragma once
 
 #include <atomic>
@@ -28,6 +32,7 @@
 #include "service/config.h"
 #include "service/scene_session.h"
 #include "service/session_store.h"
+#include "service/update_journal.h"
 
 namespace lightlink::service {
 
@@ -67,10 +72,15 @@ class SceneRegistry {
   // Idempotent; the destructor calls it.
   Status shutdown();
 
-  // Something persistent changed (a light update): sessions.json will be rewritten.
+  // Something persistent changed (a close): the background thread compacts.
   void markDirty();
-  // Writes sessions.json now (blocking).
+  // Writes sessions.json now (blocking), the journal kept.
   Status persistNow();
+  // Writes sessions.json and empties the journal (blocking).
+  Status compact();
+
+  // The journal is compacted once it holds this many bytes.
+  static constexpr std::uint64_t kCompactBytes = 4u << 20;
 
  private:
   Expected<std::shared_ptr<SceneSession>> openResident(SessionIdentity identity, const v1::OpenSceneRequest& request,
@@ -97,9 +107,11 @@ class SceneRegistry {
   std::atomic<bool> restore_stop_{false};
   std::thread restore_thread_;
 
+  std::shared_ptr<UpdateJournal> journal_;
   std::mutex persist_mutex_;
   std::condition_variable persist_cv_;
   bool dirty_ = false, persist_stop_ = false;
+  bool restore_running_ = false;  // no compaction while the restore has scenes left to open
   bool shut_down_ = false;
   std::mutex write_mutex_;  // one writer of sessions.json at a time
   std::thread persist_thread_;

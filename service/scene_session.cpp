@@ -19,7 +19,7 @@ SceneSession::SceneSession(SessionIdentity identity, precompute::ResidentScene r
       resident_(std::move(resident)),
       options_(options.relight),
       progressive_(options.progressive),
-      on_own_version_(options.on_own_version),
+      journal_(options.journal),
       lights_(std::move(lights)),
       version_(version),
       relit_version_(version - 1) {}  // the initial version is the worker's first job
@@ -91,16 +91,57 @@ std::vector<std::string> SceneSession::lightIds() const {
 
 Expected<std::uint64_t> SceneSession::update(const v1::UpdateLightsRequest& request) {
   std::unique_lock lock(mutex_);
-  if (stop_) return notFound("scene_id: scene '{}' is closed", identity_.id);
-  // Apply to a copy and swap it in only when every change succeeded: all or nothing.
-  relight::LightSet next = lights_;
-  if (Status s = applyUpdate(request, resident_.scene().materials.size(), next); !s) return s;
-  lights_ = std::move(next);
-  const std::uint64_t v = ++version_;
+  UpdateJournal::Ticket ticket;
+  std::uint64_t v = 0;
+  while (true) {
+    if (stop_) return notFound("scene_id: scene '{}' is closed", identity_.id);
+    settleInFlight();
+    // Build on the newest version, durable or in flight. Apply to a copy and keep it only
+    // when every change succeeded: all or nothing.
+    const InFlight* tip = in_flight_.empty() ? nullptr : &in_flight_.back();
+    relight::LightSet next = tip ? tip->lights : lights_;
+    if (Status s = applyUpdate(request, resident_.scene().materials.size(), next); !s) return s;
+    v = (tip ? tip->version : version_) + 1;
+    if (!journal_) {
+      lights_ = std::move(next);
+      version_ = v;
+      break;
+    }
+    ticket = journal_->append({identity_.id, v, next.toJson()}, tip ? tip->ticket : nullptr);
+    if (!ticket) continue;  // the version it built on failed meanwhile: rebuild on the durable state
+    in_flight_.push_back({v, std::move(next), ticket});
+    break;
+  }
+  if (ticket) {
+    lock.unlock();
+    const Status persisted = journal_->wait(ticket);
+    lock.lock();
+    settleInFlight();  // ours (and every one before it) is visible now, or dropped
+    if (!persisted) return persisted;
+  }
   ++updates_;
   lock.unlock();
   work_cv_.notify_one();
   return v;
+}
+
+void SceneSession::settleInFlight() const {
+  bool advanced = false;
+  while (!in_flight_.empty()) {
+    const auto state = journal_->state(in_flight_.front().ticket);
+    if (state == UpdateJournal::State::kPending) break;
+    if (state == UpdateJournal::State::kFailed) {
+      // Commits complete in order and a failure fails every commit queued behind it, so
+      // the versions after this one failed too (or would build on it).
+      in_flight_.clear();
+      break;
+    }
+    version_ = in_flight_.front().version;
+    lights_ = std::move(in_flight_.front().lights);
+    in_flight_.pop_front();
+    advanced = true;
+  }
+  if (advanced) work_cv_.notify_one();
 }
 
 std::uint64_t SceneSession::version() const {
@@ -168,13 +209,31 @@ void SceneSession::workerLoop() {
     // The converged result of the same lights, under a version of its own, unless a newer
     // light set is waiting (then its preview comes first).
     std::uint64_t converged = 0;
+    UpdateJournal::Ticket ticket;
     {
       std::lock_guard lock(mutex_);
-      if (stop_ || version_ != v) continue;
-      converged = ++version_;
+      if (journal_) settleInFlight();
+      if (stop_ || version_ != v || !in_flight_.empty()) continue;
+      converged = v + 1;
       relit_version_ = converged;
+      if (journal_) {
+        // Clients will see this version: durable first, like an update's.
+        ticket = journal_->append({identity_.id, converged, lights.toJson()}, nullptr);
+        in_flight_.push_back({converged, lights, ticket});
+      } else {
+        version_ = converged;
+      }
     }
-    if (on_own_version_) on_own_version_();
+    if (ticket) {
+      const Status persisted = journal_->wait(ticket);
+      std::lock_guard lock(mutex_);
+      settleInFlight();
+      if (!persisted) {
+        // Not durable, so not published: the next update takes the number, and is relit.
+        relit_version_ = v;
+        continue;
+      }
+    }
     if (relightAndPublish(lights, converged, 0, options_, false, result)) last_relit = converged;
   }
 }
@@ -278,6 +337,7 @@ SessionStats SceneSession::stats() const {
 
 nlohmann::ordered_json SceneSession::persistentLights(std::uint64_t* version) const {
   std::lock_guard lock(mutex_);
+  if (journal_) settleInFlight();
   if (version) *version = version_;
   return lights_.toJson();
 }

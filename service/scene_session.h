@@ -4,11 +4,17 @@
 //
 // Versions and coalescing (proto/lightlink.proto "Versions"). Every accepted update
 // replaces the light set atomically and takes the next version (monotonic, persisted, so
-// it keeps growing across daemon restarts). The worker always relights the *latest* light
-// set: updates that arrive while it runs are folded into the next relight, so a result
-// exists for the versions the worker computed, and the result for version v contains
-// every update acknowledged with a version <= v. Results are published as immutable
-// shared snapshots; waiting readers are woken on each publish.
+// it keeps growing across daemon restarts). With a journal (SessionOptions::journal) a new
+// version is first appended to it and becomes visible (to the worker, readers, and the
+// client's answer) only once it is on disk; until then it is "in flight", and later updates
+// build on it. A failed write drops it and every in-flight version after it: the update
+// fails, the light set and the version counter stay where the durable state is.
+//
+// The worker always relights the *latest* light set: updates that arrive while it runs are
+// folded into the next relight, so a result exists for the versions the worker computed,
+// and the result for version v contains every update acknowledged with a version <= v.
+// Results are published as immutable shared snapshots; waiting readers are woken on each
+// publish.
 //
 // Progressive (SessionOptions::progressive, with bounces enabled): the worker first relights
 // the newest light set without bounces and publishes that `preview`; then, if no update
@@ -23,6 +29,7 @@
 #include <chrono>
 #include <condition_variable>
 #include <cstdint>
+#include <deque>
 #include <functional>
 #include <memory>
 #include <mutex>
@@ -37,6 +44,7 @@
 #include "core/relight/light_set.h"
 #include "proto/lightlink.pb.h"
 #include "service/snapshot.h"
+#include "service/update_journal.h"
 
 namespace lightlink::service {
 
@@ -55,10 +63,10 @@ struct SessionOptions {
   std::string backend;                 // auto | cpu | gpu
   relight::RelightOptions relight;     // max_bounces: the converged result's bounce cap
   bool progressive = false;            // bounce-free preview first (only when max_bounces > 0)
-  // Called (worker thread, no lock held) when the session takes a version no client sent:
-  // the progressive converged result. The registry persists then, so a restarted daemon
-  // never resumes below a version clients have already seen.
-  std::function<void()> on_own_version;
+  // Where new versions are made durable before they are visible (the progressive converged
+  // version too: clients see it, so a restarted daemon must not hand it out again). Null:
+  // versions are visible at once (in-process tools and tests).
+  std::shared_ptr<UpdateJournal> journal;
 };
 
 struct SessionStats {
@@ -90,7 +98,8 @@ class SceneSession {
   int bands() const;
   std::vector<std::string> lightIds() const;
 
-  // Validates and applies an update (all or nothing); returns the version it created.
+  // Validates and applies an update (all or nothing); returns the version it created, once
+  // that version is durable. A failed write is the journal's error, and nothing changed.
   Expected<std::uint64_t> update(const v1::UpdateLightsRequest& request);
 
   std::uint64_t version() const;
@@ -114,13 +123,16 @@ class SceneSession {
   SessionStats stats() const;
   void addSubscriber(int delta) { subscribers_ += delta; }
 
-  // The light set and version, for sessions.json.
+  // The durable light set and version, for sessions.json.
   nlohmann::ordered_json persistentLights(std::uint64_t* version) const;
 
  private:
   SceneSession(SessionIdentity identity, precompute::ResidentScene resident, relight::LightSet lights,
                std::uint64_t version, const SessionOptions& options);
   void workerLoop();
+  // Makes the in-flight versions whose commit is done visible, in order, and drops the rest
+  // from the first failed one on. Needs mutex_ held.
+  void settleInFlight() const;
   // One relight of `lights` for version `v`, published as a snapshot; false when it failed
   // (logged, counted).
   bool relightAndPublish(const relight::LightSet& lights, std::uint64_t v, std::uint64_t coalesced,
@@ -132,7 +144,7 @@ class SceneSession {
   precompute::ResidentScene resident_;
   relight::RelightOptions options_;
   bool progressive_ = false;
-  std::function<void()> on_own_version_;
+  std::shared_ptr<UpdateJournal> journal_;
   std::unique_ptr<relight::RelightBackend> backend_;
   std::string backend_name_, backend_note_;
   std::shared_ptr<const std::vector<std::uint8_t>> grid_valid_;
@@ -140,8 +152,15 @@ class SceneSession {
   mutable std::mutex mutex_;
   mutable std::condition_variable work_cv_;    // worker: a new version or stop
   mutable std::condition_variable result_cv_;  // readers: a new result, close or drain
-  relight::LightSet lights_;                   // guarded by mutex_
-  std::uint64_t version_ = 0;                  // guarded
+  // The durable (visible) light set and version; mutable: settleInFlight advances them.
+  mutable relight::LightSet lights_;           // guarded by mutex_
+  mutable std::uint64_t version_ = 0;          // guarded
+  struct InFlight {
+    std::uint64_t version;
+    relight::LightSet lights;
+    UpdateJournal::Ticket ticket;
+  };
+  mutable std::deque<InFlight> in_flight_;     // appended to the journal, not yet visible; guarded
   std::uint64_t relit_version_ = 0;            // last version handed to the worker, guarded
   std::shared_ptr<const Snapshot> latest_;     // guarded
   std::uint64_t sequence_ = 0;                 // results published, guarded

@@ -321,10 +321,12 @@ grpc::Status LightlinkService::UpdateLights(grpc::ServerContext* ctx, const v1::
   if (auto st = lookup(ctx, request->scene(), &s); !st.ok()) return st;
   auto v = s->update(*request);
   if (!v) {
+    // Not persisted (disk full, I/O error): nothing changed, the client may retry.
+    if (v.status().code() == Code::kIoError) return grpcError(grpc::StatusCode::UNAVAILABLE, v.status().message());
     logEvent(LogLevel::kDebug, "update_rejected", {{"scene", s->identity().id}, {"error", v.status().message()}});
     return toGrpc(v.status());
   }
-  registry_.markDirty();
+  // Durable: the version is in the journal (SceneSession::update).
   response->set_version(*v);
   if (request->wait_ms() > 0) {
     const auto deadline = std::min(waitDeadline(ctx), Clock::now() + std::chrono::milliseconds(request->wait_ms()));

@@ -15,6 +15,11 @@
 //   throughput  updates sent back to back for --burst-s seconds by one client: updates/s
 //               acknowledged, and relights/s the daemon computed meanwhile (Stats), the rest
 //               coalesced.
+//   updates     the cost of an acknowledgement (durable: journaled and synced, docs/service.md):
+//               for each count in --update-clients, that many clients, each on its own
+//               connection, send updates back to back for --burst-s seconds; updates/s
+//               acknowledged and the UpdateLights round trip p50/p99. --no-latency skips the
+//               latency scenarios (only throughput and updates).
 //   memory      daemon RSS before and after the scene is resident, and the scene's
 //               resident_bytes / artifact_bytes (Stats).
 //
@@ -63,6 +68,8 @@ struct Args {
   std::string preset = "medium";
   std::vector<int> clients = {1, 50};
   std::vector<int> wait_ms = {0, 2000};  // per scenario: 0 = plain poll every poll_ms, > 0 = long poll
+  std::vector<int> update_clients = {1, 8};  // concurrent updaters per "updates" scenario
+  bool latency = true;                        // run the light-change-to-client scenarios
   std::string daemon_cpus, client_cpus;  // taskset-style CPU lists; empty = no pinning
   int updates = 100;
   double poll_ms = 5.0;  // 200 Hz: a game polling every frame, a little faster than 60 Hz
@@ -304,6 +311,53 @@ nlohmann::ordered_json throughputScenario(const Args& a, Client& driver, SceneHa
   return j;
 }
 
+// `n` clients send updates back to back: what an acknowledgement costs, alone and under a burst.
+nlohmann::ordered_json updateScenario(const Args& a, const ConnectOptions& co, SceneHandle& scene,
+                                      const std::string& light, int n, int& step) {
+  std::vector<std::unique_ptr<Client>> clients;
+  for (int i = 0; i < n; ++i) clients.push_back(std::make_unique<Client>(must(Client::connect(co))));
+  std::vector<std::vector<double>> rtt(n);
+  std::vector<std::size_t> errors(n, 0);
+  std::vector<std::string> first_error(n);
+  std::atomic<int> next_step{step};
+  const auto t0 = Clock::now();
+  const auto until = t0 + std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(a.burst_s));
+  std::vector<std::thread> threads;
+  for (int i = 0; i < n; ++i)
+    threads.emplace_back([&, i] {
+      while (Clock::now() < until) {
+        const LightUpdate u = moveLight(a, light, next_step++);
+        const auto s = Clock::now();
+        auto r = clients[i]->updateLights(scene, u);
+        if (!r) {
+          if (errors[i]++ == 0) first_error[i] = r.status().toString();
+          continue;
+        }
+        rtt[i].push_back(ms(Clock::now() - s));
+      }
+    });
+  for (auto& t : threads) t.join();
+  const double seconds = ms(Clock::now() - t0) / 1e3;
+  step = next_step.load();
+  std::vector<double> all;
+  std::size_t errs = 0;
+  std::string first;
+  for (int i = 0; i < n; ++i) {
+    all.insert(all.end(), rtt[i].begin(), rtt[i].end());
+    errs += errors[i];
+    if (first.empty()) first = first_error[i];
+  }
+  nlohmann::ordered_json j;
+  j["clients"] = n;
+  j["seconds"] = seconds;
+  j["updates_acknowledged"] = all.size();
+  j["updates_per_s"] = double(all.size()) / seconds;
+  j["round_trip_ms"] = summary(all);
+  j["errors"] = errs;
+  if (!first.empty()) j["first_error"] = first;
+  return j;
+}
+
 std::vector<int> parseList(const std::string& s) {
   std::vector<int> v;
   std::size_t pos = 0;
@@ -338,6 +392,8 @@ Args parseArgs(int argc, char** argv) {
       else if (k == "--preset") a.preset = val();
       else if (k == "--clients") a.clients = parseList(val());
       else if (k == "--wait-ms") a.wait_ms = parseList(val());
+      else if (k == "--update-clients") a.update_clients = parseList(val());
+      else if (k == "--no-latency") a.latency = false;
       else if (k == "--daemon-cpus") a.daemon_cpus = val();
       else if (k == "--client-cpus") a.client_cpus = val();
       else if (k == "--updates") a.updates = std::stoi(val());
@@ -351,12 +407,15 @@ Args parseArgs(int argc, char** argv) {
             "              [--scene F] [--preset P]\n"
             "              [--clients 1,50] [--wait-ms 0,2000] [--updates N] [--poll-ms MS] [--gap-ms MS]\n"
             "              [--burst-s S] [--daemon-cpus LIST] [--client-cpus LIST] [--daemon-flag F ...] [--json F]\n"
-            "              [--subscribe] [--bands B] [--shared-memory]\n"
+            "              [--subscribe] [--bands B] [--shared-memory] [--update-clients 1,8] [--no-latency]\n"
             "  --wait-ms    one latency scenario per value and client count: 0 = poll every --poll-ms,\n"
             "               > 0 = long poll (GetTextures wait_ms)\n"
             "  --daemon-cpus, --client-cpus  taskset-style CPU lists (0-1, 2-15, 0,2,4-7): where the started\n"
             "               daemon and this process (driver, clients) may run\n"
             "  --subscribe  also one scenario per client count with Subscribe streams (tile deltas)\n"
+            "  --update-clients  one \"updates\" scenario per value: that many clients send updates back to\n"
+            "               back for --burst-s (acknowledged updates/s, round trip p50/p99)\n"
+            "  --no-latency skip the light-change-to-client latency scenarios\n"
             "  --bands      SH bands the clients fetch (default 0: all): how latency scales with the payload\n"
             "  --shared-memory  polling clients ask for results through shared memory (the daemon is on this\n"
             "               machine: chunks in a file it writes once, docs/service.md)\n"
@@ -372,6 +431,8 @@ Args parseArgs(int argc, char** argv) {
     die(invalidInput("--updates >= 1, --poll-ms > 0, --gap-ms >= 0, --burst-s > 0"));
   for (int c : a.clients)
     if (c < 1 || c > 1000) die(invalidInput("--clients: {} is out of range (1..1000)", c));
+  for (int c : a.update_clients)
+    if (c < 1 || c > 1000) die(invalidInput("--update-clients: {} is out of range (1..1000)", c));
   for (int w : a.wait_ms)
     if (w < 0 || w > 60000) die(invalidInput("--wait-ms: {} is out of range (0..60000)", w));
   if (!a.daemon_cpus.empty() && !a.target.empty()) die(invalidInput("--daemon-cpus: only for a daemon it starts (no --target)"));
@@ -447,13 +508,13 @@ int main(int argc, char** argv) {
   out["client_cpus"] = a.client_cpus.empty() ? "any" : a.client_cpus;
   int step = 0;
   nlohmann::ordered_json scenarios = nlohmann::ordered_json::array();
-  for (int w : a.wait_ms)
+  for (int w : a.latency ? a.wait_ms : std::vector<int>{})
     for (int c : a.clients) {
       std::fprintf(stderr, "service_bench: %d client(s), %s, %d updates\n", c,
                    w > 0 ? fmt::format("long poll (wait_ms {})", w).c_str() : "poll", a.updates);
       scenarios.push_back(latencyScenario(a, co, driver, scene, light, c, std::uint32_t(w), false, step));
     }
-  if (a.subscribe)
+  if (a.subscribe && a.latency)
     for (int c : a.clients) {
       std::fprintf(stderr, "service_bench: %d client(s), subscribe (deltas), %d updates\n", c, a.updates);
       scenarios.push_back(latencyScenario(a, co, driver, scene, light, c, 0, true, step));
@@ -461,6 +522,12 @@ int main(int argc, char** argv) {
   out["latency"] = scenarios;
   std::fprintf(stderr, "service_bench: update burst for %.1f s\n", a.burst_s);
   out["throughput"] = throughputScenario(a, driver, scene, light, step);
+  nlohmann::ordered_json updates = nlohmann::ordered_json::array();
+  for (int n : a.update_clients) {
+    std::fprintf(stderr, "service_bench: %d client(s) sending updates for %.1f s\n", n, a.burst_s);
+    updates.push_back(updateScenario(a, co, scene, light, n, step));
+  }
+  out["updates"] = updates;
   auto stats2 = must(driver.stats(&scene));
   const auto& sc = stats2.scene(0);
   out["memory"] = {{"rss_before_open_bytes", stats0.rss_bytes()},
@@ -502,6 +569,13 @@ int main(int argc, char** argv) {
   text += fmt::format("throughput   {:.0f} updates/s acknowledged, {:.1f} relights/s ({} coalesced), mean relight {:.2f} ms\n",
                       tp["updates_per_s"].get<double>(), tp["relights_per_s"].get<double>(),
                       tp["coalesced"].get<std::uint64_t>(), tp["mean_relight_ms"].get<double>());
+  for (const auto& u : out["updates"])
+    text += fmt::format("updates      {:>3} client(s): {:.0f} updates/s acknowledged, round trip p50 {:.2f} ms  p99 {:.2f} ms"
+                        "{}\n",
+                        u["clients"].get<int>(), u["updates_per_s"].get<double>(), u["round_trip_ms"]["p50"].get<double>(),
+                        u["round_trip_ms"]["p99"].get<double>(),
+                        u["errors"].get<std::size_t>() ? fmt::format(" ({} errors)", u["errors"].get<std::size_t>())
+                                                       : std::string());
   const auto& m = out["memory"];
   text += fmt::format("memory       resident {:.1f} MiB (artifact {:.1f} MiB), daemon RSS +{:.1f} MiB for the scene\n",
                       double(m["resident_bytes"].get<std::uint64_t>()) / 1048576.0,
