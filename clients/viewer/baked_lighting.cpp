@@ -6,6 +6,7 @@
 #include <cstring>
 #include <filesystem>
 #include <fstream>
+#include <optional>
 
 #include <OpenEXR/ImfChannelList.h>
 #include <OpenEXR/ImfFrameBuffer.h>
@@ -50,10 +51,22 @@ bool finite3(const float v[3]) { return std::isfinite(v[0]) && std::isfinite(v[1
 Status readLightmapExr(const std::string& path, BakedLighting& b, std::uint64_t max_texels) {
   if (auto size = regularFileSize(path); !size) return size.status();
   try {
-    // OpenEXR sizes its line buffers from the header: refuse absurd windows before it does.
-    Imf::Header::setMaxImageSize(16384, 16384);
-    Imf::Header::setMaxTileSize(16384, 16384);
+    // OpenEXR sizes its line buffers and offset tables from the header: refuse absurd
+    // windows before it does. The limits are process-wide (they also bind writers), so they
+    // are lifted again once the header is read.
+    struct ExrLimits {
+      ExrLimits() {
+        Imf::Header::setMaxImageSize(16384, 16384);
+        Imf::Header::setMaxTileSize(16384, 16384);
+      }
+      ~ExrLimits() {
+        Imf::Header::setMaxImageSize(0, 0);  // 0: OpenEXR's default, no limit
+        Imf::Header::setMaxTileSize(0, 0);
+      }
+    };
+    std::optional<ExrLimits> limits(std::in_place);
     Imf::InputFile file(path.c_str());
+    limits.reset();
     const Imf::Header& h = file.header();
     const auto* bands = h.findTypedAttribute<Imf::IntAttribute>("lightlink.bands");
     if (bands == nullptr || bands->value() < 1 || bands->value() > 4)
