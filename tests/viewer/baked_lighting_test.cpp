@@ -215,5 +215,33 @@ TEST(BakedLightingFile, GridValuesMustBeFinite) {
   expectGridRejected(g.bytes(payload), "valid");
 }
 
+// The lightmap reader: a window larger than the limit and non-finite values are rejected,
+// naming what is wrong (the limit is 16384^2 texels in `render`; 3 here).
+TEST(BakedLightingFile, LightmapSizeAndValuesAreChecked) {
+  testing::TempDir dir;
+  relight::RelightResult r;
+  r.bands = 1;
+  r.width = r.height = 2;
+  r.lightmap_sh.assign(4 * 3, 1.0f);
+  r.direct.assign(4, glm::vec3(0.1f));
+  r.texel_valid.assign(4, 1);
+  output::ExrOptions float_exr;
+  float_exr.half = false;
+  const std::string path = (dir / "lightmap.exr").string();
+  ASSERT_TRUE(output::writeLightmapExr(r, path, float_exr));
+  BakedLighting ok;
+  ASSERT_TRUE(readLightmapExr(path, ok)) << "a valid 2x2 lightmap";
+  BakedLighting small;
+  const Status too_big = readLightmapExr(path, small, 3);
+  EXPECT_EQ(too_big.code(), Code::kInvalidInput);
+  EXPECT_NE(too_big.message().find("data window 2x2 is out of range"), std::string::npos) << too_big.message();
+  r.lightmap_sh[7] = std::numeric_limits<float>::quiet_NaN();
+  ASSERT_TRUE(output::writeLightmapExr(r, path, float_exr));
+  BakedLighting nan;
+  const Status s = readLightmapExr(path, nan);
+  EXPECT_EQ(s.code(), Code::kInvalidInput);
+  EXPECT_NE(s.message().find("is not finite"), std::string::npos) << s.message();
+}
+
 }  // namespace
 }  // namespace lightlink::viewer
