@@ -44,12 +44,48 @@ Expected<std::uint64_t> regularFileSize(const std::string& path) {
   return std::uint64_t(size);
 }
 
+// Walks the EXR header's attribute list (magic, version, then name\0 type\0 int32 size
+// value...) and checks that every attribute fits in the file, before OpenEXR allocates
+// each attribute's stated size: a 5 KB file could otherwise make it allocate 2 GB.
+Status checkExrHeader(const std::string& path, std::uint64_t file_bytes) {
+  std::ifstream in(path, std::ios::binary);
+  std::vector<char> head(static_cast<std::size_t>(std::min<std::uint64_t>(file_bytes, 1 << 20)));
+  if (!readExactly(in, head.data(), head.size())) return ioError("cannot read {}", path);
+  const auto u32 = [&](std::size_t at) {
+    std::uint32_t v;
+    std::memcpy(&v, head.data() + at, 4);
+    return v;
+  };
+  if (head.size() < 8 || u32(0) != 20000630u) return invalidInput("{} is not an OpenEXR file (bad magic)", path);
+  if (u32(4) & 0x1800u) return invalidInput("{}: a multi-part or deep EXR is not a lightlink lightmap", path);
+  std::size_t at = 8;
+  for (int attribute = 0;; ++attribute) {
+    const auto name = head.begin() + std::ptrdiff_t(at);
+    const auto name_end = std::find(name, head.end(), '\0');
+    if (name_end == head.end()) break;  // beyond what was scanned: OpenEXR's own checks apply
+    if (name_end == name) return {};    // the empty name ends the header
+    const auto type_end = std::find(name_end + 1, head.end(), '\0');
+    if (type_end == head.end() || std::size_t(type_end - head.begin()) + 5 > head.size()) break;
+    at = std::size_t(type_end - head.begin()) + 1;
+    const std::uint32_t size = u32(at);
+    at += 4;
+    if (size > file_bytes - at)
+      return invalidInput("{}: header attribute {} ('{}') claims {} bytes, beyond the end of the file", path,
+                          attribute, std::string(name, name_end).substr(0, 64), size);
+    at += size;
+    if (at >= head.size()) break;
+  }
+  return {};
+}
+
 bool finite3(const float v[3]) { return std::isfinite(v[0]) && std::isfinite(v[1]) && std::isfinite(v[2]); }
 
 }  // namespace
 
 Status readLightmapExr(const std::string& path, BakedLighting& b, std::uint64_t max_texels) {
-  if (auto size = regularFileSize(path); !size) return size.status();
+  auto file_bytes = regularFileSize(path);
+  if (!file_bytes) return file_bytes.status();
+  if (Status s = checkExrHeader(path, *file_bytes); !s) return s;
   try {
     // OpenEXR sizes its line buffers and offset tables from the header: refuse absurd
     // windows before it does. The limits are process-wide (they also bind writers), so they
