@@ -233,6 +233,17 @@ TEST(FuzzReplay, BakeOutputRegressionsAreRejected) {
   }
 }
 
+// Found by fuzz_lightmap_exr: a header attribute whose size field points far past the end of
+// a 4.7 KB file. OpenEXR allocated the stated size before failing (seconds per read under
+// ASan, hundreds of MB); the reader now checks attribute sizes against the file first.
+TEST(FuzzReplay, ExrAttributeBeyondTheFileIsRejectedBeforeOpenExrReadsIt) {
+  const fs::path f = fs::path(LIGHTLINK_FUZZ_DIR) / "regressions/lightmap_exr/attribute_size_beyond_file.exr";
+  const Status s = readLightmapExrBytes(readBytes(f));
+  EXPECT_EQ(s.code(), Code::kInvalidInput) << s.toString();
+  EXPECT_NE(s.message().find("claims"), std::string::npos) << s.toString();
+  EXPECT_NE(s.message().find("beyond the end of the file"), std::string::npos) << s.toString();
+}
+
 // --- Light sets ---
 
 TEST(FuzzReplay, LightSetSeedsLoadApplyAndRelight) {
