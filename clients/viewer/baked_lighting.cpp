@@ -109,7 +109,9 @@ Status readLightmapExr(const std::string& path, BakedLighting& b, std::uint64_t 
       return invalidInput("{} is not a lightlink lightmap (no valid lightlink.bands attribute)", path);
     const Imath::Box2i dw = h.dataWindow();
     const std::int64_t w = std::int64_t(dw.max.x) - dw.min.x + 1, hgt = std::int64_t(dw.max.y) - dw.min.y + 1;
-    if (w < 1 || hgt < 1 || std::uint64_t(w) * std::uint64_t(hgt) > max_texels)
+    // Each side bounded first: the product of two 2^32 sides would wrap.
+    if (w < 1 || hgt < 1 || std::uint64_t(w) > max_texels || std::uint64_t(hgt) > max_texels ||
+        std::uint64_t(w) * std::uint64_t(hgt) > max_texels)
       return invalidInput("{}: data window {}x{} is out of range (1 to {} texels)", path, w, hgt, max_texels);
     b.bands = bands->value();
     b.width = static_cast<int>(w);
