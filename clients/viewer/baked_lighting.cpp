@@ -44,9 +44,12 @@ Expected<std::uint64_t> regularFileSize(const std::string& path) {
   return std::uint64_t(size);
 }
 
-// Walks the EXR header's attribute list (magic, version, then name\0 type\0 int32 size
-// value...) and checks that every attribute fits in the file, before OpenEXR allocates
-// each attribute's stated size: a 5 KB file could otherwise make it allocate 2 GB.
+// Walks the EXR header (magic, version, then name\0 type\0 int32 size value...) as OpenEXR
+// parses it, before OpenEXR does: OpenEXR allocates an attribute's stated size before it
+// reads it, so a 5 KB file could make it allocate 2 GB. Only the attribute types a lightmap
+// uses are accepted, each value must have exactly its stated size (OpenEXR parses typed
+// values by their content, so a size that disagrees would desynchronise this walk), and
+// every size must fit in the file.
 Status checkExrHeader(const std::string& path, std::uint64_t file_bytes) {
   std::ifstream in(path, std::ios::binary);
   std::vector<char> head(static_cast<std::size_t>(std::min<std::uint64_t>(file_bytes, 1 << 20)));
@@ -57,25 +60,58 @@ Status checkExrHeader(const std::string& path, std::uint64_t file_bytes) {
     return v;
   };
   if (head.size() < 8 || u32(0) != 20000630u) return invalidInput("{} is not an OpenEXR file (bad magic)", path);
-  if (u32(4) & 0x1800u) return invalidInput("{}: a multi-part or deep EXR is not a lightlink lightmap", path);
+  const std::uint32_t flags = u32(4);
+  if (flags & 0x1a00u) return invalidInput("{}: a tiled, multi-part or deep EXR is not a lightlink lightmap", path);
+  const std::size_t max_name = (flags & 0x400u) ? 255 : 31;
+  const auto bad = [&](std::size_t at, const char* what) {
+    return invalidInput("{}: malformed EXR header at byte {} ({})", path, at, what);
+  };
+  // A null-terminated name of at most max_name characters at `at`; npos when there is none.
+  const auto name_at = [&](std::size_t at, std::string& out) {
+    const auto begin = head.begin() + std::ptrdiff_t(at);
+    const auto end = std::find(begin, std::min(head.end(), begin + std::ptrdiff_t(max_name) + 1), '\0');
+    if (end == head.end() || end == begin + std::ptrdiff_t(max_name) + 1) return std::string::npos;
+    out.assign(begin, end);
+    return at + out.size() + 1;
+  };
+  // Fixed-size attribute types a lightlink lightmap (or a standard EXR header) holds.
+  const auto fixed_size = [](const std::string& type) -> int {
+    if (type == "box2i" || type == "box2f") return 16;
+    if (type == "int" || type == "float") return 4;
+    if (type == "v2f" || type == "v2i") return 8;
+    if (type == "v3f" || type == "v3i") return 12;
+    if (type == "compression" || type == "lineOrder" || type == "envmap") return 1;
+    if (type == "chromaticities") return 32;
+    return -1;
+  };
   std::size_t at = 8;
-  for (int attribute = 0;; ++attribute) {
-    const auto name = head.begin() + std::ptrdiff_t(at);
-    const auto name_end = std::find(name, head.end(), '\0');
-    if (name_end == head.end()) break;  // beyond what was scanned: OpenEXR's own checks apply
-    if (name_end == name) return {};    // the empty name ends the header
-    const auto type_end = std::find(name_end + 1, head.end(), '\0');
-    if (type_end == head.end() || std::size_t(type_end - head.begin()) + 5 > head.size()) break;
-    at = std::size_t(type_end - head.begin()) + 1;
-    const std::uint32_t size = u32(at);
-    at += 4;
-    if (size > file_bytes - at)
-      return invalidInput("{}: header attribute {} ('{}') claims {} bytes, beyond the end of the file", path,
-                          attribute, std::string(name, name_end).substr(0, 64), size);
-    at += size;
-    if (at >= head.size()) break;
+  std::string name, type, channel;
+  for (;;) {
+    if (at >= head.size()) return bad(at, "the header does not end");
+    if (head[at] == '\0') return {};  // the empty name ends the header
+    const std::size_t type_at = name_at(at, name);
+    if (type_at == std::string::npos) return bad(at, "attribute name");
+    const std::size_t size_at = name_at(type_at, type);
+    if (size_at == std::string::npos || size_at + 4 > head.size()) return bad(type_at, "attribute type");
+    const std::uint32_t size = u32(size_at);
+    const std::size_t value_at = size_at + 4;
+    if (size > file_bytes - value_at)
+      return invalidInput("{}: header attribute '{}' claims {} bytes, beyond the end of the file", path, name, size);
+    if (value_at + size > head.size()) return bad(value_at, "the header does not end");
+    if (type == "chlist") {  // channels: name\0 + 16 bytes each, until an empty name
+      std::size_t c = value_at;
+      while (c < value_at + size && head[c] != '\0') {
+        const std::size_t next = name_at(c, channel);
+        if (next == std::string::npos) return bad(c, "channel name");
+        c = next + 16;
+      }
+      if (c + 1 != value_at + size) return bad(value_at, "the channel list disagrees with its size");
+    } else if (type != "string" && fixed_size(type) != static_cast<int>(size)) {
+      return invalidInput("{}: header attribute '{}' of type '{}' ({} bytes) is not one a lightlink lightmap holds",
+                          path, name.substr(0, 64), type.substr(0, 64), size);
+    }
+    at = value_at + size;
   }
-  return {};
 }
 
 bool finite3(const float v[3]) { return std::isfinite(v[0]) && std::isfinite(v[1]) && std::isfinite(v[2]); }

@@ -242,6 +242,13 @@ TEST(FuzzReplay, ExrAttributeBeyondTheFileIsRejectedBeforeOpenExrReadsIt) {
   EXPECT_EQ(s.code(), Code::kInvalidInput) << s.toString();
   EXPECT_NE(s.message().find("claims"), std::string::npos) << s.toString();
   EXPECT_NE(s.message().find("beyond the end of the file"), std::string::npos) << s.toString();
+  // The same, in a 120 s campaign after that fix: a channel list whose size field disagrees
+  // with its content, so a walk by sizes and OpenEXR's walk by content parted ways and
+  // OpenEXR met a 1.8 GB opaque attribute. The walk now parses as OpenEXR does.
+  const Status t = readLightmapExrBytes(
+      readBytes(fs::path(LIGHTLINK_FUZZ_DIR) / "regressions/lightmap_exr/channel_list_size_mismatch.exr"));
+  EXPECT_EQ(t.code(), Code::kInvalidInput) << t.toString();
+  EXPECT_NE(t.message().find("the channel list disagrees with its size"), std::string::npos) << t.toString();
 }
 
 // --- Light sets ---
