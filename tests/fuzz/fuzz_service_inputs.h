@@ -1,13 +1,14 @@
 // Entry functions of the fuzzers that need the wire contract (proto/lightlink.proto): the
 // daemon's request validation (service/validation.cpp) fed with v1 request messages, and the
 // client library's light-set parser (clients/client/light_update.cpp), whose requests go
-// through the same validation. Built where the proto library is (the fuzz build enables
-// it); the replay test runs them on the committed inputs in ordinary builds with the service.
+// through the same validation. Built where the v1 messages are: builds with the service,
+// and the fuzz build (which generates them without gRPC); the replay test runs them on the
+// committed inputs in ordinary builds with the service.
 //
 // There is no structured protobuf mutator in Debian (libprotobuf-mutator is not packaged):
 // the fuzzer mutates serialized messages. Protobuf's own parser is robust and well fuzzed,
 // so every input that parses reaches the validation with arbitrary field values; seeds
-// (make_request_seeds) give the fuzzer valid messages of each kind to start from.
+// (`fuzz_make_seed --requests`) give the fuzzer valid messages of each kind to start from.
 #pragma once
 
 #include <cstdint>
