@@ -1,9 +1,12 @@
 #include "clients/viewer/baked_lighting.h"
 
+#include <algorithm>
 #include <cmath>
+#include <cstdint>
 #include <cstring>
 #include <filesystem>
 #include <fstream>
+#include <optional>
 
 #include <OpenEXR/ImfChannelList.h>
 #include <OpenEXR/ImfFrameBuffer.h>
@@ -24,44 +27,164 @@ glm::vec3 shIrradiance(const float* sh, int bands, const glm::vec3& normal) {
           sh::irradiance(bands, sh + 2 * nc, normal)};
 }
 
-Status readLightmap(const std::string& path, BakedLighting& b) {
+// Reads `n` bytes at the current position; false when the file ends first.
+bool readExactly(std::ifstream& in, void* dst, std::size_t n) {
+  in.read(static_cast<char*>(dst), static_cast<std::streamsize>(n));
+  return in && static_cast<std::size_t>(in.gcount()) == n;
+}
+
+// Opens a regular file (a FIFO or a directory would block or fail mid-read) and returns its size.
+Expected<std::uint64_t> regularFileSize(const std::string& path) {
+  std::error_code ec;
+  const auto st = std::filesystem::status(path, ec);
+  if (ec || !std::filesystem::exists(st)) return ioError("cannot open {}", path);
+  if (!std::filesystem::is_regular_file(st)) return invalidInput("{} is not a regular file", path);
+  const std::uintmax_t size = std::filesystem::file_size(path, ec);
+  if (ec) return ioError("cannot read the size of {}", path);
+  return std::uint64_t(size);
+}
+
+// Walks the EXR header (magic, version, then name\0 type\0 int32 size value...) as OpenEXR
+// parses it, before OpenEXR does: OpenEXR allocates an attribute's stated size before it
+// reads it, so a 5 KB file could make it allocate 2 GB. Only the attribute types a lightmap
+// uses are accepted, each value must have exactly its stated size (OpenEXR parses typed
+// values by their content, so a size that disagrees would desynchronise this walk), and
+// every size must fit in the file.
+Status checkExrHeader(const std::string& path, std::uint64_t file_bytes) {
+  std::ifstream in(path, std::ios::binary);
+  std::vector<char> head(static_cast<std::size_t>(std::min<std::uint64_t>(file_bytes, 1 << 20)));
+  if (!readExactly(in, head.data(), head.size())) return ioError("cannot read {}", path);
+  const auto u32 = [&](std::size_t at) {
+    std::uint32_t v;
+    std::memcpy(&v, head.data() + at, 4);
+    return v;
+  };
+  if (head.size() < 8 || u32(0) != 20000630u) return invalidInput("{} is not an OpenEXR file (bad magic)", path);
+  const std::uint32_t flags = u32(4);
+  if (flags & 0x1a00u) return invalidInput("{}: a tiled, multi-part or deep EXR is not a lightlink lightmap", path);
+  const std::size_t max_name = (flags & 0x400u) ? 255 : 31;
+  const auto bad = [&](std::size_t at, const char* what) {
+    return invalidInput("{}: malformed EXR header at byte {} ({})", path, at, what);
+  };
+  // A null-terminated name of at most max_name characters at `at`; npos when there is none.
+  const auto name_at = [&](std::size_t at, std::string& out) {
+    const auto begin = head.begin() + std::ptrdiff_t(at);
+    const auto end = std::find(begin, std::min(head.end(), begin + std::ptrdiff_t(max_name) + 1), '\0');
+    if (end == head.end() || end == begin + std::ptrdiff_t(max_name) + 1) return std::string::npos;
+    out.assign(begin, end);
+    return at + out.size() + 1;
+  };
+  // Fixed-size attribute types a lightlink lightmap (or a standard EXR header) holds.
+  const auto fixed_size = [](const std::string& type) -> int {
+    if (type == "box2i" || type == "box2f") return 16;
+    if (type == "int" || type == "float") return 4;
+    if (type == "v2f" || type == "v2i") return 8;
+    if (type == "v3f" || type == "v3i") return 12;
+    if (type == "compression" || type == "lineOrder" || type == "envmap") return 1;
+    if (type == "chromaticities") return 32;
+    return -1;
+  };
+  std::size_t at = 8;
+  std::string name, type, channel;
+  for (;;) {
+    if (at >= head.size()) return bad(at, "the header does not end");
+    if (head[at] == '\0') return {};  // the empty name ends the header
+    const std::size_t type_at = name_at(at, name);
+    if (type_at == std::string::npos) return bad(at, "attribute name");
+    const std::size_t size_at = name_at(type_at, type);
+    if (size_at == std::string::npos || size_at + 4 > head.size()) return bad(type_at, "attribute type");
+    const std::uint32_t size = u32(size_at);
+    const std::size_t value_at = size_at + 4;
+    if (size > file_bytes - value_at)
+      return invalidInput("{}: header attribute '{}' claims {} bytes, beyond the end of the file", path, name, size);
+    if (value_at + size > head.size()) return bad(value_at, "the header does not end");
+    if (type == "chlist") {  // channels: name\0 + 16 bytes each, until an empty name
+      std::size_t c = value_at;
+      while (c < value_at + size && head[c] != '\0') {
+        const std::size_t next = name_at(c, channel);
+        if (next == std::string::npos) return bad(c, "channel name");
+        c = next + 16;
+      }
+      if (c + 1 != value_at + size) return bad(value_at, "the channel list disagrees with its size");
+    } else if (type != "string" && fixed_size(type) != static_cast<int>(size)) {
+      return invalidInput("{}: header attribute '{}' of type '{}' ({} bytes) is not one a lightlink lightmap holds",
+                          path, name.substr(0, 64), type.substr(0, 64), size);
+    }
+    at = value_at + size;
+  }
+}
+
+bool finite3(const float v[3]) { return std::isfinite(v[0]) && std::isfinite(v[1]) && std::isfinite(v[2]); }
+
+}  // namespace
+
+Status readLightmapExr(const std::string& path, BakedLighting& b, std::uint64_t max_texels) {
+  auto file_bytes = regularFileSize(path);
+  if (!file_bytes) return file_bytes.status();
+  if (Status s = checkExrHeader(path, *file_bytes); !s) return s;
   try {
+    // OpenEXR sizes its line buffers and offset tables from the header: refuse absurd
+    // windows before it does. The limits are process-wide (they also bind writers), so they
+    // are lifted again once the header is read.
+    struct ExrLimits {
+      ExrLimits() {
+        Imf::Header::setMaxImageSize(16384, 16384);
+        Imf::Header::setMaxTileSize(16384, 16384);
+      }
+      ~ExrLimits() {
+        Imf::Header::setMaxImageSize(0, 0);  // 0: OpenEXR's default, no limit
+        Imf::Header::setMaxTileSize(0, 0);
+      }
+    };
+    std::optional<ExrLimits> limits(std::in_place);
     Imf::InputFile file(path.c_str());
+    limits.reset();
     const Imf::Header& h = file.header();
     const auto* bands = h.findTypedAttribute<Imf::IntAttribute>("lightlink.bands");
     if (bands == nullptr || bands->value() < 1 || bands->value() > 4)
       return invalidInput("{} is not a lightlink lightmap (no valid lightlink.bands attribute)", path);
-    b.bands = bands->value();
     const Imath::Box2i dw = h.dataWindow();
-    b.width = dw.max.x - dw.min.x + 1;
-    b.height = dw.max.y - dw.min.y + 1;
-    const std::size_t texels = std::size_t(b.width) * b.height, nc = std::size_t(b.bands) * b.bands;
-    // Read channel by channel into planar float buffers, then interleave per texel.
-    std::vector<std::vector<float>> planes(3 * nc + 4, std::vector<float>(texels, 0.0f));
+    const std::int64_t w = std::int64_t(dw.max.x) - dw.min.x + 1, hgt = std::int64_t(dw.max.y) - dw.min.y + 1;
+    // Each side bounded first: the product of two 2^32 sides would wrap.
+    if (w < 1 || hgt < 1 || std::uint64_t(w) > max_texels || std::uint64_t(hgt) > max_texels ||
+        std::uint64_t(w) * std::uint64_t(hgt) > max_texels)
+      return invalidInput("{}: data window {}x{} is out of range (1 to {} texels)", path, w, hgt, max_texels);
+    b.bands = bands->value();
+    b.width = static_cast<int>(w);
+    b.height = static_cast<int>(hgt);
+    const std::size_t texels = std::size_t(w) * std::size_t(hgt), nc = std::size_t(b.bands) * b.bands;
+    // Channels are read straight into their interleaved place (no planar copy).
+    b.lightmap_sh.assign(texels * 3 * nc, 0.0f);
+    b.direct.assign(texels, glm::vec3(0.0f));
+    std::vector<float> valid(texels, 0.0f);
+    const std::ptrdiff_t origin = std::ptrdiff_t(dw.min.x) + std::ptrdiff_t(dw.min.y) * std::ptrdiff_t(w);
     Imf::FrameBuffer fb;
-    auto slice = [&](const std::string& name, std::vector<float>& plane) {
+    auto slice = [&](const std::string& name, float* first, std::size_t stride_floats) {
       if (h.channels().findChannel(name.c_str()) == nullptr) return false;
-      char* base = reinterpret_cast<char*>(plane.data()) -
-                   (std::ptrdiff_t(dw.min.x) + std::ptrdiff_t(dw.min.y) * b.width) * std::ptrdiff_t(sizeof(float));
-      fb.insert(name.c_str(), Imf::Slice(Imf::FLOAT, base, sizeof(float), sizeof(float) * b.width));
+      const std::size_t xs = sizeof(float) * stride_floats;
+      char* base = reinterpret_cast<char*>(first) - origin * std::ptrdiff_t(xs);
+      fb.insert(name.c_str(), Imf::Slice(Imf::FLOAT, base, xs, xs * std::size_t(w)));
       return true;
     };
     const char* rgb[3] = {".R", ".G", ".B"};
     for (std::size_t i = 0; i < nc; ++i)
       for (int ch = 0; ch < 3; ++ch)
-        if (!slice(output::shLayerName(static_cast<int>(i)) + rgb[ch], planes[ch * nc + i]))
+        if (!slice(output::shLayerName(static_cast<int>(i)) + rgb[ch], b.lightmap_sh.data() + ch * nc + i, 3 * nc))
           return invalidInput("{}: channel {}{} is missing", path, output::shLayerName(static_cast<int>(i)), rgb[ch]);
-    for (int ch = 0; ch < 3; ++ch) slice(std::string("direct") + rgb[ch], planes[3 * nc + ch]);
-    if (!slice("valid.Y", planes[3 * nc + 3])) return invalidInput("{}: channel valid.Y is missing", path);
+    for (int ch = 0; ch < 3; ++ch) slice(std::string("direct") + rgb[ch], &b.direct[0][ch], 3);
+    if (!slice("valid.Y", valid.data(), 1)) return invalidInput("{}: channel valid.Y is missing", path);
     file.setFrameBuffer(fb);
     file.readPixels(dw.min.y, dw.max.y);
-    b.lightmap_sh.resize(texels * 3 * nc);
-    b.direct.resize(texels);
     b.valid.resize(texels);
     for (std::size_t t = 0; t < texels; ++t) {
-      for (std::size_t k = 0; k < 3 * nc; ++k) b.lightmap_sh[t * 3 * nc + k] = planes[k][t];
-      b.direct[t] = {planes[3 * nc][t], planes[3 * nc + 1][t], planes[3 * nc + 2][t]};
-      b.valid[t] = planes[3 * nc + 3][t] > 0.5f ? 1.0f : 0.0f;
+      const float* sh = b.lightmap_sh.data() + t * 3 * nc;
+      for (std::size_t k = 0; k < 3 * nc; ++k)
+        if (!std::isfinite(sh[k]))
+          return invalidInput("{}: channel {}{} of texel ({}, {}) is not finite", path,
+                              output::shLayerName(static_cast<int>(k % nc)), rgb[k / nc], t % w, t / w);
+      if (!finite3(&b.direct[t][0]))
+        return invalidInput("{}: channel direct of texel ({}, {}) is not finite", path, t % w, t / w);
+      b.valid[t] = valid[t] > 0.5f ? 1.0f : 0.0f;  // NaN counts as invalid
     }
   } catch (const std::exception& e) {
     return invalidInput("cannot read lightmap {}: {}", path, e.what());
@@ -70,40 +193,70 @@ Status readLightmap(const std::string& path, BakedLighting& b) {
 }
 
 Status readGridRaw(const std::string& path, BakedLighting& b) {
+  constexpr std::uint64_t kHeaderBytes = 48;
+  auto file_bytes = regularFileSize(path);
+  if (!file_bytes) return file_bytes.status();
   std::ifstream in(path, std::ios::binary);
   if (!in) return ioError("cannot open {}", path);
   char magic[8];
   std::uint64_t version = 0;
   std::uint32_t bands = 0, dims[3] = {};
   float origin[3] = {}, spacing = 0.0f;
-  in.read(magic, 8);
-  in.read(reinterpret_cast<char*>(&version), 8);
-  in.read(reinterpret_cast<char*>(&bands), 4);
-  in.read(reinterpret_cast<char*>(dims), 12);
-  in.read(reinterpret_cast<char*>(origin), 12);
-  in.read(reinterpret_cast<char*>(&spacing), 4);
-  if (!in || std::memcmp(magic, "LLGRID01", 8) != 0) return invalidInput("{} is not a lightlink grid (bad magic)", path);
-  if (static_cast<int>(bands) != b.bands) return invalidInput("{}: {} bands, the lightmap has {}", path, bands, b.bands);
-  const std::size_t n = std::size_t(dims[0]) * dims[1] * dims[2];
-  if (n == 0 || n > (std::size_t(1) << 24)) return invalidInput("{}: grid of {} points is out of range", path, n);
-  b.dims = glm::ivec3(dims[0], dims[1], dims[2]);
+  if (*file_bytes < kHeaderBytes)
+    return invalidInput("{}: {} bytes, shorter than the 48-byte header", path, *file_bytes);
+  if (!readExactly(in, magic, 8) || !readExactly(in, &version, 8) || !readExactly(in, &bands, 4) ||
+      !readExactly(in, dims, 12) || !readExactly(in, origin, 12) || !readExactly(in, &spacing, 4))
+    return ioError("{}: cannot read the header", path);
+  if (std::memcmp(magic, "LLGRID01", 8) != 0) return invalidInput("{} is not a lightlink grid (bad magic)", path);
+  if (bands < 1 || bands > 4) return invalidInput("{}: field 'bands' is {} (must be 1..4)", path, bands);
+  if (b.bands != 0 && int(bands) != b.bands)
+    return invalidInput("{}: field 'bands' is {}, but the lightmap has {}", path, bands, b.bands);
+  // Each dim is bounded first, so the product cannot overflow (2^24 * 2^24 < 2^64).
+  std::uint64_t points = 1;
+  for (int a = 0; a < 3; ++a) {
+    if (dims[a] < 1 || dims[a] > kMaxGridPoints || points * dims[a] > kMaxGridPoints)
+      return invalidInput("{}: field 'dims' ({} x {} x {}) is out of range (each at least 1, at most {} points)",
+                          path, dims[0], dims[1], dims[2], kMaxGridPoints);
+    points *= dims[a];
+  }
+  if (!finite3(origin))
+    return invalidInput("{}: field 'origin' ({}, {}, {}) is not finite", path, origin[0], origin[1], origin[2]);
+  if (!std::isfinite(spacing) || spacing <= 0.0f)
+    return invalidInput("{}: field 'spacing' ({}) must be a finite positive number", path, spacing);
+  for (int a = 0; a < 3; ++a)
+    if (!std::isfinite(origin[a] + spacing * float(dims[a])))
+      return invalidInput("{}: fields 'origin' and 'spacing' put the grid's far corner beyond float range", path);
+  const std::uint64_t per_point = 3ull * bands * bands * sizeof(float) + 1;
+  const std::uint64_t expected = kHeaderBytes + points * per_point;
+  if (*file_bytes != expected)
+    return invalidInput("{}: {} bytes, but bands {} and dims {} x {} x {} need {} (48-byte header + {} points x {} bytes)",
+                        path, *file_bytes, bands, dims[0], dims[1], dims[2], expected, points, per_point);
+  const std::size_t n = std::size_t(points), per = 3 * std::size_t(bands) * bands;
+  std::vector<float> sh(n * per);
+  std::vector<std::uint8_t> valid(n);
+  if (!readExactly(in, sh.data(), sh.size() * sizeof(float)) || !readExactly(in, valid.data(), n))
+    return ioError("{}: cannot read the grid values", path);
+  for (std::size_t i = 0; i < sh.size(); ++i)
+    if (!std::isfinite(sh[i])) return invalidInput("{}: SH value {} of grid point {} is not finite", path, i % per, i / per);
+  for (std::size_t i = 0; i < n; ++i)
+    if (valid[i] > 1) return invalidInput("{}: validity of grid point {} is {} (must be 0 or 1)", path, i, valid[i]);
+  b.dims = glm::ivec3(int(dims[0]), int(dims[1]), int(dims[2]));
   b.origin = glm::vec3(origin[0], origin[1], origin[2]);
   b.spacing_m = spacing;
-  const std::size_t per = 3 * std::size_t(bands) * bands;
-  b.grid_sh.resize(n * per);
-  in.read(reinterpret_cast<char*>(b.grid_sh.data()), static_cast<std::streamsize>(b.grid_sh.size() * sizeof(float)));
-  std::vector<std::uint8_t> valid(n);
-  in.read(reinterpret_cast<char*>(valid.data()), static_cast<std::streamsize>(n));
-  if (!in) return invalidInput("{} is truncated", path);
+  b.grid_sh = std::move(sh);
   b.grid_valid.assign(valid.begin(), valid.end());
   b.has_grid = true;
+  b.bands = int(bands);
+  (void)version;
   return {};
 }
 
-}  // namespace
-
 bool BakedLighting::sampleLightmap(glm::vec2 uv, const glm::vec3& normal, glm::vec3& irradiance) const {
-  const float fx = uv.x * float(width) - 0.5f, fy = uv.y * float(height) - 0.5f;
+  if (width < 1 || height < 1 || !std::isfinite(uv.x) || !std::isfinite(uv.y)) return false;
+  // Clamped before the int conversion (a huge UV would overflow it); the lookup clamps to the
+  // edge texels anyway.
+  const float fx = std::clamp(uv.x * float(width) - 0.5f, -1.0f, float(width)),
+              fy = std::clamp(uv.y * float(height) - 0.5f, -1.0f, float(height));
   const int x0 = static_cast<int>(std::floor(fx)), y0 = static_cast<int>(std::floor(fy));
   const float ax = fx - float(x0), ay = fy - float(y0);
   const int nc = bands * bands;
@@ -129,7 +282,11 @@ bool BakedLighting::sampleLightmap(glm::vec2 uv, const glm::vec3& normal, glm::v
 
 bool BakedLighting::sampleGrid(const glm::vec3& p, const glm::vec3& normal, glm::vec3& irradiance) const {
   if (!has_grid || spacing_m <= 0.0f) return false;
-  const glm::vec3 g = (p - origin) / spacing_m;
+  glm::vec3 g = (p - origin) / spacing_m;
+  if (!std::isfinite(g.x) || !std::isfinite(g.y) || !std::isfinite(g.z)) return false;
+  // Clamped to the grid before the int conversion (far points would overflow it); the
+  // result is the same: outside points take the nearest edge's values.
+  g = glm::clamp(g, glm::vec3(0.0f), glm::vec3(dims - 1));
   const glm::ivec3 i0 = glm::clamp(glm::ivec3(glm::floor(g)), glm::ivec3(0), dims - 1);
   const glm::vec3 a = glm::clamp(g - glm::vec3(i0), 0.0f, 1.0f);
   const int nc = bands * bands;
@@ -153,9 +310,12 @@ bool BakedLighting::sampleGrid(const glm::vec3& p, const glm::vec3& normal, glm:
 Expected<BakedLighting> loadBakedLighting(const std::string& dir) {
   BakedLighting b;
   const std::filesystem::path d(dir);
-  if (Status s = readLightmap((d / "lightmap.exr").string(), b); !s) return s;
-  if (std::filesystem::exists(d / "grid.raw"))
-    if (Status s = readGridRaw((d / "grid.raw").string(), b); !s) return s;
+  if (Status s = readLightmapExr((d / "lightmap.exr").string(), b); !s) return s;
+  const std::string grid = (d / "grid.raw").string();
+  std::error_code ec;
+  if (std::filesystem::exists(grid, ec)) {
+    if (Status s = readGridRaw(grid, b); !s) return s;
+  }
   return b;
 }
 

@@ -6,6 +6,7 @@
 // grid points carry no weight, so an edge never blends in black.
 #pragma once
 
+#include <cstdint>
 #include <string>
 #include <vector>
 
@@ -35,7 +36,26 @@ struct BakedLighting {
   bool sampleGrid(const glm::vec3& p, const glm::vec3& normal, glm::vec3& irradiance) const;
 };
 
-// Reads `dir`/lightmap.exr and, when present, `dir`/grid.raw.
+// Reads `dir`/lightmap.exr and, when present, `dir`/grid.raw, and checks that they agree
+// (same bands). Nothing read is trusted: see the two readers below.
 Expected<BakedLighting> loadBakedLighting(const std::string& dir);
+
+// The largest lightmap read (16384^2 texels, the largest atlas `unwrap` makes).
+inline constexpr std::uint64_t kMaxLightmapTexels = std::uint64_t(16384) * 16384;
+// The largest grid read, in points.
+inline constexpr std::uint64_t kMaxGridPoints = std::uint64_t(1) << 24;
+
+// Reads a lightmap EXR into b's lightmap fields (bands, size, SH, direct, valid). Rejects,
+// naming what is wrong: a missing or out-of-range lightlink.bands, a missing channel, a data
+// window that is empty or larger than `max_texels`, a value that is not finite.
+Status readLightmapExr(const std::string& path, BakedLighting& b, std::uint64_t max_texels = kMaxLightmapTexels);
+
+// Reads a grid.raw (docs/outputs.md) into b's grid fields. Every header field is checked
+// before anything is allocated: bands 1..4, each dim 1..2^24 and their product at most
+// kMaxGridPoints (no overflow), a finite origin, a finite positive spacing, and a file
+// length equal to what bands and dims imply; then every SH value must be finite and every
+// validity byte 0 or 1. When b.bands is set (a lightmap was read first) the grid's bands
+// must equal it; otherwise b.bands takes the grid's.
+Status readGridRaw(const std::string& path, BakedLighting& b);
 
 }  // namespace lightlink::viewer

@@ -4,6 +4,7 @@
 
 #include <array>
 #include <cstdio>
+#include <cstring>
 #include <fstream>
 #include <sstream>
 #include <string>
@@ -211,6 +212,23 @@ TEST(Render, DrawsTheBakedCornellBox) {
   r = runCommand(kCli + " render " + demoScene().string() + " --bake " + out.string() + " -o " + png.string());
   EXPECT_EQ(r.exit_code, cli::kExitBadInput) << r.output;
   EXPECT_NE(r.output.find("TEXCOORD_1"), std::string::npos) << r.output;
+
+  // A crafted grid.raw (issue 44; render segfaulted on it): dims whose product wraps around
+  // 2^64 to 11716 points, with a payload of exactly 11716 points. Rejected, naming the field.
+  std::string grid = readAll(out / "grid.raw");
+  ASSERT_GE(grid.size(), 48u);
+  std::uint32_t bands = 0;
+  std::memcpy(&bands, grid.data() + 16, 4);
+  const std::uint32_t dims[3] = {3197508789u, 3355758485u, 659735396u};
+  std::memcpy(grid.data() + 20, dims, 12);
+  const std::size_t points = 11716;
+  grid.resize(48);
+  grid += std::string(points * 3 * bands * bands * sizeof(float), '\0') + std::string(points, '\1');
+  testing::writeFile(out / "grid.raw", grid);
+  r = runCommand(kCli + " render " + (out / "cornell_box_lm.gltf").string() + " --bake " + out.string() + " -o " +
+                 png.string() + " --width 96 --height 96");
+  EXPECT_EQ(r.exit_code, cli::kExitBadInput) << r.output;
+  EXPECT_NE(r.output.find("grid.raw: field 'dims'"), std::string::npos) << r.output;
 }
 
 TEST(Compare, MeasuresTheBakeAgainstTheReference) {

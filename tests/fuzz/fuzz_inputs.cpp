@@ -7,12 +7,16 @@
 #include <cstring>
 #include <filesystem>
 #include <fstream>
+#include <limits>
 #include <memory>
 #include <optional>
+#include <unordered_set>
 
 #include <tbb/global_control.h>
 
+#include "clients/viewer/baked_lighting.h"
 #include "core/artifact/artifact.h"
+#include "core/output/output.h"
 #include "core/relight/light_set.h"
 #include "core/relight/relight.h"
 #include "core/rt/accel.h"
@@ -84,6 +88,40 @@ const RelightContext& relightContext() {
   return *ctx;
 }
 
+// The fuzz scene baked in memory, for relights with fuzzed light sets.
+struct BakeContext {
+  tbb::global_control threads{tbb::global_control::max_allowed_parallelism, 1};
+  scene::Scene scene;
+  precompute::Precomputation p;
+  std::optional<rt::Accel> accel;
+  std::optional<relight::Relighter> relighter;
+  relight::LightSet lights;
+};
+
+BakeContext& bakeContext() {
+  static const std::unique_ptr<BakeContext> ctx = [] {
+    auto c = std::make_unique<BakeContext>();
+    c->scene = fuzzScene();
+    auto p = precompute::run(c->scene, fuzzOptions());
+    auto accel = p ? rt::Accel::build(c->scene) : Expected<rt::Accel>(p.status());
+    if (!accel) {
+      std::fprintf(stderr, "fuzz: the fuzz scene does not bake: %s\n", accel.status().message().c_str());
+      std::abort();
+    }
+    c->p = std::move(p).value();
+    c->accel.emplace(std::move(accel).value());
+    auto relighter = relight::Relighter::create(c->scene, *c->accel, c->p);
+    if (!relighter) {
+      std::fprintf(stderr, "fuzz: no relighter for the fuzz scene: %s\n", relighter.status().message().c_str());
+      std::abort();
+    }
+    c->relighter.emplace(std::move(relighter).value());
+    c->lights = relight::LightSet::fromScene(c->scene);
+    return c;
+  }();
+  return *ctx;
+}
+
 Status relightOnce(const precompute::LoadedPrecomputation& loaded) {
   const RelightContext& ctx = relightContext();
   auto relighter = relight::Relighter::create(ctx.scene, *ctx.accel, loaded.p, loaded.lightmap_links,
@@ -122,6 +160,83 @@ Status openAndWalk(const std::string& path) {
 }
 
 }  // namespace
+
+const relight::LightSet& fuzzSceneLights() { return bakeContext().lights; }
+std::size_t fuzzSceneMaterialCount() { return bakeContext().scene.materials.size(); }
+
+Status relightFuzzScene(const relight::LightSet& lights) {
+  // Mutations often produce a set already relit: relight each distinct set once (a relight
+  // is deterministic), which keeps the light-set and request fuzzers' exec/s up.
+  static std::unordered_set<std::string> relit;
+  std::string key = lights.toJson().dump();
+  if (relit.count(key) != 0) return Status::ok();
+  // One fuzzer thread: the Relighter's scratch is not shared.
+  relight::Relighter& relighter = *bakeContext().relighter;
+  relight::RelightOptions options;
+  options.max_bounces = 1;
+  options.emitter_samples = 1;
+  Status s = relighter.relight(lights, options).status();
+  if (s) relit.insert(std::move(key));
+  return s;
+}
+
+LightSetVerdict loadLightSetBytes(std::span<const std::uint8_t> bytes) {
+  LightSetVerdict v;
+  const std::string path = scratch().write("lights.json", bytes);
+  auto set = relight::LightSet::load(path);
+  v.load = set.status();
+  if (set) {
+    auto again = relight::LightSet::fromJson(set->toJson());
+    if (!again)
+      v.round_trip = internalError("a loaded light set does not load from its own toJson: {}", again.status().message());
+    else if (again->toJson() != set->toJson())
+      v.round_trip = internalError("a light set's toJson changes across a round trip");
+  }
+  relight::LightSet merged = fuzzSceneLights();
+  v.apply = merged.applyFile(path);
+  if (!v.apply && merged.toJson() != fuzzSceneLights().toJson())
+    v.round_trip = internalError("a rejected light-set merge changed the set (it must be all or nothing)");
+  if (v.apply) {
+    v.relit = true;
+    v.relight = relightFuzzScene(merged);
+  }
+  return v;
+}
+
+namespace {
+
+// Samples a bake as `render` does, at points chosen to reach every edge case of the lookups.
+void sampleLikeRender(const viewer::BakedLighting& b) {
+  const float nan = std::numeric_limits<float>::quiet_NaN();
+  glm::vec3 e;
+  if (!b.lightmap_sh.empty())
+    for (const glm::vec2 uv : {glm::vec2(0.5f), glm::vec2(0.0f), glm::vec2(1.0f), glm::vec2(-7.0f, 3e9f),
+                               glm::vec2(1e38f, -1e38f), glm::vec2(nan)})
+      (void)b.sampleLightmap(uv, {0.0f, 1.0f, 0.0f}, e);
+  if (b.has_grid) {
+    const glm::vec3 mid = b.origin + 0.5f * b.spacing_m * glm::vec3(b.dims);
+    for (const glm::vec3 p : {mid, b.origin, glm::vec3(-1e38f), glm::vec3(1e38f), glm::vec3(nan)})
+      (void)b.sampleGrid(p, {0.0f, 0.0f, 1.0f}, e);
+  }
+}
+
+}  // namespace
+
+Status readLightmapExrBytes(std::span<const std::uint8_t> bytes) {
+  const std::string path = scratch().write("lightmap.exr", bytes);
+  viewer::BakedLighting b;
+  if (Status s = viewer::readLightmapExr(path, b, std::uint64_t(1) << 16); !s) return s;
+  sampleLikeRender(b);
+  return {};
+}
+
+Status readGridRawBytes(std::span<const std::uint8_t> bytes) {
+  const std::string path = scratch().write("grid.raw", bytes);
+  viewer::BakedLighting b;
+  if (Status s = viewer::readGridRaw(path, b); !s) return s;
+  sampleLikeRender(b);
+  return {};
+}
 
 Status loadGltfBytes(std::span<const std::uint8_t> bytes) {
   const std::string path = scratch().write("in.gltf", bytes);
@@ -220,6 +335,26 @@ Status writeSeedArtifact(const std::string& path) {
   auto p = precompute::run(s, options);
   if (!p) return p.status();
   return precompute::save(*p, path, artifact::cacheKey({}, options.canonical()));
+}
+
+Status writeSeedBakeOutputs(const std::string& dir) {
+  scene::Scene s = fuzzScene();
+  auto p = precompute::run(s, fuzzOptions());
+  if (!p) return p.status();
+  auto accel = rt::Accel::build(s);
+  if (!accel) return accel.status();
+  auto relighter = relight::Relighter::create(s, *accel, *p);
+  if (!relighter) return relighter.status();
+  auto result = relighter->relight(relight::LightSet::fromScene(s), {});
+  if (!result) return result.status();
+  const fs::path d(dir);
+  for (const bool half : {false, true}) {
+    output::ExrOptions options;
+    options.half = half;
+    auto w = output::writeLightmapExr(*result, (d / (half ? "lightmap_half.exr" : "lightmap_float.exr")).string(), options);
+    if (!w) return w.status();
+  }
+  return output::writeGridRaw(*result, p->grid, (d / "grid.raw").string());
 }
 
 }  // namespace lightlink::fuzz

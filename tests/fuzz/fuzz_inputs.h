@@ -16,6 +16,7 @@
 
 #include "core/common/status.h"
 #include "core/precompute/precompute.h"
+#include "core/relight/light_set.h"
 #include "core/scene/scene.h"
 
 namespace lightlink::fuzz {
@@ -40,6 +41,28 @@ struct ArtifactVerdict {
 // after fixChecksums(), which lets mutations reach the section and metadata parsing.
 ArtifactVerdict openArtifactBytes(std::span<const std::uint8_t> bytes);
 
+// Light-set JSON (docs/lightset.md), as `lightlink bake --lights` and `render --lights` read
+// it: the bytes as a file through relight::LightSet::load, and merged into the fuzz scene's
+// lights with LightSet::apply (the `--lights` path). A set that loads must survive a
+// round trip: LightSet::fromJson(set.toJson()) loads the same set; violated, the returned
+// status is kInternal (the fuzzer stops on it).
+// A merge that applies is then relit on the fuzz scene (what `bake --lights` does next).
+struct LightSetVerdict {
+  Status load;        // LightSet::load of the bytes as a file
+  Status apply;       // fuzzSceneLights().applyFile of the same file
+  Status round_trip;  // kInternal when toJson/fromJson disagree or a failed merge changed the set
+  bool relit = false;
+  Status relight;     // relightFuzzScene(merged set), when apply succeeded
+};
+LightSetVerdict loadLightSetBytes(std::span<const std::uint8_t> bytes);
+
+// The bake outputs `lightlink render` and the game client read (clients/viewer): the bytes as
+// a lightmap.exr (viewer::readLightmapExr, at most 2^16 texels: larger windows cost the
+// fuzzer seconds per input, and the size check itself is covered by the replay test), or as a grid.raw (viewer::readGridRaw). What loads is then sampled as
+// `render` samples it: UVs and points inside, on the edges, far outside and NaN.
+Status readLightmapExrBytes(std::span<const std::uint8_t> bytes);
+Status readGridRawBytes(std::span<const std::uint8_t> bytes);
+
 // Rewrites file_bytes (to the real size) and the header, table and section checksums of a
 // buffer that starts with an artifact header, as a correct writer would have computed them.
 // Leaves bytes it cannot interpret alone. Returns true when anything changed.
@@ -50,7 +73,19 @@ bool fixChecksums(std::vector<std::uint8_t>& bytes);
 scene::Scene fuzzScene();
 precompute::PrecomputeOptions fuzzOptions();
 
+// The fuzz scene baked once per process (precompute + accel + Relighter), its light set and
+// material count; relightFuzzScene relights it with `lights` (one bounce, one emitter
+// sample): what the daemon's update worker and `lightlink bake --lights` do with a light
+// set they accepted. Accepted light sets must relight; an error here is a validation gap.
+const relight::LightSet& fuzzSceneLights();
+std::size_t fuzzSceneMaterialCount();
+Status relightFuzzScene(const relight::LightSet& lights);
+
 // Computes the seed artifact of fuzz_artifact and writes it to `path`.
 Status writeSeedArtifact(const std::string& path);
+
+// Bakes the fuzz scene (precompute + relight) and writes the seeds of fuzz_lightmap_exr and
+// fuzz_grid_raw: `dir`/lightmap_float.exr, lightmap_half.exr and grid.raw.
+Status writeSeedBakeOutputs(const std::string& dir);
 
 }  // namespace lightlink::fuzz

@@ -16,6 +16,9 @@
 
 #include "core/artifact/artifact.h"
 #include "tests/fuzz/fuzz_inputs.h"
+#ifdef LIGHTLINK_FUZZ_SERVICE
+#include "tests/fuzz/fuzz_service_inputs.h"
+#endif
 
 namespace lightlink::fuzz {
 namespace {
@@ -203,6 +206,116 @@ TEST(FuzzReplay, OpenRejectsBadMetadata) {
       << v.raw.toString();
   EXPECT_FALSE(v.relit);
 }
+
+// --- Bake outputs read by `lightlink render` and the game client ---
+
+TEST(FuzzReplay, BakeOutputSeedsLoad) {
+  for (const char* target : {"grid_raw", "lightmap_exr"}) {
+    const auto files = inputs("corpus", target);
+    ASSERT_FALSE(files.empty()) << "no seeds for " << target;
+    for (const fs::path& f : files) {
+      const Status s = std::string(target) == "grid_raw" ? readGridRawBytes(readBytes(f)) : readLightmapExrBytes(readBytes(f));
+      EXPECT_TRUE(s) << f << ": " << s.toString();
+    }
+  }
+}
+
+// regressions/grid_raw/dims_product_overflow.raw made `lightlink render` segfault (dims
+// whose product wraps to 11716 points, read as negative ints); the others allocated memory
+// the file did not hold or let a NaN spacing through.
+TEST(FuzzReplay, BakeOutputRegressionsAreRejected) {
+  for (const char* target : {"grid_raw", "lightmap_exr"}) {
+    for (const fs::path& f : inputs("regressions", target)) {
+      const Status s = std::string(target) == "grid_raw" ? readGridRawBytes(readBytes(f)) : readLightmapExrBytes(readBytes(f));
+      EXPECT_FALSE(s) << f << " was accepted";
+      expectClear(s, f, target);
+    }
+  }
+}
+
+// Found by fuzz_lightmap_exr: a header attribute whose size field points far past the end of
+// a 4.7 KB file. OpenEXR allocated the stated size before failing (seconds per read under
+// ASan, hundreds of MB); the reader now checks attribute sizes against the file first.
+TEST(FuzzReplay, ExrAttributeBeyondTheFileIsRejectedBeforeOpenExrReadsIt) {
+  const fs::path f = fs::path(LIGHTLINK_FUZZ_DIR) / "regressions/lightmap_exr/attribute_size_beyond_file.exr";
+  const Status s = readLightmapExrBytes(readBytes(f));
+  EXPECT_EQ(s.code(), Code::kInvalidInput) << s.toString();
+  EXPECT_NE(s.message().find("claims"), std::string::npos) << s.toString();
+  EXPECT_NE(s.message().find("beyond the end of the file"), std::string::npos) << s.toString();
+  // The same, in a 120 s campaign after that fix: a channel list whose size field disagrees
+  // with its content, so a walk by sizes and OpenEXR's walk by content parted ways and
+  // OpenEXR met a 1.8 GB opaque attribute. The walk now parses as OpenEXR does.
+  const Status t = readLightmapExrBytes(
+      readBytes(fs::path(LIGHTLINK_FUZZ_DIR) / "regressions/lightmap_exr/channel_list_size_mismatch.exr"));
+  EXPECT_EQ(t.code(), Code::kInvalidInput) << t.toString();
+  EXPECT_NE(t.message().find("the channel list disagrees with its size"), std::string::npos) << t.toString();
+}
+
+// --- Light sets ---
+
+TEST(FuzzReplay, LightSetSeedsLoadApplyAndRelight) {
+  const auto files = inputs("corpus", "lightset");
+  ASSERT_FALSE(files.empty());
+  for (const fs::path& f : files) {
+    const LightSetVerdict v = loadLightSetBytes(readBytes(f));
+    expectClear(v.load, f, "load");  // a merge file may remove a scene light: alone it cannot load
+    EXPECT_TRUE(v.apply) << f << ": " << v.apply.toString();
+    EXPECT_TRUE(v.round_trip) << f << ": " << v.round_trip.toString();
+    EXPECT_TRUE(v.relit && v.relight) << f << ": " << v.relight.toString();
+  }
+}
+
+TEST(FuzzReplay, LightSetRegressions) {
+  for (const fs::path& f : inputs("regressions", "lightset")) {
+    const LightSetVerdict v = loadLightSetBytes(readBytes(f));
+    expectClear(v.load, f, "load");
+    expectClear(v.apply, f, "apply");
+    EXPECT_TRUE(v.round_trip) << f << ": " << v.round_trip.toString();
+    if (v.relit) {
+      EXPECT_TRUE(v.relight) << f << ": " << v.relight.toString();
+    }
+  }
+}
+
+#ifdef LIGHTLINK_FUZZ_SERVICE
+// --- Requests through the daemon's validation; light sets through the client library ---
+
+TEST(FuzzReplay, RequestSeedsAreCurrentAndAccepted) {
+  const auto seeds = requestSeeds();
+  ASSERT_EQ(inputs("corpus", "requests").size(), seeds.size()) << "regenerate: fuzz_make_seed --requests";
+  for (const auto& [name, bytes] : seeds) {
+    EXPECT_EQ(readBytes(fs::path(LIGHTLINK_FUZZ_DIR) / "corpus/requests" / name), bytes)
+        << name << " is stale: regenerate with fuzz_make_seed --requests tests/fuzz/corpus/requests";
+    const RequestVerdict v = applyRequestBytes(bytes);
+    EXPECT_TRUE(v.parsed) << name;
+    EXPECT_TRUE(v.validation) << name << ": " << v.validation.toString();
+    if (v.relit) {
+      EXPECT_TRUE(v.relight) << name << ": " << v.relight.toString();
+    }
+  }
+}
+
+TEST(FuzzReplay, RequestRegressions) {
+  for (const fs::path& f : inputs("regressions", "requests")) {
+    const RequestVerdict v = applyRequestBytes(readBytes(f));
+    expectClear(v.validation, f, "validation");
+    if (v.relit) {
+      EXPECT_TRUE(v.relight) << f << ": " << v.relight.toString();
+    }
+  }
+}
+
+TEST(FuzzReplay, LightSetsThroughTheClientLibrary) {
+  for (const char* kind : {"corpus", "regressions"})
+    for (const fs::path& f : inputs(kind, "lightset")) {
+      const RequestVerdict v = lightSetThroughClient(readBytes(f));
+      expectClear(v.validation, f, "client");
+      if (v.relit) {
+        EXPECT_TRUE(v.relight) << f << ": " << v.relight.toString();
+      }
+    }
+}
+#endif
 
 }  // namespace
 }  // namespace lightlink::fuzz
