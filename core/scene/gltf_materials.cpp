@@ -4,7 +4,7 @@
 #include <cstdint>
 #include <limits>
 
-#include <stb_image.h>
+#include <stb/stb_image.h>
 
 namespace lightlink::scene::gltf {
 
