@@ -14,15 +14,15 @@
 namespace lightlink {
 namespace {
 
-struct Run {
+struct CliRun {
   int exit_code = -1;
   std::string output;
 };
 
 // Runs under `timeout` so that a regression that computes without bound fails (exit 124)
 // instead of hanging the suite.
-Run run(const std::string& args) {
-  Run r;
+CliRun run(const std::string& args) {
+  CliRun r;
   const std::string command = "timeout 120 " + std::string(LIGHTLINK_CLI_PATH) + " " + args + " 2>&1";
   FILE* pipe = ::popen(command.c_str(), "r");
   if (pipe == nullptr) return r;
@@ -40,7 +40,7 @@ TEST(CliBudgets, HugeResolutionFailsWithTheResourceExitCode) {
   testing::TempDir dir;
   // 16384 is inside --resolution's range; before the texel budget it ended in bad_alloc and
   // an abort (exit 134) with no message.
-  const Run r = run("precompute -q " + demo() + " -o " + (dir / "a.llk").string() + " --resolution 16384");
+  const CliRun r = run("precompute -q " + demo() + " -o " + (dir / "a.llk").string() + " --resolution 16384");
   EXPECT_EQ(r.exit_code, cli::kExitResources) << r.output;
   EXPECT_NE(r.output.find("16384x16384"), std::string::npos) << r.output;
   EXPECT_NE(r.output.find("max_texels"), std::string::npos) << r.output;
@@ -48,10 +48,10 @@ TEST(CliBudgets, HugeResolutionFailsWithTheResourceExitCode) {
 
 TEST(CliBudgets, TinyTexelSizeFailsAtOnce) {
   testing::TempDir dir;
-  const Run p = run("precompute -q " + demo() + " -o " + (dir / "a.llk").string() + " --texel-size 1e-9");
+  const CliRun p = run("precompute -q " + demo() + " -o " + (dir / "a.llk").string() + " --texel-size 1e-9");
   EXPECT_EQ(p.exit_code, cli::kExitResources) << p.output;
   EXPECT_NE(p.output.find("max_texels"), std::string::npos) << p.output;
-  const Run u = run("unwrap " + demo() + " -o " + (dir / "u.gltf").string() + " --texel-size 1e-9");
+  const CliRun u = run("unwrap " + demo() + " -o " + (dir / "u.gltf").string() + " --texel-size 1e-9");
   EXPECT_EQ(u.exit_code, cli::kExitResources) << u.output;
   EXPECT_NE(u.output.find("max_texels"), std::string::npos) << u.output;
 }
