@@ -122,6 +122,7 @@ void relax(const StaticSurface& surface, std::vector<std::uint32_t>& tri, std::v
     tbb::parallel_for(tbb::blocked_range<std::size_t>(0, n), [&](const auto& r) {
       for (std::size_t j = r.begin(); j < r.end(); ++j) pos[j] = surface.pointAt(tri[j], uv[j]);
     });
+    if (stopRequested(o.progress)) return;  // the grid build is serial: not started once cancelled
     grid.build(pos, radius);
     tbb::parallel_for(tbb::blocked_range<std::size_t>(0, n), [&](const auto& r) {
       // A chunk's neighbour search is the slow part: a cancelled one leaves no move.
