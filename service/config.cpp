@@ -80,6 +80,10 @@ Status applyConfigFile(const std::string& path, DaemonConfig& c) {
     else if (key == "log_file") s = str(c.log_file);
     else if (key == "max_streams_per_client") s = integer(c.max_streams_per_client);
     else if (key == "max_scenes") s = integer(c.max_scenes);
+    else if (key == "max_image_pixels") s = integer(c.max_image_pixels);
+    else if (key == "max_triangles") s = integer(c.max_triangles);
+    else if (key == "max_texels") s = integer(c.max_texels);
+    else if (key == "max_link_bytes") s = integer(c.max_link_bytes);
     else if (key == "chunk_bytes") s = integer(c.chunk_bytes);
     else if (key == "drain_seconds") {
       if (!v.is_number()) return invalidInput("--config {}: 'drain_seconds' must be a number", path);
@@ -135,6 +139,16 @@ void declareFlags(CLI::App& app, DaemonConfig& c, std::string& config_path, std:
       ->capture_default_str();
   app.add_option("--max-scenes", c.max_scenes, "Resident scenes at most; OpenScene beyond gets RESOURCE_EXHAUSTED")
       ->capture_default_str();
+  app.add_option("--max-image-pixels", c.max_image_pixels,
+                 "Pixels of one scene image (from its header, before decoding); more: RESOURCE_EXHAUSTED")
+      ->capture_default_str();
+  app.add_option("--max-triangles", c.max_triangles, "Triangles of a scene after instancing; more: RESOURCE_EXHAUSTED")
+      ->capture_default_str();
+  app.add_option("--max-texels", c.max_texels, "Lightmap texels (width x height) of a scene; more: RESOURCE_EXHAUSTED")
+      ->capture_default_str();
+  app.add_option("--max-link-bytes", c.max_link_bytes,
+                 "Estimated link memory of one precompute (0 = half the physical memory); more: RESOURCE_EXHAUSTED")
+      ->capture_default_str();
   app.add_option("--chunk-bytes", c.chunk_bytes, "Payload bytes per Chunk message (4096 .. 1048576)")
       ->capture_default_str();
   app.add_option("--drain-seconds", c.drain_seconds,
@@ -181,6 +195,8 @@ Status DaemonConfig::validate() const {
   if (max_streams_per_client < 1 || max_streams_per_client > 100000)
     return invalidInput("--max-streams-per-client {} is out of range (1..100000)", max_streams_per_client);
   if (max_scenes < 1 || max_scenes > 1024) return invalidInput("--max-scenes {} is out of range (1..1024)", max_scenes);
+  if (max_image_pixels < 1 || max_triangles < 1 || max_texels < 1)
+    return invalidInput("--max-image-pixels, --max-triangles and --max-texels must be >= 1");
   if (chunk_bytes < 4096 || chunk_bytes > (1u << 20))
     return invalidInput("--chunk-bytes {} is out of range (4096..1048576)", chunk_bytes);
   if (!std::isfinite(drain_seconds) || drain_seconds < 0.0 || drain_seconds > 3600.0)

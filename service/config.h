@@ -40,6 +40,12 @@ struct DaemonConfig {
   std::string log_file;                    // empty: stderr
   int max_streams_per_client = 32;         // concurrent server streams per gRPC peer
   int max_scenes = 16;                     // resident scenes
+  // Per-OpenScene budgets, checked before the work (docs/service.md "Limits"); over one:
+  // RESOURCE_EXHAUSTED naming it. Defaults: scene::LoadOptions, precompute::PrecomputeLimits.
+  std::uint64_t max_image_pixels = std::uint64_t(8192) * 8192;  // one decoded image
+  std::uint64_t max_triangles = 20'000'000;                     // after instancing
+  std::uint64_t max_texels = std::uint64_t(4096) * 4096;        // lightmap width x height
+  std::uint64_t max_link_bytes = 0;                             // 0 = half the physical memory
   std::size_t chunk_bytes = 1 << 20;       // data bytes per Chunk message (<= 1 MiB)
   std::size_t max_receive_bytes = 64u << 20;  // largest request message
   std::size_t max_send_bytes = 4u << 20;      // largest response message

@@ -273,12 +273,22 @@ Expected<std::shared_ptr<SceneSession>> SceneRegistry::openResident(SessionIdent
     overrides = nlohmann::json::parse(lightset_json, nullptr, /*allow_exceptions=*/false);
     if (overrides.is_discarded() || !overrides.is_object())
       return invalidInput("lightset_json: not a JSON object (docs/lightset.md)");
+    // Every relight evaluates every light: the cap UpdateLights enforces holds at open too.
+    if (const auto it = overrides.find("lights"); it != overrides.end() && it->is_array() &&
+                                                 it->size() > kMaxLightsPerScene)
+      return resourceExhausted("lightset_json: {} lights is above the limit of {} lights per scene", it->size(),
+                               kMaxLightsPerScene);
   }
 
   precompute::ResidentRequest rr;
   rr.scene_path = staged_upload.empty() ? identity.source_path : staged_upload;
   rr.options = *options;
   rr.cache_dir = config_.cache_dir;
+  rr.options.limits.max_texels = config_.max_texels;
+  rr.options.limits.max_link_bytes = config_.max_link_bytes;
+  rr.load.max_image_pixels = config_.max_image_pixels;
+  rr.load.max_triangles = config_.max_triangles;
+  rr.load.max_lights = kMaxLightsPerScene;
   // Two opens of the same scene and parameters precompute once: the second waits and reuses.
   auto mutex = openMutexFor(identity.source_path + "|" + options->canonical());
   std::unique_lock open_lock(*mutex);
@@ -296,6 +306,9 @@ Expected<std::shared_ptr<SceneSession>> SceneRegistry::openResident(SessionIdent
     }
   }
   if (Status s = checkMaterials(lights, resident->scene().materials.size(), "lightset_json"); !s) return s;
+  if (lights.lights().size() > kMaxLightsPerScene)
+    return resourceExhausted("lights: the scene and lightset_json give {} lights, above the limit of {} lights per "
+                             "scene", lights.lights().size(), kMaxLightsPerScene);
   if (!staged_upload.empty()) {
     // The upload loaded: now it is stored under its content name.
     if (::rename(staged_upload.c_str(), identity.source_path.c_str()) != 0)

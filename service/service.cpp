@@ -48,7 +48,20 @@ class StreamProgress final : public Progress {
     std::lock_guard lock(mutex_);
     send(1.0f, "done");
   }
-  bool cancelled() const override { return ctx_->IsCancelled() || draining_.load(); }
+  // Polled per chunk by every precompute stage, from many threads: the gRPC checks (which
+  // may lock) run at most every 5 ms, and once true the answer stays true. The call's own
+  // deadline counts too, so an abandoned open stops whether or not gRPC noticed yet.
+  bool cancelled() const override {
+    if (stop_.load(std::memory_order_relaxed)) return true;
+    if (draining_.load(std::memory_order_relaxed)) return stop_ = true;
+    const std::int64_t now = Clock::now().time_since_epoch().count();
+    std::int64_t last = last_poll_.load(std::memory_order_relaxed);
+    if (now - last < std::chrono::duration_cast<Clock::duration>(std::chrono::milliseconds(5)).count() ||
+        !last_poll_.compare_exchange_strong(last, now))
+      return false;
+    if (ctx_->IsCancelled() || std::chrono::system_clock::now() > ctx_->deadline()) stop_ = true;
+    return stop_.load();
+  }
   void finish(const v1::OpenSceneProgress& last) {
     std::lock_guard lock(mutex_);
     writer_->Write(last);
@@ -66,6 +79,8 @@ class StreamProgress final : public Progress {
   grpc::ServerContext* ctx_;
   grpc::ServerWriter<v1::OpenSceneProgress>* writer_;
   const std::atomic<bool>& draining_;
+  mutable std::atomic<bool> stop_{false};
+  mutable std::atomic<std::int64_t> last_poll_{0};
   std::mutex mutex_;
   std::string stage_;
   std::size_t total_ = 0;
@@ -163,8 +178,15 @@ void LightlinkService::replaceWithWireHandler(
   const auto* method = service ? service->FindMethodByName(name) : nullptr;
   LL_CHECK(method != nullptr);
   MarkMethodStreamed(method->index(), new grpc::internal::SplitServerStreamingHandler<Request, WireMessage>(
-                                          [this, handler](grpc::ServerContext* ctx, auto* stream) {
-                                            return (this->*handler)(ctx, stream);
+                                          [this, handler, name](grpc::ServerContext* ctx, auto* stream) {
+                                            // gRPC would answer UNKNOWN and log nothing.
+                                            try {
+                                              return (this->*handler)(ctx, stream);
+                                            } catch (const std::bad_alloc&) {
+                                              logEvent(LogLevel::kError, "out_of_memory", {{"rpc", name}});
+                                              return grpcError(grpc::StatusCode::RESOURCE_EXHAUSTED,
+                                                               fmt::format("out of memory while answering {}", name));
+                                            }
                                           }));
 }
 
@@ -298,11 +320,27 @@ grpc::Status LightlinkService::OpenScene(grpc::ServerContext* ctx, const v1::Ope
                      fmt::format("scenes: the daemon holds its limit of {} scenes (--max-scenes)", config_.max_scenes));
 
   StreamProgress progress(ctx, writer, draining_);
-  auto session = registry_.open(*request, &progress);
+  const auto started = Clock::now();
+  Expected<std::shared_ptr<SceneSession>> session = internalError("OpenScene: not run");
+  try {
+    session = registry_.open(*request, &progress);
+  } catch (const std::bad_alloc&) {
+    session = resourceExhausted("out of memory while opening the scene");
+  }
   if (!session) {
+    if (session.status().code() == Code::kCancelled || ctx->IsCancelled() || draining_) {
+      // Logged so an operator (and tests) can see how soon abandoned work stopped.
+      logEvent(LogLevel::kInfo, "open_abandoned",
+               {{"peer", ctx->peer()},
+                {"reason", draining_ ? "draining" : ctx->IsCancelled() ? "client cancelled or deadline" : "deadline"},
+                {"seconds", std::chrono::duration<double>(Clock::now() - started).count()}});
+    }
     if (ctx->IsCancelled()) return grpcError(grpc::StatusCode::CANCELLED, "OpenScene cancelled by the client");
     if (draining_) return grpcError(grpc::StatusCode::UNAVAILABLE, "daemon: draining, open abandoned");
-    logEvent(LogLevel::kWarn, "open_failed", {{"peer", ctx->peer()}, {"error", session.status().message()}});
+    if (session.status().code() == Code::kCancelled)
+      return grpcError(grpc::StatusCode::DEADLINE_EXCEEDED, "OpenScene: the call's deadline passed; open abandoned");
+    logEvent(LogLevel::kWarn, "open_failed",
+             {{"peer", ctx->peer()}, {"code", codeName(session.status().code())}, {"error", session.status().message()}});
     return toGrpc(session.status());
   }
   v1::OpenSceneProgress last;
@@ -319,7 +357,13 @@ grpc::Status LightlinkService::UpdateLights(grpc::ServerContext* ctx, const v1::
   if (auto st = admit(ctx, true); !st.ok()) return st;
   std::shared_ptr<SceneSession> s;
   if (auto st = lookup(ctx, request->scene(), &s); !st.ok()) return st;
-  auto v = s->update(*request);
+  Expected<std::uint64_t> v = internalError("UpdateLights: not run");
+  try {
+    v = s->update(*request);
+  } catch (const std::bad_alloc&) {
+    logEvent(LogLevel::kError, "out_of_memory", {{"rpc", "UpdateLights"}, {"scene", s->identity().id}});
+    return grpcError(grpc::StatusCode::RESOURCE_EXHAUSTED, "out of memory while updating the lights");
+  }
   if (!v) {
     // Not persisted (disk full, I/O error): nothing changed, the client may retry.
     if (v.status().code() == Code::kIoError) return grpcError(grpc::StatusCode::UNAVAILABLE, v.status().message());

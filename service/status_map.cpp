@@ -18,6 +18,8 @@ grpc::Status toGrpc(const Status& s) {
     case Code::kNotFound: return grpcError(grpc::StatusCode::NOT_FOUND, s.message());
     case Code::kIoError: return grpcError(grpc::StatusCode::INTERNAL, s.message());
     case Code::kInternal: return grpcError(grpc::StatusCode::INTERNAL, s.message());
+    case Code::kResourceExhausted: return grpcError(grpc::StatusCode::RESOURCE_EXHAUSTED, s.message());
+    case Code::kCancelled: return grpcError(grpc::StatusCode::CANCELLED, s.message());
   }
   return grpcError(grpc::StatusCode::UNKNOWN, s.message());
 }

@@ -133,8 +133,8 @@ Code codeForGrpc(int code) {
     case grpc::FAILED_PRECONDITION:
     case grpc::ALREADY_EXISTS:
     case grpc::PERMISSION_DENIED:
-    case grpc::UNAUTHENTICATED:
-    case grpc::RESOURCE_EXHAUSTED: return Code::kInvalidInput;
+    case grpc::UNAUTHENTICATED: return Code::kInvalidInput;
+    case grpc::RESOURCE_EXHAUSTED: return Code::kResourceExhausted;
     case grpc::NOT_FOUND: return Code::kNotFound;
     case grpc::UNIMPLEMENTED: return Code::kUnsupported;
     case grpc::UNAVAILABLE:

@@ -6,6 +6,7 @@
 #include "clients/lightlink/commands.h"
 #include "clients/lightlink/exit_codes.h"
 #include "core/charts/unwrap_command.h"
+#include "core/precompute/precompute.h"
 
 namespace lightlink::cli {
 
@@ -18,6 +19,8 @@ int runUnwrap(const UnwrapArgs& args) {
   command.options.texel_size_m = args.texel_size_m;
   command.options.resolution = args.resolution;
   command.options.gutter_texels = args.gutter_texels;
+  // The same texel budget as precompute and bake (docs/cli.md "Limits").
+  command.options.max_texels = precompute::PrecomputeLimits{}.max_texels;
   auto report = charts::runUnwrap(command);
   if (!report) return reportError("unwrap", report.status());
   const std::string text = args.json ? report->toJson().dump(2) + "\n" : report->toText();

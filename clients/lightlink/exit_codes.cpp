@@ -12,6 +12,8 @@ int exitCodeFor(const Status& status) {
     case Code::kNotFound: return kExitBadInput;
     case Code::kIoError: return kExitIoError;
     case Code::kInternal: return kExitInternal;
+    case Code::kResourceExhausted: return kExitResources;
+    case Code::kCancelled: return kExitInternal;  // the CLI never cancels its own work
   }
   return kExitInternal;
 }

@@ -2,6 +2,8 @@
 // so they distinguish the user's fault (fix the input) from ours (file a bug).
 #pragma once
 
+#include <new>
+
 #include "core/common/status.h"
 
 namespace lightlink::cli {
@@ -12,11 +14,24 @@ enum ExitCode : int {
   kExitBadInput = 2,     // invalid or unsupported scene / parameters, missing file
   kExitIoError = 3,      // could not read or write a file for OS reasons
   kExitInternal = 4,     // a bug in lightlink
+  kExitResources = 5,    // over a limit (docs/cli.md "Limits") or out of memory
 };
 
 int exitCodeFor(const Status& status);
 
 // Prints "lightlink <command>: <message>" to stderr and returns the exit code.
 int reportError(const char* command, const Status& status);
+
+// Runs a command, turning std::bad_alloc (anywhere, in any thread TBB joins) into a message
+// and kExitResources instead of an abort with no message.
+template <typename F>
+int runGuarded(const char* command, F&& f) {
+  try {
+    return f();
+  } catch (const std::bad_alloc&) {
+    return reportError(command, resourceExhausted("out of memory (lower --resolution, --surfels or --links, or "
+                                                  "raise the texel size)"));
+  }
+}
 
 }  // namespace lightlink::cli

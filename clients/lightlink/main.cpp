@@ -165,12 +165,12 @@ int main(int argc, char** argv) {
     const int code = app.exit(e);
     return code == 0 ? kExitOk : kExitUsage;
   }
-  if (*inspect_cmd) return runInspect(inspect);
-  if (*unwrap_cmd) return runUnwrap(unwrap);
-  if (*pre_cmd) return runPrecompute(pre);
-  if (*bake_cmd) return runBake(bake);
-  if (*render_cmd) return runRender(render);
-  if (*cmp_cmd) return runCompare(cmp);
+  if (*inspect_cmd) return runGuarded("inspect", [&] { return runInspect(inspect); });
+  if (*unwrap_cmd) return runGuarded("unwrap", [&] { return runUnwrap(unwrap); });
+  if (*pre_cmd) return runGuarded("precompute", [&] { return runPrecompute(pre); });
+  if (*bake_cmd) return runGuarded("bake", [&] { return runBake(bake); });
+  if (*render_cmd) return runGuarded("render", [&] { return runRender(render); });
+  if (*cmp_cmd) return runGuarded("compare", [&] { return runCompare(cmp); });
 #ifdef LIGHTLINK_WITH_SERVICE
   if (*serve_cmd) return runServe(serve_cmd->remaining());
   if (*open_cmd) return runOpen(open);

@@ -18,6 +18,7 @@
 #include <glm/glm.hpp>
 
 #include "core/common/aabb.h"
+#include "core/common/progress.h"
 #include "core/common/status.h"
 #include "core/rt/accel.h"
 #include "core/scene/scene.h"
@@ -28,6 +29,8 @@ struct ValidityOptions {
   int rays = 64;                      // stratified directions per validity test
   float max_backface_fraction = 0.25f;  // above this, the cache is behind/inside geometry
   std::uint64_t seed = 0x11c4c4e5;
+  // Polled for cancellation: a cancelled placement returns Code::kCancelled.
+  const Progress* progress = nullptr;
 };
 
 struct LightmapCacheOptions {

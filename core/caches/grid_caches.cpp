@@ -54,9 +54,11 @@ Expected<GridCaches> placeGridCaches(const scene::Scene& scene, const rt::Accel&
         grid.position[(std::size_t(z) * grid.dims.y + y) * grid.dims.x + x] =
             grid.origin + spacing * glm::vec3(x, y, z);
   tbb::parallel_for(std::size_t(0), n, [&](std::size_t i) {
+    if (stopRequested(options.validity.progress)) return;
     const float f = backfaceFraction(scene, accel, grid.position[i], glm::vec3(0.0f), options.validity);
     grid.valid[i] = f <= options.validity.max_backface_fraction ? 1 : 0;
   });
+  if (stopRequested(options.validity.progress)) return cancelled("grid caches: cancelled");
   return grid;
 }
 

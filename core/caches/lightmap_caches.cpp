@@ -178,7 +178,9 @@ Expected<LightmapCaches> placeLightmapCaches(const scene::Scene& scene, const rt
   out.valid.assign(n, 1);
   out.pushed.assign(n, 0);
   const float max_back = options.validity.max_backface_fraction;
+  const Progress* progress = options.validity.progress;
   tbb::parallel_for(std::size_t(0), n, [&](std::size_t i) {
+    if (stopRequested(progress)) return;
     const glm::vec3 p = out.position[i], nrm = out.normal[i];
     if (backfaceFraction(scene, accel, p, nrm, options.validity) <= max_back) return;
     const auto& mesh = scene.meshes[out.mesh[i]];
@@ -204,6 +206,7 @@ Expected<LightmapCaches> placeLightmapCaches(const scene::Scene& scene, const rt
     }
     out.valid[i] = 0;
   });
+  if (stopRequested(progress)) return cancelled("lightmap caches: cancelled");
   return out;
 }
 

@@ -12,6 +12,10 @@
 namespace lightlink::charts {
 namespace {
 
+// Longest chart side (texels) a mask is built for: far beyond any atlas (16384), so only
+// charts that could never fit are refused, and the int texel coordinates cannot overflow.
+constexpr double kMaxPackSide = double(1 << 24);
+
 double cross(const glm::dvec2& o, const glm::dvec2& a, const glm::dvec2& b) {
   return (a.x - o.x) * (b.y - o.y) - (a.y - o.y) * (b.x - o.x);
 }
@@ -156,12 +160,24 @@ void turnedProfile(const Mask& m, int turns, std::vector<int>& bottom, std::vect
 }  // namespace
 
 int packCharts(const std::vector<Chart>& charts, double texel_m, int resolution, int gutter,
-               std::vector<Placement>& placements) {
+               std::vector<Placement>& placements, const Progress* progress) {
   const std::size_t n = charts.size();
   placements.assign(n, {});
   if (resolution <= 2 * gutter) return -1;
+  // The mask of a chart is its box in texels: one wider than the strip on its short side
+  // cannot fit, and building it first (billions of texels at 1e-9 m) would never end.
+  for (const Chart& chart : charts) {
+    glm::dvec2 ext(0.0);
+    for (const glm::dvec2& p : chart.uv) ext = glm::max(ext, p);
+    const double w = std::floor(ext.x / texel_m + 0.5 + kMaskSlack) + 1.0;
+    const double h = std::floor(ext.y / texel_m + 0.5 + kMaskSlack) + 1.0;
+    if (!(std::min(w, h) <= double(resolution - 2 * gutter)) || !(std::max(w, h) <= double(kMaxPackSide))) return -1;
+  }
   std::vector<Mask> masks(n);
-  tbb::parallel_for(std::size_t{0}, n, [&](std::size_t i) { masks[i] = chartMask(charts[i], texel_m); });
+  tbb::parallel_for(std::size_t{0}, n, [&](std::size_t i) {
+    if (!stopRequested(progress)) masks[i] = chartMask(charts[i], texel_m);
+  });
+  if (stopRequested(progress)) return -1;
   std::vector<std::uint32_t> order(n);
   std::iota(order.begin(), order.end(), 0u);
   for (std::size_t i = 0; i < n; ++i) {
@@ -183,7 +199,9 @@ int packCharts(const std::vector<Chart>& charts, double texel_m, int resolution,
   std::vector<int> height(static_cast<std::size_t>(r), gutter);
   std::vector<int> bottom, top;
   int used = gutter;
+  std::size_t placed = 0;
   for (std::uint32_t id : order) {
+    if (++placed % 64 == 0 && stopRequested(progress)) return -1;
     const Mask& m = masks[id];
     int best_top = std::numeric_limits<int>::max(), best_x = -1, best_y = 0, best_turns = 0;
     // Tiny charts gain nothing from half turns (their masks are nearly symmetric), and a

@@ -20,6 +20,7 @@
 #include <cstdint>
 #include <vector>
 
+#include "core/common/progress.h"
 #include "core/charts/flatten.h"
 
 namespace lightlink::charts {
@@ -36,9 +37,11 @@ struct Placement {
 // Packs all charts (aligned, uv in metres) at `texel_m` into a strip `resolution` texels
 // wide and as tall as needed. Returns the rows used including the bottom gutter (the
 // charts fit a square atlas iff that is <= resolution - gutter), or -1 if some chart is
-// wider than the strip in every orientation.
+// wider than the strip in every orientation. A chart larger than the strip is refused
+// before its mask is built, so an absurdly small texel size costs nothing. `progress` is
+// polled for cancellation only: a cancelled pack returns -1 too.
 int packCharts(const std::vector<Chart>& charts, double texel_m, int resolution, int gutter,
-               std::vector<Placement>& placements);
+               std::vector<Placement>& placements, const Progress* progress = nullptr);
 
 // Moves a chart's uv from metres (aligned box) to atlas texel coordinates per placement.
 void applyPlacement(Chart& chart, const Placement& placement, double texel_m);

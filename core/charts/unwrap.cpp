@@ -46,7 +46,7 @@ struct SegmentWork {
 // fills 98 % of the height: a handful of packs where bisection needs a dozen. Returns 0
 // if nothing fits.
 double fitTexelSize(const std::vector<Chart>& charts, double area_m2, int resolution, int gutter,
-                    std::vector<Placement>& placements) {
+                    std::vector<Placement>& placements, const Progress* progress) {
   const double limit = resolution - gutter;
   const double target = 0.99 * limit;
   std::vector<Placement> trial;
@@ -68,9 +68,10 @@ double fitTexelSize(const std::vector<Chart>& charts, double area_m2, int resolu
   double ts = std::sqrt(area_m2 / (0.6 * resolution * resolution));
   if (free_texels > 0.0 && a > 0.0) ts = 2.0 * a / (-b + std::sqrt(b * b + 4.0 * a * free_texels));
   for (int iter = 0; iter < 80; ++iter) {
+    if (stopRequested(progress)) return 0.0;
     // The texel size is a float in the scene's result: pack at exactly that value.
     ts = static_cast<double>(static_cast<float>(ts));
-    const int used = packCharts(charts, ts, resolution, gutter, trial);
+    const int used = packCharts(charts, ts, resolution, gutter, trial, progress);
     const bool fits = used >= 0 && used <= limit;
     if (fits && (fit == 0.0 || ts < fit)) {
       fit = ts;
@@ -196,11 +197,25 @@ Expected<UnwrapResult> unwrap(scene::Scene& scene, const UnwrapOptions& options)
   report.meshes = static_cast<int>(statics.size());
   if (statics.empty()) return invalidInput("unwrap: '{}' has no static triangle meshes", scene.source_path);
 
+  const Progress* progress = options.progress;
+  const auto stopped = [&] { return cancelled("unwrap: cancelled"); };
+  // An atlas of res x res texels costs memory in every later stage (per-texel arrays,
+  // caches, links): refused before packing when over the budget.
+  const auto overBudget = [&](int res) -> Status {
+    const std::uint64_t texels = std::uint64_t(res) * std::uint64_t(res);
+    if (options.max_texels == 0 || texels <= options.max_texels) return {};
+    return resourceExhausted("lightmap: {}x{} = {} texels is above the limit of {} texels (max_texels); lower the "
+                             "resolution or raise the texel size",
+                             res, res, texels, options.max_texels);
+  };
+
   auto finish = [&]() {
     report.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
     return Expected<UnwrapResult>(std::move(result));
   };
 
+  if (!options.texel_size_m || options.resolution)
+    if (Status s = overBudget(options.resolution.value_or(options.target_resolution)); !s) return s;
   if (options.keep_existing_uv1 && with_uv1 == statics.size()) {
     const int res = options.resolution.value_or(options.target_resolution);
     atlas.generated = false;
@@ -229,9 +244,11 @@ Expected<UnwrapResult> unwrap(scene::Scene& scene, const UnwrapOptions& options)
   seg_options.normal_cone_deg = options.normal_cone_deg;
   seg_options.hard_edge_deg = options.hard_edge_deg;
   tbb::parallel_for(std::size_t{0}, statics.size(), [&](std::size_t i) {
+    if (stopRequested(progress)) return;
     prepared[i] = prepareMesh(scene.meshes[statics[i]], weld_m);
     segments[i] = segmentCharts(prepared[i], seg_options);
   });
+  if (stopRequested(progress)) return stopped();
 
   // 3. Flatten every segmented chart (parallel over charts, results kept in chart order).
   std::vector<SegmentWork> work;
@@ -251,6 +268,7 @@ Expected<UnwrapResult> unwrap(scene::Scene& scene, const UnwrapOptions& options)
   std::vector<std::vector<Chart>> flattened(work.size());
   std::vector<FlattenStats> flat_stats(work.size());
   tbb::parallel_for(std::size_t{0}, work.size(), [&](std::size_t w) {
+    if (stopRequested(progress)) return;
     flattenChart(prepared[work[w].mesh], std::move(work[w].faces), work[w].mesh, flat_options, flattened[w],
                  flat_stats[w]);
     for (Chart& c : flattened[w]) alignToMinimalBox(c);
@@ -263,6 +281,7 @@ Expected<UnwrapResult> unwrap(scene::Scene& scene, const UnwrapOptions& options)
     for (Chart& c : flattened[w]) charts.push_back(std::move(c));
   }
   flattened.clear();
+  if (stopRequested(progress)) return stopped();
 
   // 4. Texel size and resolution, then pack.
   double area_m2 = 0.0;
@@ -273,23 +292,45 @@ Expected<UnwrapResult> unwrap(scene::Scene& scene, const UnwrapOptions& options)
   double texel_m = 0.0;
   if (options.texel_size_m) {
     texel_m = *options.texel_size_m;
+    // The charts alone need area / texel^2 texels: a tiny texel size is refused here, before
+    // any packing, rather than searched for an atlas that cannot exist.
+    const double needed = area_m2 / (texel_m * texel_m);
+    const double limit = options.max_texels ? double(options.max_texels)
+                                            : double(kMaxAtlasResolution) * double(kMaxAtlasResolution);
+    if (!(needed <= limit))
+      return (options.max_texels ? resourceExhausted("lightmap: a texel size of {} m needs at least {:.3g} texels for "
+                                                     "{:.4g} m^2 of charts, above the limit of {} texels (max_texels); "
+                                                     "raise the texel size",
+                                                     texel_m, needed, area_m2, options.max_texels)
+                                 : invalidInput("unwrap: {} charts at {} m/texel need at least {:.3g} texels, more than "
+                                                "a {}x{} atlas holds; raise the texel size",
+                                                charts.size(), texel_m, needed, kMaxAtlasResolution,
+                                                kMaxAtlasResolution));
     if (options.resolution) {
       res = *options.resolution;
-      const int used = packCharts(charts, texel_m, res, gutter, placements);
+      const int used = packCharts(charts, texel_m, res, gutter, placements, progress);
+      if (stopRequested(progress)) return stopped();
       if (used < 0 || used > res - gutter)
         return invalidInput("unwrap: {} charts at {} m/texel do not fit into {}x{} texels; raise the resolution "
                             "or the texel size", charts.size(), texel_m, res, res);
     } else {
-      for (int r = 16; r <= kMaxAtlasResolution && res == 0; r *= 2)
-        if (const int used = packCharts(charts, texel_m, r, gutter, placements); used >= 0 && used <= r - gutter)
+      for (int r = 16; r <= kMaxAtlasResolution && res == 0 && overBudget(r).isOk(); r *= 2) {
+        if (const int used = packCharts(charts, texel_m, r, gutter, placements, progress); used >= 0 && used <= r - gutter)
           res = r;
+        if (stopRequested(progress)) return stopped();
+      }
+      if (res == 0 && options.max_texels != 0 && !overBudget(kMaxAtlasResolution))
+        return resourceExhausted("lightmap: {} charts at {} m/texel do not fit into the largest atlas the limit of {} "
+                                 "texels allows (max_texels); raise the texel size",
+                                 charts.size(), texel_m, options.max_texels);
       if (res == 0)
         return invalidInput("unwrap: {} charts at {} m/texel do not fit into {}x{} texels; raise the texel size",
                             charts.size(), texel_m, kMaxAtlasResolution, kMaxAtlasResolution);
     }
   } else {
     res = options.resolution.value_or(options.target_resolution);
-    texel_m = fitTexelSize(charts, area_m2, res, gutter, placements);
+    texel_m = fitTexelSize(charts, area_m2, res, gutter, placements, progress);
+    if (stopRequested(progress)) return stopped();
     if (texel_m == 0.0)
       return invalidInput("unwrap: {} charts with a {}-texel gutter cannot fit into {}x{} texels at any texel size; "
                           "raise the resolution or lower the gutter", charts.size(), gutter, res, res);
@@ -311,6 +352,7 @@ Expected<UnwrapResult> unwrap(scene::Scene& scene, const UnwrapOptions& options)
       face_ref[chart.mesh][chart.faces[fi]] = {static_cast<std::uint32_t>(c), static_cast<std::uint32_t>(fi)};
   }
   const double inv_res = 1.0 / res;
+  if (stopRequested(progress)) return stopped();
   tbb::parallel_for(std::size_t{0}, statics.size(), [&](std::size_t i) {
     scene::MeshInstance& mesh = scene.meshes[statics[i]];
     MeshLightmap& lm = atlas.meshes[statics[i]];

@@ -26,6 +26,7 @@
 
 #include "core/charts/rasterize.h"  // kNoChart
 #include "core/charts/report.h"
+#include "core/common/progress.h"
 #include "core/common/status.h"
 #include "core/scene/scene.h"
 
@@ -50,6 +51,11 @@ struct UnwrapOptions {
                                     // minimal box are split (curved strips pack badly)
   float weld_tolerance = 1e-6f;     // weld distance as a fraction of Scene::scale
   bool keep_existing_uv1 = true;
+  // Most texels the atlas may have (width x height), checked before any packing; 0 = no
+  // limit. Over it: Code::kResourceExhausted naming the limit.
+  std::uint64_t max_texels = 0;
+  // Polled for cancellation only (Progress::cancelled); a cancelled unwrap returns kCancelled.
+  const Progress* progress = nullptr;
 };
 
 // Checks ranges; the message names the option and the accepted range.

@@ -22,6 +22,10 @@ class Progress {
   virtual bool cancelled() const { return false; }
 };
 
+// True when `progress` asks the work to stop: long loops poll this once per chunk (a few
+// ms of work) and their stage then returns a Code::kCancelled status.
+inline bool stopRequested(const Progress* progress) { return progress != nullptr && progress->cancelled(); }
+
 // Does nothing; the default when a caller does not care.
 class NullProgress final : public Progress {
  public:

@@ -10,6 +10,8 @@ const char* codeName(Code code) {
     case Code::kNotFound: return "not found";
     case Code::kIoError: return "i/o error";
     case Code::kInternal: return "internal error";
+    case Code::kResourceExhausted: return "resource exhausted";
+    case Code::kCancelled: return "cancelled";
   }
   return "unknown";
 }

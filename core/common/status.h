@@ -23,6 +23,8 @@ enum class Code {
   kNotFound,        // a file or named object that does not exist
   kIoError,         // reading or writing failed at the OS level
   kInternal,        // a bug or a failed invariant on our side
+  kResourceExhausted,  // a request over a budget (docs/cli.md "Limits"), or out of memory
+  kCancelled,       // the caller stopped the work (a deadline, a closed client, a shutdown)
 };
 
 const char* codeName(Code code);
@@ -59,6 +61,14 @@ Status ioError(fmt::format_string<Args...> f, Args&&... args) {
 template <typename... Args>
 Status notFound(fmt::format_string<Args...> f, Args&&... args) {
   return {Code::kNotFound, fmt::format(f, std::forward<Args>(args)...)};
+}
+template <typename... Args>
+Status resourceExhausted(fmt::format_string<Args...> f, Args&&... args) {
+  return {Code::kResourceExhausted, fmt::format(f, std::forward<Args>(args)...)};
+}
+template <typename... Args>
+Status cancelled(fmt::format_string<Args...> f, Args&&... args) {
+  return {Code::kCancelled, fmt::format(f, std::forward<Args>(args)...)};
 }
 template <typename... Args>
 Status internalError(fmt::format_string<Args...> f, Args&&... args) {

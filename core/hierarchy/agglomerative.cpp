@@ -173,17 +173,21 @@ class Agglomerator {
     rebuildGrid(live);
     // Initial neighbours in parallel: each search only reads, each writes its own slot.
     tbb::parallel_for(tbb::blocked_range<std::size_t>(0, n_), [&](const auto& r) {
+      if (stopRequested(options_.progress)) return;
       for (std::size_t i = r.begin(); i < r.end(); ++i) {
         const Hit h = nearest(std::int32_t(i), false);
         nn_[i] = h.node;
         nn_dist_[i] = h.distance;
       }
     });
+    if (stopRequested(options_.progress)) return mt;  // partial: buildTree checks the flag
     for (std::size_t i = 0; i < n_; ++i) heap_.push({nn_dist_[i], std::int32_t(i), 0});
 
     std::int32_t next = std::int32_t(n_);
     std::size_t rebuild_at = live / 2;
+    std::size_t steps = 0;
     while (live > 1) {
+      if (++steps % 4096 == 0 && stopRequested(options_.progress)) return mt;
       LL_CHECK(!heap_.empty());
       const HeapEntry e = heap_.top();
       heap_.pop();

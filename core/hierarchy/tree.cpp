@@ -193,6 +193,8 @@ Expected<Tree> buildTree(surfels::Surfels& surfels, const TreeOptions& options) 
   const detail::MergeTree mt = options.builder == Builder::kKdMedian
                                    ? detail::buildKdMedian(surfels)
                                    : detail::buildAgglomerative(surfels, options);
+  // A cancelled builder stops early with a partial merge tree: never finalised.
+  if (stopRequested(options.progress)) return cancelled("hierarchy: cancelled");
   return finalize(surfels, mt);
 }
 

@@ -26,6 +26,7 @@
 
 #include <glm/glm.hpp>
 
+#include "core/common/progress.h"
 #include "core/common/status.h"
 #include "core/surfels/surfels.h"
 
@@ -38,6 +39,7 @@ struct TreeOptions {
   float normal_weight = 0.1f;    // Cn, >= 0
   float balance_weight = 0.02f;  // Cb, >= 0
   int candidates = 32;           // HAC: clusters examined per nearest-neighbour search, >= 1
+  const Progress* progress = nullptr;  // polled for cancellation: buildTree then gives kCancelled
 };
 
 struct Tree {

@@ -892,7 +892,7 @@ Expected<Links> generateLinks(const scene::Scene& scene, const rt::Accel& accel,
           }));
   if (!sink.cancelled()) sizeOutput(links.offsets[n]);
   sink.end();
-  if (sink.cancelled()) return Status(Code::kInternal, "link generation cancelled");
+  if (sink.cancelled()) return cancelled("link generation cancelled");
   links.seen.assign(locator.surfelCount(), 0);
   for (const auto& part : seen_by_thread)
     for (std::size_t i = 0; i < part.size(); ++i) links.seen[i] |= part[i];

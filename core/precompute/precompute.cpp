@@ -10,7 +10,10 @@
 #include <fstream>
 #include <limits>
 #include <optional>
+#include <new>
 #include <sstream>
+
+#include <unistd.h>
 
 #include <fmt/format.h>
 
@@ -171,11 +174,29 @@ std::string PrecomputeOptions::canonical() const {
       kGeneratorRevision);
 }
 
-Expected<charts::UnwrapResult> unwrapFor(scene::Scene& scene, const PrecomputeOptions& options) {
+std::uint64_t linkBytesEstimate(std::uint64_t caches, int max_links, int bands) {
+  // Per link: the projected form (node + SH coefficients) and the runtime form (node,
+  // direction, solid angle), as links::Links holds them.
+  const std::uint64_t per_link =
+      links::Links::bytesPerLinkRuntime() + sizeof(std::uint16_t) * std::uint64_t(bands) * std::uint64_t(bands);
+  return caches * std::uint64_t(std::max(max_links, 0)) * per_link;
+}
+
+std::uint64_t effectiveLinkBudget(const PrecomputeLimits& limits) {
+  if (limits.max_link_bytes != 0) return limits.max_link_bytes;
+  const long pages = ::sysconf(_SC_PHYS_PAGES), page = ::sysconf(_SC_PAGESIZE);
+  if (pages <= 0 || page <= 0) return std::uint64_t(8) << 30;  // unknown: 8 GiB
+  return std::uint64_t(pages) * std::uint64_t(page) / 2;
+}
+
+Expected<charts::UnwrapResult> unwrapFor(scene::Scene& scene, const PrecomputeOptions& options,
+                                         const Progress* progress) {
   charts::UnwrapOptions u;
   u.texel_size_m = options.texel_size_m;
   u.resolution = options.lightmap_resolution;
   u.target_resolution = options.target_resolution;
+  u.max_texels = options.limits.max_texels;
+  u.progress = progress;
   return charts::unwrap(scene, u);
 }
 
@@ -186,17 +207,26 @@ Expected<Precomputation> run(scene::Scene& scene, const PrecomputeOptions& optio
   Precomputation p;
   p.options = options;
   // Stages that report their own progress (links) get no begin/end of their own here.
+  // Running out of memory in a stage (in any TBB worker: TBB rethrows here) is an error
+  // naming the stage, not an abort; so is a cancellation noticed at the stage's end.
   auto stage = [&](const char* name, auto&& body, bool self_reporting = false) -> Status {
+    if (sink.cancelled()) return cancelled("precompute cancelled before {}", name);
     const auto t0 = Clock::now();
     if (!self_reporting) sink.begin(name, 0);
-    Status s = body();
+    Status s;
+    try {
+      s = body();
+    } catch (const std::bad_alloc&) {
+      s = resourceExhausted("out of memory while computing {} (lower the resolution, surfels or links)", name);
+    }
     if (!self_reporting) sink.end();
     p.timings.push_back({name, secondsSince(t0)});
+    if (s.isOk() && sink.cancelled()) return cancelled("precompute cancelled during {}", name);
     return s;
   };
 
   Status s = stage("unwrap", [&]() -> Status {
-    auto r = unwrapFor(scene, options);
+    auto r = unwrapFor(scene, options, &sink);
     if (!r) return r.status();
     p.atlas = std::move(r->atlas);
     p.notes.push_back(p.atlas.generated ? fmt::format("lightmap UVs generated: {} charts in {}x{}",
@@ -207,7 +237,8 @@ Expected<Precomputation> run(scene::Scene& scene, const PrecomputeOptions& optio
   if (!s) return s;
 
   s = stage("surfels", [&]() -> Status {
-    auto r = surfels::placeSurfels(scene, {.count = options.surfels, .seed = static_cast<std::uint32_t>(options.seed)});
+    auto r = surfels::placeSurfels(
+        scene, {.count = options.surfels, .seed = static_cast<std::uint32_t>(options.seed), .progress = &sink});
     if (!r) return r.status();
     p.surfels = std::move(r).value();
     if (p.surfels.empty()) return invalidInput("{}: the scene has no static surface area to place surfels on",
@@ -217,7 +248,7 @@ Expected<Precomputation> run(scene::Scene& scene, const PrecomputeOptions& optio
   if (!s) return s;
 
   s = stage("hierarchy", [&]() -> Status {
-    auto r = hierarchy::buildTree(p.surfels, {.builder = options.builder});
+    auto r = hierarchy::buildTree(p.surfels, {.builder = options.builder, .progress = &sink});
     if (!r) return r.status();
     p.tree = std::move(r).value();
     return {};
@@ -233,7 +264,7 @@ Expected<Precomputation> run(scene::Scene& scene, const PrecomputeOptions& optio
   });
   if (!s) return s;
 
-  const caches::ValidityOptions validity{.rays = options.validity_rays};
+  const caches::ValidityOptions validity{.rays = options.validity_rays, .progress = &sink};
   s = stage("caches", [&]() -> Status {
     auto lm = caches::placeLightmapCaches(scene, *accel, {.resolution = p.atlas.resolution, .validity = validity});
     if (!lm) return lm.status();
@@ -268,6 +299,15 @@ Expected<Precomputation> run(scene::Scene& scene, const PrecomputeOptions& optio
     return {};
   });
   if (!s) return s;
+
+  // Links are the bulk of the memory: caches x links x bytes, checked before any is made.
+  const std::uint64_t link_bytes =
+      linkBytesEstimate(p.lightmap.size() + (p.has_grid ? p.grid.size() : 0), options.links, options.bands);
+  if (const std::uint64_t budget = effectiveLinkBudget(options.limits); link_bytes > budget)
+    return resourceExhausted("links: {} caches x {} links x {} bands need up to {:.1f} MiB, above the limit of {:.1f} "
+                             "MiB (max_link_bytes); lower the links, bands or lightmap resolution",
+                             p.lightmap.size() + (p.has_grid ? p.grid.size() : 0), options.links, options.bands,
+                             double(link_bytes) / double(1 << 20), double(budget) / double(1 << 20));
 
   const links::LinkOptions link_options = options.linkOptions();
   s = stage("links", [&]() -> Status {

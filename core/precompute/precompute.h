@@ -34,6 +34,25 @@ namespace lightlink::precompute {
 
 enum class GridMode { kAuto, kOn, kOff };
 
+// Budgets of one precompute, checked before the work they bound so that a request over one
+// fails at once with Code::kResourceExhausted naming the limit and the value (docs/cli.md
+// "Limits", docs/service.md "Limits"). Not part of the cache key: a limit decides whether a
+// result is computed, never what it is.
+struct PrecomputeLimits {
+  // Lightmap texels (width x height): every later stage keeps per-texel arrays.
+  std::uint64_t max_texels = std::uint64_t(4096) * 4096;
+  // Link arrays of all caches, estimated as caches x links per cache x bytes per link
+  // before link generation. 0 = half of this machine's physical memory.
+  std::uint64_t max_link_bytes = 0;
+};
+
+// The link bytes `caches` caches may take at `max_links` links each and `bands` SH bands
+// (projected and runtime forms), the figure max_link_bytes is checked against.
+std::uint64_t linkBytesEstimate(std::uint64_t caches, int max_links, int bands);
+
+// max_link_bytes with 0 resolved to half of the physical memory.
+std::uint64_t effectiveLinkBudget(const PrecomputeLimits& limits);
+
 struct PrecomputeOptions {
   std::uint32_t surfels = 32768;   // nS
   int links = 128;                 // nL, most links per cache
@@ -48,6 +67,7 @@ struct PrecomputeOptions {
   int target_resolution = 128;     // default atlas size when neither of the above is set
   int validity_rays = 64;
   std::uint64_t seed = 1;
+  PrecomputeLimits limits;         // not in canonical(): budgets, not parameters of the result
 
   Status validate() const;
   // Every option that changes the result, in a fixed order, and kGeneratorRevision: part of
@@ -99,9 +119,13 @@ struct Precomputation {
 
 // The unwrap stage alone, with the options precompute uses: a caller that reuses an artifact
 // runs it to give the scene the same lightmap UVs (and triangle ids) the artifact was made on.
-Expected<charts::UnwrapResult> unwrapFor(scene::Scene& scene, const PrecomputeOptions& options);
+// `progress` is polled for cancellation.
+Expected<charts::UnwrapResult> unwrapFor(scene::Scene& scene, const PrecomputeOptions& options,
+                                         const Progress* progress = nullptr);
 
 // Runs every stage. `scene` is modified: the unwrap writes uv1 (and splits seam vertices).
+// Every stage polls progress->cancelled() and stops with Code::kCancelled; a request over
+// options.limits, or std::bad_alloc in any stage, gives Code::kResourceExhausted.
 Expected<Precomputation> run(scene::Scene& scene, const PrecomputeOptions& options,
                              Progress* progress = nullptr);
 

@@ -2,6 +2,7 @@
 
 #include <chrono>
 #include <filesystem>
+#include <new>
 #include <optional>
 
 #include <fmt/format.h>
@@ -49,6 +50,16 @@ class Stage {
 }  // namespace
 
 Expected<ResidentScene> ResidentScene::open(const ResidentRequest& request, Progress* progress) {
+  // precompute::run names the stage that ran out of memory; this catches the rest (loading,
+  // opening an artifact, the BVH) so that no request ends the process.
+  try {
+    return openUnguarded(request, progress);
+  } catch (const std::bad_alloc&) {
+    return resourceExhausted("{}: out of memory while opening the scene", request.scene_path);
+  }
+}
+
+Expected<ResidentScene> ResidentScene::openUnguarded(const ResidentRequest& request, Progress* progress) {
   const auto start = std::chrono::steady_clock::now();
   if (Status s = request.options.validate(); !s) return s;
   if (request.cache_dir.empty()) return invalidInput("cache directory: must not be empty");
@@ -60,13 +71,14 @@ Expected<ResidentScene> ResidentScene::open(const ResidentRequest& request, Prog
 
   {
     Stage stage(progress, "load");
-    auto scene = scene::loadGltf(request.scene_path);
+    auto scene = scene::loadGltf(request.scene_path, request.load);
     if (!scene) return scene.status();
     state->scene = std::move(scene).value();
     auto key = cacheKeyFor(request.scene_path, request.options);
     if (!key) return key.status();
     state->key = *key;
   }
+  if (stopRequested(progress)) return cancelled("open cancelled after loading {}", request.scene_path);
   const std::uint64_t key = state->key;
   state->artifact_path = (fs::path(request.cache_dir) / (artifact::cacheKeyHex(key) + ".llk")).string();
 
@@ -85,7 +97,7 @@ Expected<ResidentScene> ResidentScene::open(const ResidentRequest& request, Prog
   }
   if (state->loaded) {
     // The artifact was made on the unwrapped scene: give this scene the same uv1.
-    auto unwrapped = unwrapFor(state->scene, request.options);
+    auto unwrapped = unwrapFor(state->scene, request.options, progress);
     if (!unwrapped) return unwrapped.status();
     state->atlas = unwrapped->atlas;
   } else {

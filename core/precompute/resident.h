@@ -25,6 +25,7 @@
 #include "core/links/links.h"
 #include "core/precompute/precompute.h"
 #include "core/rt/accel.h"
+#include "core/scene/load.h"
 #include "core/scene/scene.h"
 
 namespace lightlink::precompute {
@@ -34,12 +35,14 @@ struct ResidentRequest {
   PrecomputeOptions options;
   std::string cache_dir;    // artifacts as <cache_dir>/<key hex>.llk; created when missing
   bool use_cache = true;    // false: recompute even when a matching artifact exists (and replace it)
+  scene::LoadOptions load;  // how the scene is loaded, and its budgets (image size, triangles, lights)
 };
 
 class ResidentScene {
  public:
   // Loads or precomputes. `progress` receives the stages "load", "artifact" and, when
-  // precomputing, those of precompute::run; its cancelled() stops a precompute early.
+  // precomputing, those of precompute::run; its cancelled() stops a precompute early
+  // (Code::kCancelled). std::bad_alloc in any stage becomes Code::kResourceExhausted.
   static Expected<ResidentScene> open(const ResidentRequest& request, Progress* progress = nullptr);
 
   ResidentScene(ResidentScene&&) noexcept;
@@ -69,6 +72,7 @@ class ResidentScene {
  private:
   struct State;
   explicit ResidentScene(std::unique_ptr<State> state);
+  static Expected<ResidentScene> openUnguarded(const ResidentRequest& request, Progress* progress);
   std::unique_ptr<State> state_;
 };
 

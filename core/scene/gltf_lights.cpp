@@ -79,10 +79,16 @@ Status loadLights(const Context& ctx, const std::vector<PlacedNode>& nodes) {
     if (!light) return light.status();
     lights.push_back(std::move(*light));
   }
+  std::uint64_t placed_lights = 0;
   for (const PlacedNode& placed : nodes) {
     const tinygltf::Node& node = model.nodes[static_cast<std::size_t>(placed.node)];
     const auto ext = node.extensions.find("KHR_lights_punctual");
     if (ext == node.extensions.end()) continue;
+    // Every relight evaluates every light: a graph placing more than the budget is refused.
+    if (ctx.options.max_lights != 0 && ++placed_lights > ctx.options.max_lights)
+      return {Code::kResourceExhausted,
+              fmt::format("{}: the node graph places more than {} KHR_lights_punctual lights (max_lights)", ctx.file,
+                          ctx.options.max_lights)};
     const std::string object = describeNode(model, placed.node);
     const tinygltf::Value& v = ext->second;
     if (!v.IsObject() || !v.Has("light") || !v.Get("light").IsNumber()) {

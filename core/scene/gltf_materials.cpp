@@ -1,7 +1,10 @@
 #include "core/scene/gltf_materials.h"
 
 #include <cmath>
+#include <cstdint>
 #include <limits>
+
+#include <stb/stb_image.h>
 
 namespace lightlink::scene::gltf {
 
@@ -27,6 +30,27 @@ bool decodeImage(tinygltf::Image* image, int image_index, std::string* err, std:
     }
   }
   if (!state->decode) return true;
+  // The size from the header, before a byte is inflated: stb decodes to RGBA (16-bit
+  // images at 2 bytes a channel) and loadTextures keeps an RGBA8 copy.
+  int w = 0, h = 0, channels = 0;
+  if (size > 0 && stbi_info_from_memory(bytes, size, &w, &h, &channels) && w > 0 && h > 0) {
+    const std::uint64_t pixels = std::uint64_t(w) * std::uint64_t(h);
+    const std::uint64_t depth = stbi_is_16_bit_from_memory(bytes, size) ? 2 : 1;
+    const std::uint64_t cost = pixels * 4 * depth + pixels * 4;
+    if (state->max_image_pixels != 0 && pixels > state->max_image_pixels) {
+      state->over_budget = fmt::format("{}: {}x{} = {} pixels is above the limit of {} pixels per image "
+                                       "(max_image_pixels)", object, w, h, pixels, state->max_image_pixels);
+    } else if (state->max_image_bytes != 0 && state->decoded_bytes + cost > state->max_image_bytes) {
+      state->over_budget = fmt::format("{}: decoding it ({}x{}) brings the decoded images to {} MiB, above the "
+                                       "limit of {} MiB (max_image_bytes)", object, w, h,
+                                       (state->decoded_bytes + cost) >> 20, state->max_image_bytes >> 20);
+    }
+    if (!state->over_budget.empty()) {
+      if (err) *err += state->over_budget + "\n";
+      return false;
+    }
+    state->decoded_bytes += cost;
+  }
   std::string decode_err;
   if (!tinygltf::LoadImageData(image, image_index, &decode_err, warn, req_width, req_height,
                                bytes, size, nullptr)) {

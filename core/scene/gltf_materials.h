@@ -19,6 +19,10 @@ struct ImageDecodeState {
   bool decode = true;
   std::vector<std::string> problems;       // "image N: ..." per image not decoded
   std::string fatal;                       // set when a bufferView image is out of range
+  std::string over_budget;                 // set when an image is over a LoadOptions limit
+  std::uint64_t max_image_pixels = 0;      // LoadOptions limits (0 = none)
+  std::uint64_t max_image_bytes = 0;
+  std::uint64_t decoded_bytes = 0;         // what the images decoded so far take
 };
 
 // tinygltf::LoadImageDataFunction; user_data is an ImageDecodeState.

@@ -118,12 +118,15 @@ Status loadModel(const std::string& path, bool binary, const LoadOptions& option
   gltf::ImageDecodeState images;
   images.model = &model;
   images.decode = options.load_textures;
+  images.max_image_pixels = options.max_image_pixels;
+  images.max_image_bytes = options.max_image_bytes;
   loader.SetImageLoader(&gltf::decodeImage, &images);
   std::string err, warn;
   const bool ok = binary ? loader.LoadBinaryFromFile(&model, &err, &warn, path)
                          : loader.LoadASCIIFromFile(&model, &err, &warn, path);
   if (!ok) {
     if (!images.fatal.empty()) return invalidInput("{}: {}", path, images.fatal);
+    if (!images.over_budget.empty()) return resourceExhausted("{}: {}", path, images.over_budget);
     if (std::optional<Status> why = gltf::diagnoseLoadFailure(path, binary, err)) return *why;
     const bool json_error = err.find("parse_error") != std::string::npos ||
                             err.find("JSON") != std::string::npos;
@@ -135,6 +138,30 @@ Status loadModel(const std::string& path, bool binary, const LoadOptions& option
     scene.warnings.push_back(fmt::format("{}: {}", path, gltf::shortenTinygltfMessage(problem)));
   }
   return Status::ok();
+}
+
+// Triangles the node graph instances, from accessor counts alone: a small file that places
+// one mesh thousands of times is refused before it is flattened into gigabytes.
+std::uint64_t instancedTriangles(const tinygltf::Model& model, const std::vector<gltf::PlacedNode>& nodes) {
+  std::uint64_t total = 0;
+  for (const gltf::PlacedNode& placed : nodes) {
+    const int mesh = model.nodes[static_cast<std::size_t>(placed.node)].mesh;
+    if (mesh < 0 || static_cast<std::size_t>(mesh) >= model.meshes.size()) continue;
+    for (const tinygltf::Primitive& prim : model.meshes[static_cast<std::size_t>(mesh)].primitives) {
+      int accessor = prim.indices;
+      if (accessor < 0) {
+        const auto it = prim.attributes.find("POSITION");
+        accessor = it == prim.attributes.end() ? -1 : it->second;
+      }
+      if (accessor < 0 || static_cast<std::size_t>(accessor) >= model.accessors.size()) continue;
+      const std::uint64_t count = model.accessors[static_cast<std::size_t>(accessor)].count;
+      const int mode = prim.mode < 0 ? TINYGLTF_MODE_TRIANGLES : prim.mode;
+      if (mode == TINYGLTF_MODE_TRIANGLES) total += count / 3;
+      else if ((mode == TINYGLTF_MODE_TRIANGLE_STRIP || mode == TINYGLTF_MODE_TRIANGLE_FAN) && count >= 3)
+        total += count - 2;
+    }
+  }
+  return total;
 }
 
 Status buildGeometry(const gltf::Context& ctx, const std::vector<gltf::PlacedNode>& nodes) {
@@ -212,6 +239,11 @@ Expected<Scene> loadGltf(const std::string& path, const LoadOptions& options) {
   if (Status s = gltf::validateBufferViews(ctx); !s) return s;
   Expected<std::vector<gltf::PlacedNode>> nodes = gltf::placeNodes(ctx);
   if (!nodes) return nodes.status();
+  if (options.max_triangles != 0) {
+    if (const std::uint64_t n = instancedTriangles(model, *nodes); n > options.max_triangles)
+      return resourceExhausted("{}: the node graph instances {} triangles, above the limit of {} (max_triangles)",
+                               path, n, options.max_triangles);
+  }
   if (Status s = gltf::loadTextures(ctx); !s) return s;
   if (Status s = gltf::loadMaterials(ctx); !s) return s;
   if (Status s = buildGeometry(ctx, *nodes); !s) return s;

@@ -5,6 +5,7 @@
 // Scene::warnings.
 #pragma once
 
+#include <cstdint>
 #include <string>
 
 #include "core/common/status.h"
@@ -14,6 +15,17 @@ namespace lightlink::scene {
 
 struct LoadOptions {
   bool load_textures = true;  // decode base colour / emissive images for CPU sampling
+  // Budgets, each checked before the work it bounds; over one, loadGltf fails with
+  // Code::kResourceExhausted naming the limit and the value (docs/cli.md "Limits"). 0 = none.
+  // Pixels of one image, read from its header before it is decoded (a decompression bomb
+  // of a few KB can claim 30000 x 30000).
+  std::uint64_t max_image_pixels = std::uint64_t(8192) * 8192;
+  // Bytes all decoded images take (RGBA as decoded, plus the RGBA8 copy a texture keeps).
+  std::uint64_t max_image_bytes = std::uint64_t(2) << 30;
+  // Triangles after instancing, counted from the node graph before any mesh is flattened.
+  std::uint64_t max_triangles = 20'000'000;
+  // KHR_lights_punctual lights the node graph places.
+  std::uint64_t max_lights = 4096;
 };
 
 Expected<Scene> loadGltf(const std::string& path, const LoadOptions& options = {});

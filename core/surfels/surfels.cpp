@@ -118,11 +118,18 @@ void relax(const StaticSurface& surface, std::vector<std::uint32_t>& tri, std::v
   std::vector<glm::vec3> pos(n), delta(n);
   GridHash grid;
   for (int it = 0; it < o.relaxation_iterations; ++it) {
+    if (stopRequested(o.progress)) return;
     tbb::parallel_for(tbb::blocked_range<std::size_t>(0, n), [&](const auto& r) {
       for (std::size_t j = r.begin(); j < r.end(); ++j) pos[j] = surface.pointAt(tri[j], uv[j]);
     });
+    if (stopRequested(o.progress)) return;  // the grid build is serial: not started once cancelled
     grid.build(pos, radius);
     tbb::parallel_for(tbb::blocked_range<std::size_t>(0, n), [&](const auto& r) {
+      // A chunk's neighbour search is the slow part: a cancelled one leaves no move.
+      if (stopRequested(o.progress)) {
+        for (std::size_t j = r.begin(); j < r.end(); ++j) delta[j] = glm::vec3(0.0f);
+        return;
+      }
       for (std::size_t j = r.begin(); j < r.end(); ++j) {
         const glm::vec3 nj = surface.normal[tri[j]];
         glm::vec3 force(0.0f);
@@ -223,10 +230,12 @@ Expected<Surfels> placeSurfels(const scene::Scene& scene, const SurfelOptions& o
     const float spacing_m = float(std::sqrt(2.0 * slice_m2 / std::sqrt(3.0)));
     relax(surface, tri, uv, spacing_m, options);
   }
+  if (stopRequested(options.progress)) return cancelled("surfels: cancelled");
 
   out.resize(n);
   const float area_m2 = float(slice_m2);
   tbb::parallel_for(tbb::blocked_range<std::uint32_t>(0, n), [&](const auto& r) {
+    if (stopRequested(options.progress)) return;
     for (std::uint32_t j = r.begin(); j < r.end(); ++j) {
       const std::uint32_t t = tri[j];
       const scene::MeshInstance& mesh = scene.meshes[surface.mesh[t]];
@@ -251,6 +260,7 @@ Expected<Surfels> placeSurfels(const scene::Scene& scene, const SurfelOptions& o
       out.barycentric[j] = b;
     }
   });
+  if (stopRequested(options.progress)) return cancelled("surfels: cancelled");
   return out;
 }
 

@@ -23,6 +23,7 @@
 
 #include <glm/glm.hpp>
 
+#include "core/common/progress.h"
 #include "core/common/status.h"
 #include "core/scene/scene.h"
 
@@ -34,6 +35,7 @@ struct SurfelOptions {
   // Largest move per relaxation iteration as a fraction of the ideal spacing; in (0, 1].
   float relaxation_step = 0.3f;
   std::uint32_t seed = 0;          // varies the per-triangle Halton start
+  const Progress* progress = nullptr;  // polled for cancellation: placeSurfels then gives kCancelled
 };
 
 // Structure of arrays, one entry per surfel in every array.
