@@ -8,6 +8,7 @@
 #include <nlohmann/json.hpp>
 
 #include "service/auth.h"
+#include "service/scene_roots.h"
 
 namespace lightlink::service {
 namespace {
@@ -49,6 +50,14 @@ Status applyConfigFile(const std::string& path, DaemonConfig& c) {
     if (key == "listen") s = str(c.listen);
     else if (key == "port_file") s = str(c.port_file);
     else if (key == "cache_dir") s = str(c.cache_dir);
+    else if (key == "scene_roots") {
+      if (!v.is_array()) return invalidInput("--config {}: 'scene_roots' must be an array of directories", path);
+      c.scene_roots.clear();
+      for (const auto& e : v) {
+        if (!e.is_string()) return invalidInput("--config {}: 'scene_roots' must be an array of strings", path);
+        c.scene_roots.push_back(e.get<std::string>());
+      }
+    }
     else if (key == "token") s = str(c.token);
     else if (key == "token_file") {
       std::string file;
@@ -100,6 +109,9 @@ void declareFlags(CLI::App& app, DaemonConfig& c, std::string& config_path, std:
   app.add_option("--port-file", c.port_file, "Write the bound port (a decimal number) to this file once listening");
   app.add_option("--cache-dir", c.cache_dir,
                  "Directory for artifacts, inline scenes and sessions.json (required)");
+  app.add_option("--scene-root", c.scene_roots,
+                 "Directory under which OpenScene may open scenes by path (repeatable); none: uploads only")
+      ->allow_extra_args(false);
   app.add_option("--token", c.token, "Bearer token clients must send (metadata 'authorization: Bearer <token>')");
   app.add_option("--token-file", token_file, "Read the bearer token from this file (first line)");
   app.add_option("--tls-cert", c.tls_cert, "PEM server certificate chain: serve TLS (with --tls-key)");
@@ -146,6 +158,7 @@ Status DaemonConfig::validate() const {
                         "an unauthenticated daemon beyond this machine)",
                         listen);
   if (tls_cert.empty() != tls_key.empty()) return invalidInput("--tls-cert and --tls-key: give both or neither");
+  if (auto roots = SceneRoots::resolve(scene_roots); !roots) return roots.status();
   if (backend != "auto" && backend != "cpu" && backend != "gpu")
     return invalidInput("--backend '{}' must be auto, cpu or gpu", backend);
   if (log_level != "trace" && log_level != "debug" && log_level != "info" && log_level != "warn" &&

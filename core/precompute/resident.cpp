@@ -60,10 +60,12 @@ Expected<ResidentScene> ResidentScene::open(const ResidentRequest& request, Prog
 
   {
     Stage stage(progress, "load");
-    auto scene = scene::loadGltf(request.scene_path);
+    scene::LoadOptions load;
+    load.files = request.files;
+    auto scene = scene::loadGltf(request.scene_path, load);
     if (!scene) return scene.status();
     state->scene = std::move(scene).value();
-    auto key = cacheKeyFor(request.scene_path, request.options);
+    auto key = cacheKeyFor(request.scene_path, request.options, request.files);
     if (!key) return key.status();
     state->key = *key;
   }

@@ -34,6 +34,7 @@ struct ResidentRequest {
   PrecomputeOptions options;
   std::string cache_dir;    // artifacts as <cache_dir>/<key hex>.llk; created when missing
   bool use_cache = true;    // false: recompute even when a matching artifact exists (and replace it)
+  scene::FileAccess files;  // which files the scene may name (default: its own folder only)
 };
 
 class ResidentScene {
