@@ -31,8 +31,13 @@ unsigned char fromHex(unsigned char c) {
 // The canonical form of an absolute path tinygltf asks for, if the access rules let it be
 // read: relative paths are tinygltf's fallback to the working directory, always refused.
 bool acceptedPath(const SceneFiles& files, const std::string& path, fs::path* canonical) {
-  const fs::path p(path);
+  fs::path p(path);
   if (!p.is_absolute()) return false;
+  // tinygltf joins an absolute URI to the base as "<folder>//<uri>"; where reading outside is
+  // allowed, that URI means itself (as resolveUri has it). Confined, it stays a refused path.
+  const std::string joined_absolute = files.folder().string() + "//";
+  if (files.access().allow_outside_folder && path.rfind(joined_absolute, 0) == 0)
+    p = fs::path(path.substr(joined_absolute.size() - 1));
   std::error_code ec;
   *canonical = fs::weakly_canonical(p, ec);
   if (ec) return false;
@@ -147,12 +152,14 @@ Expected<fs::path> SceneFiles::resolveUri(const std::string& uri, std::string_vi
     return invalidInput("{}: {} '{}' is an absolute path; a scene may only name files inside its own folder{}",
                         scene_path_, what, shortUri(uri), access_.outside_hint);
   }
-  // Joined as tinygltf joins it (folder + '/' + name), so this is the file it would read.
+  // Joined as tinygltf joins it (folder + '/' + name), so this is the file it would read; an
+  // absolute name (allowed here only outside the folder rule) is itself, as acceptedPath has it.
+  const fs::path joined = name.front() == '/' ? fs::path(name) : fs::path(folder_.string() + "/" + name);
   std::error_code ec;
-  fs::path canonical = fs::weakly_canonical(fs::path(folder_.string() + "/" + name), ec);
+  fs::path canonical = fs::weakly_canonical(joined, ec);
   if (ec) return ioError("{}: {} '{}': cannot resolve the path: {}", scene_path_, what, shortUri(uri), ec.message());
   if (!access_.allow_outside_folder && !insideFolder(canonical)) {
-    const bool lexically_inside = insideFolder(fs::path(folder_.string() + "/" + name).lexically_normal());
+    const bool lexically_inside = insideFolder(joined.lexically_normal());
     return invalidInput("{}: {} '{}' escapes the scene's folder{}; a scene may only name files inside its own "
                         "folder{}",
                         scene_path_, what, shortUri(uri), lexically_inside ? " through a symbolic link" : "",

@@ -259,7 +259,9 @@ TEST(Cli, MessagesNeverQuoteFileContent) {
     EXPECT_EQ(r.exit_code, cli::kExitBadInput) << r.output;
     EXPECT_EQ(r.output.find(testing::secretFirstIndex()), std::string::npos) << "quotes the file: " << r.output;
     EXPECT_EQ(r.output.find("TOPS"), std::string::npos) << r.output;
-    if (flags.empty()) EXPECT_NE(r.output.find("buffers[1].uri"), std::string::npos) << r.output;
+    if (flags.empty()) {
+      EXPECT_NE(r.output.find("buffers[1].uri"), std::string::npos) << r.output;
+    }
   }
 }
 
