@@ -24,6 +24,7 @@ Expected<std::string> SceneRoots::admit(const std::string& requested) const {
   // One answer for every refusal below: a path that does not resolve, one outside the roots
   // and one whose link leads out all read alike, existing or not.
   const Status outside = invalidInput("path: not under one of the daemon's --scene-root folders");
+  if (requested.find('\0') != std::string::npos) return outside;  // the OS would read a shorter path
   std::error_code ec;
   const fs::path absolute = fs::absolute(requested, ec);
   if (ec) return outside;

@@ -237,7 +237,7 @@ bool endsWith(const std::string& s, const std::string& suffix) {
 }  // namespace
 
 Status writeGltfWithLightmapUv(const std::string& in_path, const scene::Scene& scene, const LightmapAtlas& atlas,
-                               const std::string& out_path) {
+                               const std::string& out_path, const scene::FileAccess& access) {
   const bool out_glb = endsWith(out_path, ".glb");
   if (!out_glb && !endsWith(out_path, ".gltf"))
     return invalidInput("glTF writer: output '{}' must end in .gltf or .glb", out_path);
