@@ -1,5 +1,7 @@
 #include "service/scene_roots.h"
 
+#include "core/scene/scene_files.h"
+
 namespace lightlink::service {
 namespace fs = std::filesystem;
 
@@ -25,11 +27,11 @@ Expected<std::string> SceneRoots::admit(const std::string& requested) const {
   // and one whose link leads out all read alike, existing or not.
   const Status outside = invalidInput("path: not under one of the daemon's --scene-root folders");
   if (requested.find('\0') != std::string::npos) return outside;  // the OS would read a shorter path
-  std::error_code ec;
-  const fs::path absolute = fs::absolute(requested, ec);
-  if (ec) return outside;
-  const fs::path canonical = fs::weakly_canonical(absolute, ec);
-  if (ec) return outside;
+  // Every link followed, dangling ones too: a link in a root to a missing file elsewhere must
+  // not read as "missing inside the root".
+  Expected<fs::path> resolved = scene::resolvePath(requested);
+  if (!resolved) return outside;
+  const fs::path& canonical = *resolved;
   for (const fs::path& root : roots_) {
     const fs::path rel = canonical.lexically_relative(root);
     if (!rel.empty() && *rel.begin() != ".." && rel != ".") return canonical.string();

@@ -31,10 +31,11 @@ struct ImageCopy {
 // rather than written wherever it points).
 Expected<fs::path> copyTarget(const fs::path& to_dir, const std::string& uri) {
   const std::string name = scene::SceneFiles::decodeUri(uri);
-  std::error_code ec;
-  const fs::path to = fs::weakly_canonical(to_dir / fs::path(name).relative_path(), ec);
+  // Links resolved, dangling ones too: writing through one must not land outside either.
+  const Expected<fs::path> resolved = scene::resolvePath(to_dir / fs::path(name).relative_path());
+  const fs::path to = resolved ? *resolved : fs::path();
   const fs::path rel = to.lexically_relative(to_dir);
-  if (ec || name.empty() || name.front() == '/' || rel.empty() || *rel.begin() == "..")
+  if (!resolved || name.empty() || name.front() == '/' || rel.empty() || *rel.begin() == "..")
     return invalidInput("glTF writer: image uri '{}' would be copied outside the output's folder", uri.substr(0, 120));
   return to;
 }
@@ -344,7 +345,9 @@ Status writeGltfWithLightmapUv(const std::string& in_path, const scene::Scene& s
 
   const fs::path out_fs(out_path);
   if (!model.buffers.empty()) model.buffers[0].uri = out_glb ? "" : out_fs.stem().string() + ".bin";
-  ImageCopy images{&*files, fs::weakly_canonical(fs::absolute(out_fs).parent_path(), ec), Status::ok()};
+  Expected<fs::path> out_dir = scene::resolvePath(fs::absolute(out_fs).parent_path());
+  if (!out_dir) return out_dir.status();
+  ImageCopy images{&*files, *out_dir, Status::ok()};
   tinygltf::TinyGLTF writer;  // default file callbacks: it writes the output, which the reader may not
   writer.SetImageWriter(&copyImageFile, &images);
   if (!writer.WriteGltfSceneToFile(&model, out_path, /*embedImages=*/false, /*embedBuffers=*/false,

@@ -6,6 +6,7 @@
 
 #include <cerrno>
 #include <cstring>
+#include <deque>
 #include <vector>
 
 #include <nlohmann/json.hpp>
@@ -38,9 +39,9 @@ bool acceptedPath(const SceneFiles& files, const std::string& path, fs::path* ca
   const std::string joined_absolute = files.folder().string() + "//";
   if (files.access().allow_outside_folder && path.rfind(joined_absolute, 0) == 0)
     p = fs::path(path.substr(joined_absolute.size() - 1));
-  std::error_code ec;
-  *canonical = fs::weakly_canonical(p, ec);
-  if (ec) return false;
+  Expected<fs::path> resolved = resolvePath(p);
+  if (!resolved) return false;
+  *canonical = std::move(resolved).value();
   return files.access().allow_outside_folder || files.insideFolder(*canonical);
 }
 
@@ -74,6 +75,39 @@ bool writeWholeFile(std::string* err, const std::string&, const std::vector<unsi
 }
 
 }  // namespace
+
+Expected<fs::path> resolvePath(const fs::path& path) {
+  constexpr int kMaxLinks = 40;  // as the kernel's ELOOP limit
+  std::error_code ec;
+  const fs::path absolute = fs::absolute(path, ec);
+  if (ec) return ioError("{}: cannot make the path absolute: {}", path.string(), ec.message());
+  const fs::path relative = absolute.relative_path();
+  std::deque<fs::path> rest(relative.begin(), relative.end());
+  fs::path done = absolute.root_path();
+  int links = 0;
+  while (!rest.empty()) {
+    const fs::path part = rest.front();
+    rest.pop_front();
+    if (part.empty() || part == ".") continue;
+    if (part == "..") {
+      done = done.parent_path();
+      continue;
+    }
+    const fs::path next = done / part;
+    const fs::file_status st = fs::symlink_status(next, ec);
+    if (ec || !fs::is_symlink(st)) {  // a directory, a file, or nothing: taken as named
+      done = next;
+      continue;
+    }
+    if (++links > kMaxLinks) return ioError("{}: too many levels of symbolic links", path.string());
+    const fs::path target = fs::read_symlink(next, ec);
+    if (ec) return ioError("{}: cannot read the link {}: {}", path.string(), next.string(), ec.message());
+    const fs::path target_rest = target.relative_path();
+    rest.insert(rest.begin(), target_rest.begin(), target_rest.end());
+    if (target.is_absolute()) done = target.root_path();
+  }
+  return done;
+}
 
 Expected<std::string> readRegularFile(const fs::path& path, std::string_view what) {
   // O_NONBLOCK: opening a FIFO for reading would otherwise wait for a writer forever.
@@ -110,11 +144,11 @@ Expected<SceneFiles> SceneFiles::forScene(const std::string& scene_path, const F
   std::error_code ec;
   const fs::path absolute = fs::absolute(scene_path, ec);
   if (ec) return ioError("{}: cannot resolve the path: {}", scene_path, ec.message());
-  fs::path folder = fs::weakly_canonical(absolute.parent_path(), ec);
-  if (ec) return ioError("{}: cannot resolve the scene's folder: {}", scene_path, ec.message());
+  Expected<fs::path> folder = resolvePath(absolute.parent_path());
+  if (!folder) return folder.status();
   SceneFiles files;
   files.scene_path_ = scene_path;
-  files.folder_ = std::move(folder);
+  files.folder_ = std::move(folder).value();
   files.access_ = access;
   return files;
 }
@@ -155,9 +189,9 @@ Expected<fs::path> SceneFiles::resolveUri(const std::string& uri, std::string_vi
   // Joined as tinygltf joins it (folder + '/' + name), so this is the file it would read; an
   // absolute name (allowed here only outside the folder rule) is itself, as acceptedPath has it.
   const fs::path joined = name.front() == '/' ? fs::path(name) : fs::path(folder_.string() + "/" + name);
-  std::error_code ec;
-  fs::path canonical = fs::weakly_canonical(joined, ec);
-  if (ec) return ioError("{}: {} '{}': cannot resolve the path: {}", scene_path_, what, shortUri(uri), ec.message());
+  Expected<fs::path> resolved = resolvePath(joined);
+  if (!resolved) return invalidInput("{}: {} '{}': {}", scene_path_, what, shortUri(uri), resolved.status().message());
+  const fs::path& canonical = *resolved;
   if (!access_.allow_outside_folder && !insideFolder(canonical)) {
     const bool lexically_inside = insideFolder(joined.lexically_normal());
     return invalidInput("{}: {} '{}' escapes the scene's folder{}; a scene may only name files inside its own "

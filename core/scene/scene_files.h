@@ -72,6 +72,11 @@ class SceneFiles {
   FileAccess access_;
 };
 
+// `path` made absolute with every symbolic link resolved, dangling ones included (their
+// target is followed even though it does not exist, unlike weakly_canonical), and `.`/`..`
+// folded: the place the kernel would look. Fails only on a link loop or unreadable link.
+Expected<std::filesystem::path> resolvePath(const std::filesystem::path& path);
+
 // Reads a whole regular file; a FIFO, device, socket or directory is refused without
 // blocking. `what` names the file in messages.
 Expected<std::string> readRegularFile(const std::filesystem::path& path, std::string_view what);

@@ -62,6 +62,22 @@ TEST(SceneFiles, UriLeavingTheFolderIsRefusedNamingTheEntry) {
   }
 }
 
+// A link to something missing outside is outside too (weakly_canonical would stop at the
+// dangling link and call the path inside): the answer must not depend on what exists there.
+TEST(SceneFiles, DanglingLinkOutIsOutside) {
+  TempDir dir;
+  fs::create_directories(dir / "scene");
+  fs::create_directory_symlink(dir / "elsewhere" / "missing", dir / "scene" / "assets");
+  const std::string path = testing::writeFile(dir / "scene" / "s.gltf", testing::triangleGltf("assets/geo.bin"));
+  Expected<Scene> scene = loadGltf(path);
+  ASSERT_FALSE(scene);
+  EXPECT_NE(scene.status().message().find("escapes the scene's folder"), std::string::npos)
+      << scene.status().message();
+  Expected<fs::path> resolved = resolvePath(dir / "scene" / "assets" / ".." / "x");
+  ASSERT_TRUE(resolved);
+  EXPECT_EQ(*resolved, *resolvePath(dir.path()) / "elsewhere" / "x");  // `..` taken after the link
+}
+
 TEST(SceneFiles, AllowOutsideFolderReadsThem) {
   for (Escape how : {Escape::kDotDot, Escape::kAbsolute, Escape::kSymlink}) {
     SCOPED_TRACE(testing::escapeName(how));

@@ -36,6 +36,7 @@ TEST(Confine, PathsOutsideTheRootsGetOneAnswerWhetherOrNotTheyExist) {
   fs::create_symlink(secret, root / "link-to-existing.gltf");
   fs::create_symlink(outside / "missing.gltf", root / "link-to-missing.gltf");
   fs::create_directory_symlink(outside, root / "dir-link");
+  fs::create_directory_symlink(outside / "no-such-dir", root / "dangling-dir-link");
   DaemonProcess d(tmp / "cache", rootFlags(root));
   ASSERT_TRUE(d.ok()) << d.error();
   auto rpc = d.rpc();
@@ -50,6 +51,7 @@ TEST(Confine, PathsOutsideTheRootsGetOneAnswerWhetherOrNotTheyExist) {
       root / "link-to-missing.gltf",
       root / "dir-link" / "secret.gltf",
       root / "dir-link" / "missing.gltf",
+      root / "dangling-dir-link" / "scene.gltf",
   };
   std::set<std::pair<int, std::string>> answers;
   for (const fs::path& p : probes) {
