@@ -249,7 +249,7 @@ TEST(GltfWriter, ImageCopiesStayInsideTheOutputFolder) {
       {"bufferView": 0, "componentType": 5126, "count": 3, "type": "VEC3", "min": [0, 0, -1], "max": [1, 0, 0]},
       {"bufferView": 1, "componentType": 5123, "count": 3, "type": "SCALAR"}],
     "bufferViews": [{"buffer": 0, "byteOffset": 0, "byteLength": 36}, {"buffer": 0, "byteOffset": 36, "byteLength": 6}],
-    "buffers": [{"byteLength": 42, "uri": "data:application/octet-stream;base64,)" + base64(bin) + R"("}]
+    "buffers": [{"byteLength": 44, "uri": "data:application/octet-stream;base64,)" + base64(bin) + R"("}]
   })";
   lightlink::testing::TempDir tmp;
   fs::create_directories(tmp / "scene");
