@@ -10,6 +10,7 @@
 #include <nlohmann/json.hpp>
 
 #include "service/auth.h"
+#include "service/scene_roots.h"
 
 namespace lightlink::service {
 namespace {
@@ -51,6 +52,14 @@ Status applyConfigFile(const std::string& path, DaemonConfig& c) {
     if (key == "listen") s = str(c.listen);
     else if (key == "port_file") s = str(c.port_file);
     else if (key == "cache_dir") s = str(c.cache_dir);
+    else if (key == "scene_roots") {
+      if (!v.is_array()) return invalidInput("--config {}: 'scene_roots' must be an array of directories", path);
+      c.scene_roots.clear();
+      for (const auto& e : v) {
+        if (!e.is_string()) return invalidInput("--config {}: 'scene_roots' must be an array of strings", path);
+        c.scene_roots.push_back(e.get<std::string>());
+      }
+    }
     else if (key == "token") s = str(c.token);  // a config file is not visible in ps, argv is
     else if (key == "allow_plaintext_token") {
       if (!v.is_boolean()) return invalidInput("--config {}: 'allow_plaintext_token' must be true or false", path);
@@ -113,6 +122,9 @@ void declareFlags(CLI::App& app, DaemonConfig& c, std::string& config_path, std:
   app.add_option("--port-file", c.port_file, "Write the bound port (a decimal number) to this file once listening");
   app.add_option("--cache-dir", c.cache_dir,
                  "Directory for artifacts, inline scenes and sessions.json (required)");
+  app.add_option("--scene-root", c.scene_roots,
+                 "Directory under which OpenScene may open scenes by path (repeatable); none: uploads only")
+      ->allow_extra_args(false);
   // Declared only to refuse it with a useful message: argv is visible to every user in ps.
   app.add_option("--token", argv_token,
                  "Refused: a token in argv is visible in ps; use --token-file or $LIGHTLINKD_TOKEN");
@@ -187,6 +199,7 @@ Status DaemonConfig::validate() const {
     return invalidInput("--listen '{}' is not a loopback address and TLS is off: the token would cross the network "
                         "in clear; give --tls-cert and --tls-key, or --allow-plaintext-token to accept that",
                         listen);
+  if (auto roots = SceneRoots::resolve(scene_roots); !roots) return roots.status();
   if (backend != "auto" && backend != "cpu" && backend != "gpu")
     return invalidInput("--backend '{}' must be auto, cpu or gpu", backend);
   if (log_level != "trace" && log_level != "debug" && log_level != "info" && log_level != "warn" &&

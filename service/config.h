@@ -31,6 +31,7 @@ struct DaemonConfig {
   std::string listen = "127.0.0.1:50051";  // host:port; port 0 picks a free one
   std::string port_file;                   // written (atomically) with the bound port
   std::string cache_dir;                   // artifacts, inline scenes, sessions.json
+  std::vector<std::string> scene_roots;    // OpenScene by path only under these (none: uploads only)
   std::string token;                       // daemon bearer token (--token-file, $LIGHTLINKD_TOKEN, config)
   bool allow_plaintext_token = false;      // a token on a non-loopback address without TLS
   std::string tls_cert, tls_key;           // PEM files: serve TLS when both are set

@@ -112,6 +112,9 @@ SceneRegistry::SceneRegistry(const DaemonConfig& config)
       sessions_path_((fs::path(config.cache_dir) / "sessions.json").string()),
       journal_(std::make_shared<UpdateJournal>((fs::path(config.cache_dir) / "sessions.journal").string())) {
   journal_->onLarge(kCompactBytes, [this] { markDirty(); });
+  // validate() checked the roots at start; one that has gone since is dropped, not trusted.
+  if (auto roots = SceneRoots::resolve(config.scene_roots)) roots_ = std::move(roots).value();
+  else logEvent(LogLevel::kError, "scene_roots_unusable", {{"error", roots.status().message()}});
   persist_thread_ = std::thread([this] { persistLoop(); });
 }
 
@@ -228,9 +231,12 @@ Expected<std::shared_ptr<SceneSession>> SceneRegistry::open(const v1::OpenSceneR
   if (request.source_case() == v1::OpenSceneRequest::kPath) {
     if (request.path().empty()) return invalidInput("path: must not be empty");
     if (request.path().size() > kMaxPathBytes) return invalidInput("path: longer than {} bytes", kMaxPathBytes);
+    // Outside the roots nothing is looked at, so the answer cannot tell what exists there.
+    auto admitted = roots_.admit(request.path());
+    if (!admitted) return admitted.status();
     std::error_code ec;
-    if (!fs::is_regular_file(request.path(), ec)) return notFound("path: no scene file '{}'", request.path());
-    identity.source_path = request.path();
+    if (!fs::is_regular_file(*admitted, ec)) return notFound("path: no scene file '{}'", request.path());
+    identity.source_path = *admitted;  // canonical: what was checked is what gets read
     identity.source_label = request.path();
   } else if (request.source_case() == v1::OpenSceneRequest::kGltfBytes) {
     auto stored = storeInlineScene(request.gltf_bytes(), &staged);
@@ -378,6 +384,10 @@ void SceneRegistry::restoreAll(std::vector<SessionRecord> records) {
     auto params = paramsFromJson(r.params);
     auto lights = relight::LightSet::fromJson(r.lights);
     Status why = !params ? params.status() : !lights ? lights.status() : Status{};
+    // The roots may have changed since the scene was opened; uploaded scenes live in the cache.
+    const bool uploaded = fs::path(r.source_path).parent_path() == fs::path(config_.cache_dir) / "inline";
+    if (why && !uploaded)
+      if (auto admitted = roots_.admit(r.source_path); !admitted) why = admitted.status();
     if (why) {
       SessionIdentity identity{r.id, r.token, r.name, r.source_path, r.source_label, *params};
       v1::OpenSceneRequest request = *params;

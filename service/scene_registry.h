@@ -30,6 +30,7 @@
 #include "core/common/status.h"
 #include "proto/lightlink.pb.h"
 #include "service/config.h"
+#include "service/scene_roots.h"
 #include "service/scene_session.h"
 #include "service/session_store.h"
 #include "service/update_journal.h"
@@ -43,6 +44,8 @@ class SceneRegistry {
   SceneRegistry(const SceneRegistry&) = delete;
   SceneRegistry& operator=(const SceneRegistry&) = delete;
 
+  // Where OpenScene may name a scene by path (open() checks it too).
+  const SceneRoots& sceneRoots() const { return roots_; }
   // Opens a scene (request validated here); `progress` sees the precompute stages.
   Expected<std::shared_ptr<SceneSession>> open(const v1::OpenSceneRequest& request, Progress* progress);
   // Re-opens the scenes of sessions.json (same ids, tokens, light sets, versions) on a
@@ -97,6 +100,7 @@ class SceneRegistry {
   void closeAll();
 
   DaemonConfig config_;
+  SceneRoots roots_;  // where OpenScene may name a scene by path
   std::string sessions_path_;
   mutable std::mutex mutex_;
   std::map<std::string, std::shared_ptr<SceneSession>> scenes_;

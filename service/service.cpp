@@ -310,6 +310,10 @@ grpc::Status LightlinkService::OpenScene(grpc::ServerContext* ctx, const v1::Ope
     return grpcError(grpc::StatusCode::RESOURCE_EXHAUSTED, "streams: too many concurrent streams for this client");
   // Cheap checks first, so a bad request never waits behind a precompute.
   if (auto o = precomputeOptionsFrom(*request); !o) return toGrpc(o.status());
+  // Outside the scene roots: one answer for every path, existing or not (scene_roots.h).
+  if (request->source_case() == v1::OpenSceneRequest::kPath)
+    if (auto admitted = registry_.sceneRoots().admit(request->path()); !admitted)
+      return grpcError(grpc::StatusCode::PERMISSION_DENIED, admitted.status().message());
   const int opening = ++opening_;
   struct Release {
     std::atomic<int>& n;

@@ -457,7 +457,8 @@ int main(int argc, char** argv) {
     d.binary = a.daemon;
     d.cpus = daemon_cpus;
     d.cache_dir = a.cache_dir;
-    d.extra = {"--no-restore"};
+    // The scene's folder is the daemon's scene root: it opens that scene by path.
+    d.extra = {"--no-restore", "--scene-root", std::filesystem::absolute(a.scene).parent_path().string()};
     if (a.bounces >= 0) d.extra.insert(d.extra.end(), {"--bounces", std::to_string(a.bounces)});
     if (a.progressive) d.extra.push_back("--progressive");
     d.extra.insert(d.extra.end(), a.daemon_flags.begin(), a.daemon_flags.end());

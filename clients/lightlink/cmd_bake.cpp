@@ -8,6 +8,7 @@
 
 #include "clients/lightlink/commands.h"
 #include "clients/lightlink/exit_codes.h"
+#include "clients/lightlink/scene_access.h"
 #include "clients/lightlink/progress_bar.h"
 #include "core/charts/gltf_writer.h"
 #include "core/output/output.h"
@@ -51,6 +52,7 @@ int runBake(const BakeArgs& args) {
   // Load the scene, then reuse a matching artifact or precompute and save one.
   precompute::ResidentRequest request;
   request.scene_path = args.scene_path;
+  request.load.files = sceneFileAccess(args.allow_outside_scene);
   request.options = *options;
   request.cache_dir = cache_dir.string();
   request.use_cache = !args.no_cache;
@@ -96,7 +98,9 @@ int runBake(const BakeArgs& args) {
   const std::string gltf_name = fs::path(args.scene_path).stem().string() + "_lm" +
                                 (fs::path(args.scene_path).extension() == ".glb" ? ".glb" : ".gltf");
   if (atlas.generated) {
-    if (Status s = charts::writeGltfWithLightmapUv(args.scene_path, scene, atlas, (out / gltf_name).string()); !s)
+    if (Status s = charts::writeGltfWithLightmapUv(args.scene_path, scene, atlas, (out / gltf_name).string(),
+                                                       request.load.files);
+        !s)
       return reportError(kCmd, s);
   }
 

@@ -11,6 +11,7 @@
 
 #include "clients/lightlink/commands.h"
 #include "clients/lightlink/exit_codes.h"
+#include "clients/lightlink/scene_access.h"
 #include "clients/lightlink/progress_bar.h"
 #include "core/common/png.h"
 #include "core/output/output.h"
@@ -49,7 +50,9 @@ int runCompare(const CompareArgs& args) {
     return reportError(kCmd, invalidInput("--bounces {} is out of range (0..256)", args.max_bounces));
   auto options = precompute::preset(args.preset);
   if (!options) return reportError(kCmd, options.status());
-  auto scene = scene::loadGltf(args.scene_path);
+  scene::LoadOptions load;
+  load.files = sceneFileAccess(args.allow_outside_scene);
+  auto scene = scene::loadGltf(args.scene_path, load);
   if (!scene) return reportError(kCmd, scene.status());
   auto lights = relight::LightSet::fromScene(*scene);
   if (!args.lights_path.empty())

@@ -6,6 +6,7 @@
 
 #include "clients/lightlink/commands.h"
 #include "clients/lightlink/exit_codes.h"
+#include "clients/lightlink/scene_access.h"
 #include "clients/lightlink/progress_bar.h"
 #include "core/precompute/precompute.h"
 #include "core/scene/load.h"
@@ -79,10 +80,12 @@ int runPrecompute(const PrecomputeArgs& args) {
   if (!options) return reportError("precompute", options.status());
   if (args.subdivide < 0 || args.subdivide > 4)
     return reportError("precompute", invalidInput("--subdivide {} is out of range (0..4)", args.subdivide));
-  auto scene = scene::loadGltf(args.scene_path);
+  scene::LoadOptions load;
+  load.files = sceneFileAccess(args.allow_outside_scene);
+  auto scene = scene::loadGltf(args.scene_path, load);
   if (!scene) return reportError("precompute", scene.status());
   if (args.subdivide > 0) scene::subdivide(*scene, args.subdivide);
-  auto key = precompute::cacheKeyFor(args.scene_path, *options);
+  auto key = precompute::cacheKeyFor(args.scene_path, *options, load.files);
   if (!key) return reportError("precompute", key.status());
   ProgressBar bar(!args.quiet);
   auto p = precompute::run(*scene, *options, &bar);

@@ -6,6 +6,7 @@
 
 #include "clients/lightlink/commands.h"
 #include "clients/lightlink/exit_codes.h"
+#include "clients/lightlink/scene_access.h"
 #include "clients/viewer/render.h"
 #include "core/common/png.h"
 #include "core/scene/load.h"
@@ -14,7 +15,9 @@ namespace lightlink::cli {
 
 int runRender(const RenderArgs& args) {
   constexpr const char* kCmd = "render";
-  auto scene = scene::loadGltf(args.scene_path);
+  scene::LoadOptions load;
+  load.files = sceneFileAccess(args.allow_outside_scene);
+  auto scene = scene::loadGltf(args.scene_path, load);
   if (!scene) return reportError(kCmd, scene.status());
   bool any_uv1 = false;
   for (const auto& m : scene->meshes) any_uv1 |= m.is_static && m.hasLightmapUv();

@@ -5,6 +5,7 @@
 
 #include "clients/lightlink/commands.h"
 #include "clients/lightlink/exit_codes.h"
+#include "clients/lightlink/scene_access.h"
 #include "core/charts/unwrap_command.h"
 #include "core/precompute/precompute.h"
 
@@ -13,6 +14,7 @@ namespace lightlink::cli {
 int runUnwrap(const UnwrapArgs& args) {
   charts::UnwrapCommand command;
   command.input_path = args.scene_path;
+  command.files = sceneFileAccess(args.allow_outside_scene);
   command.output_path = args.output_path;
   command.preview_png = args.preview_png;
   command.report_json = args.report_json;

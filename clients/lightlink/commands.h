@@ -13,6 +13,7 @@ namespace lightlink::cli {
 struct InspectArgs {
   std::string scene_path;
   bool json = false;
+  bool allow_outside_scene = false;  // read files the scene names outside its folder
 };
 int runInspect(const InspectArgs& args);
 
@@ -25,6 +26,7 @@ struct UnwrapArgs {
   std::optional<int> resolution;
   int gutter_texels = 2;
   bool json = false;         // print the report as JSON instead of text
+  bool allow_outside_scene = false;  // read files the scene names outside its folder
 };
 int runUnwrap(const UnwrapArgs& args);
 
@@ -43,6 +45,7 @@ struct PrecomputeArgs {
   std::optional<int> resolution;
   int subdivide = 0;              // split every triangle into 4^N first (scale tests)
   bool quiet = false;
+  bool allow_outside_scene = false;  // read files the scene names outside its folder
 };
 int runPrecompute(const PrecomputeArgs& args);
 
@@ -58,6 +61,7 @@ struct BakeArgs {
   bool float_exr = false;
   bool no_cache = false;           // recompute even when a matching artifact exists
   bool quiet = false;
+  bool allow_outside_scene = false;  // read files the scene names outside its folder
 };
 int runBake(const BakeArgs& args);
 
@@ -71,6 +75,7 @@ struct RenderArgs {
   int width = 512, height = 512;
   float exposure = 0.0f;
   bool quiet = false;
+  bool allow_outside_scene = false;  // read files the scene names outside its folder
 };
 int runRender(const RenderArgs& args);
 
@@ -85,6 +90,7 @@ struct CompareArgs {
   double time_budget_s = 0.0;     // for the reference; 0 = none
   int max_bounces = 64;           // the baker's bounce cap (threshold 1e-4)
   bool quiet = false;
+  bool allow_outside_scene = false;  // read files the scene names outside its folder
 };
 int runCompare(const CompareArgs& args);
 

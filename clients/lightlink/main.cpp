@@ -34,6 +34,7 @@ int main(int argc, char** argv) {
   auto* inspect_cmd = app.add_subcommand("inspect", "Load and validate a glTF scene and print a summary");
   inspect_cmd->add_option("scene", inspect.scene_path, "glTF scene (.gltf or .glb)")->required();
   inspect_cmd->add_flag("--json", inspect.json, "Print the summary as JSON");
+  inspect_cmd->add_flag("--allow-outside-scene", inspect.allow_outside_scene, "Read files the scene names outside its own folder (only for scenes you trust)");
 
   UnwrapArgs unwrap;
   auto* unwrap_cmd = app.add_subcommand("unwrap", "Generate lightmap UVs (TEXCOORD_1) and write the glTF back");
@@ -45,6 +46,7 @@ int main(int argc, char** argv) {
   unwrap_cmd->add_option("--resolution", unwrap.resolution, "Atlas width = height in texels (1..16384)");
   unwrap_cmd->add_option("--gutter", unwrap.gutter_texels, "Empty texels between charts")->capture_default_str();
   unwrap_cmd->add_flag("--json", unwrap.json, "Print the report as JSON");
+  unwrap_cmd->add_flag("--allow-outside-scene", unwrap.allow_outside_scene, "Read files the scene names outside its own folder (only for scenes you trust)");
 
   PrecomputeArgs pre;
   auto* pre_cmd = app.add_subcommand("precompute", "Surfels, hierarchy, caches and links into one artifact (.llk)");
@@ -63,6 +65,7 @@ int main(int argc, char** argv) {
   pre_cmd->add_option("--resolution", pre.resolution, "Lightmap resolution in texels");
   pre_cmd->add_option("--subdivide", pre.subdivide, "Split every triangle into 4^N first (0..4)");
   pre_cmd->add_flag("-q,--quiet", pre.quiet, "No progress bar, no summary");
+  pre_cmd->add_flag("--allow-outside-scene", pre.allow_outside_scene, "Read files the scene names outside its own folder (only for scenes you trust)");
 
   BakeArgs bake;
   auto* bake_cmd = app.add_subcommand("bake", "Unwrap, precompute (or reuse), relight and write lightmaps, grid, report");
@@ -78,6 +81,7 @@ int main(int argc, char** argv) {
   bake_cmd->add_flag("--float", bake.float_exr, "32-bit float EXR instead of half");
   bake_cmd->add_flag("--no-cache", bake.no_cache, "Recompute even when a matching artifact exists");
   bake_cmd->add_flag("-q,--quiet", bake.quiet, "No progress bar, no summary");
+  bake_cmd->add_flag("--allow-outside-scene", bake.allow_outside_scene, "Read files the scene names outside its own folder (only for scenes you trust)");
 
   RenderArgs render;
   auto* render_cmd = app.add_subcommand("render", "Render a camera view lit by a bake's lightmap and grid, to PNG");
@@ -92,6 +96,7 @@ int main(int argc, char** argv) {
   render_cmd->add_option("--height", render.height, "Image height")->capture_default_str();
   render_cmd->add_option("--exposure", render.exposure, "Exposure scale (0 = auto)");
   render_cmd->add_flag("-q,--quiet", render.quiet, "No summary");
+  render_cmd->add_flag("--allow-outside-scene", render.allow_outside_scene, "Read files the scene names outside its own folder (only for scenes you trust)");
 
   CompareArgs cmp;
   auto* cmp_cmd = app.add_subcommand("compare", "Bake a scene and measure its lightmap against the path-traced reference");
@@ -106,6 +111,7 @@ int main(int argc, char** argv) {
   cmp_cmd->add_option("--time-budget", cmp.time_budget_s, "Seconds for the reference (0 = none)");
   cmp_cmd->add_option("--bounces", cmp.max_bounces, "Baker's bounce cap")->capture_default_str();
   cmp_cmd->add_flag("-q,--quiet", cmp.quiet, "No progress bar, no summary");
+  cmp_cmd->add_flag("--allow-outside-scene", cmp.allow_outside_scene, "Read files the scene names outside its own folder (only for scenes you trust)");
 
 #ifdef LIGHTLINK_WITH_SERVICE
   auto* serve_cmd = app.add_subcommand("serve", "Run the lightlink daemon in this process (same flags as lightlinkd)");

@@ -11,6 +11,9 @@ Uses only Debian's python3-grpcio and python3-protobuf and the stubs the build g
   lightmap.json     version, size, bands, layout, timings
   lightmap.png      irradiance preview (Reinhard, sRGB), written with zlib + struct
 
+The daemon reads the scene by path, so it must lie under one of its --scene-root folders
+(e.g. `lightlinkd --cache-dir c --scene-root clients/demo`).
+
 Example:
   PYTHONPATH=build/clients/python/lightlink_stubs /usr/bin/python3 clients/python/move_light.py \\
       --target 127.0.0.1:50051 --scene clients/demo/cornell_box.gltf --out out/python

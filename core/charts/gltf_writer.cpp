@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cstring>
 #include <filesystem>
+#include <fstream>
 #include <limits>
 #include <map>
 
@@ -20,22 +21,55 @@ bool skipImageLoad(tinygltf::Image*, const int, std::string*, std::string*, int,
 }
 
 struct ImageCopy {
-  fs::path from_dir, to_dir;
-  bool failed = false;
+  const scene::SceneFiles* from;
+  fs::path to_dir;  // canonical
+  Status status;
 };
+
+// Where an image uri lands next to the output: only inside the output's folder (a uri
+// with `..` or an absolute path, possible when reading outside was allowed, is refused
+// rather than written wherever it points).
+Expected<fs::path> copyTarget(const fs::path& to_dir, const std::string& uri) {
+  const std::string name = scene::SceneFiles::decodeUri(uri);
+  // Links resolved, dangling ones too: writing through one must not land outside either.
+  const Expected<fs::path> resolved = scene::resolvePath(to_dir / fs::path(name).relative_path());
+  const fs::path to = resolved ? *resolved : fs::path();
+  const fs::path rel = to.lexically_relative(to_dir);
+  if (!resolved || name.empty() || name.front() == '/' || rel.empty() || *rel.begin() == "..")
+    return invalidInput("glTF writer: image uri '{}' would be copied outside the output's folder", uri.substr(0, 120));
+  return to;
+}
 
 // ...and the writer keeps the uri, copying the file next to the output if needed.
 // Returning false tells tinygltf to write the original uri unchanged.
 bool copyImageFile(const std::string*, const std::string*, const tinygltf::Image* image, bool, std::string*,
                    void* user) {
   auto* ctx = static_cast<ImageCopy*>(user);
-  if (image->uri.empty() || image->uri.rfind("data:", 0) == 0 || ctx->from_dir == ctx->to_dir) return false;
-  const fs::path from = ctx->from_dir / image->uri, to = ctx->to_dir / image->uri;
+  if (!ctx->status || image->uri.empty() || image->uri.rfind("data:", 0) == 0 || ctx->from->folder() == ctx->to_dir)
+    return false;
+  Expected<fs::path> from = ctx->from->resolveUri(image->uri, "image uri");
+  if (!from) {
+    ctx->status = from.status();
+    return false;
+  }
   std::error_code ec;
-  fs::create_directories(to.parent_path(), ec);
-  if (fs::exists(from, ec) && !fs::equivalent(from, to, ec))
-    fs::copy_file(from, to, fs::copy_options::overwrite_existing, ec);
-  if (ec) ctx->failed = true;
+  if (!fs::exists(*from, ec)) return false;  // the loader warned about the missing image already
+  Expected<fs::path> to = copyTarget(ctx->to_dir, image->uri);
+  if (!to) {
+    ctx->status = to.status();
+    return false;
+  }
+  std::error_code same_ec;  // `to` may not exist yet: that is not an error
+  if (fs::equivalent(*from, *to, same_ec)) return false;
+  Expected<std::string> bytes = scene::readRegularFile(*from, fmt::format("glTF writer: image '{}'", image->uri));
+  if (!bytes) {
+    ctx->status = bytes.status();
+    return false;
+  }
+  fs::create_directories(to->parent_path(), ec);
+  std::ofstream out(*to, std::ios::binary | std::ios::trunc);
+  out.write(bytes->data(), static_cast<std::streamsize>(bytes->size()));
+  if (ec || !out.flush()) ctx->status = ioError("glTF writer: could not copy image '{}' to {}", image->uri, to->string());
   return false;
 }
 
@@ -204,7 +238,7 @@ bool endsWith(const std::string& s, const std::string& suffix) {
 }  // namespace
 
 Status writeGltfWithLightmapUv(const std::string& in_path, const scene::Scene& scene, const LightmapAtlas& atlas,
-                               const std::string& out_path) {
+                               const std::string& out_path, const scene::FileAccess& access) {
   const bool out_glb = endsWith(out_path, ".glb");
   if (!out_glb && !endsWith(out_path, ".gltf"))
     return invalidInput("glTF writer: output '{}' must end in .gltf or .glb", out_path);
@@ -214,12 +248,23 @@ Status writeGltfWithLightmapUv(const std::string& in_path, const scene::Scene& s
   if (atlas.meshes.size() != scene.meshes.size())
     return internalError("glTF writer: atlas has {} meshes, scene {}", atlas.meshes.size(), scene.meshes.size());
 
+  Expected<scene::SceneFiles> files = scene::SceneFiles::forScene(in_path, access);
+  if (!files) return files.status();
+  Expected<std::string> bytes = files->readScene();
+  if (!bytes) return bytes.status();
+  if (bytes->size() > std::numeric_limits<unsigned int>::max())
+    return invalidInput("glTF writer: '{}' is too large", in_path);
   tinygltf::TinyGLTF io;
+  files->install(io);
   io.SetImageLoader(&skipImageLoad, nullptr);
   tinygltf::Model model;
   std::string err, warn;
-  const bool ok = endsWith(in_path, ".glb") ? io.LoadBinaryFromFile(&model, &err, &warn, in_path)
-                                            : io.LoadASCIIFromFile(&model, &err, &warn, in_path);
+  const auto size = static_cast<unsigned int>(bytes->size());
+  const bool ok = bytes->compare(0, 4, "glTF") == 0
+                      ? io.LoadBinaryFromMemory(&model, &err, &warn,
+                                                reinterpret_cast<const unsigned char*>(bytes->data()), size,
+                                                files->folder().string())
+                      : io.LoadASCIIFromString(&model, &err, &warn, bytes->data(), size, files->folder().string());
   if (!ok) return ioError("glTF writer: cannot read '{}': {}", in_path, err);
 
   ModelEditor edit(model);
@@ -300,12 +345,15 @@ Status writeGltfWithLightmapUv(const std::string& in_path, const scene::Scene& s
 
   const fs::path out_fs(out_path);
   if (!model.buffers.empty()) model.buffers[0].uri = out_glb ? "" : out_fs.stem().string() + ".bin";
-  ImageCopy images{fs::absolute(fs::path(in_path)).parent_path(), fs::absolute(out_fs).parent_path()};
-  io.SetImageWriter(&copyImageFile, &images);
-  if (!io.WriteGltfSceneToFile(&model, out_path, /*embedImages=*/false, /*embedBuffers=*/false,
-                               /*prettyPrint=*/true, /*writeBinary=*/out_glb))
+  Expected<fs::path> out_dir = scene::resolvePath(fs::absolute(out_fs).parent_path());
+  if (!out_dir) return out_dir.status();
+  ImageCopy images{&*files, *out_dir, Status::ok()};
+  tinygltf::TinyGLTF writer;  // default file callbacks: it writes the output, which the reader may not
+  writer.SetImageWriter(&copyImageFile, &images);
+  if (!writer.WriteGltfSceneToFile(&model, out_path, /*embedImages=*/false, /*embedBuffers=*/false,
+                                   /*prettyPrint=*/true, /*writeBinary=*/out_glb))
     return ioError("glTF writer: cannot write '{}'", out_path);
-  if (images.failed) return ioError("glTF writer: could not copy images next to '{}'", out_path);
+  if (!images.status) return images.status;
   return Status::ok();
 }
 

@@ -25,13 +25,15 @@
 #include "core/charts/unwrap.h"
 #include "core/common/status.h"
 #include "core/scene/scene.h"
+#include "core/scene/scene_files.h"
 
 namespace lightlink::charts {
 
 // `scene` and `atlas` are unwrap()'s output for the scene loaded from `in_path`. The output
 // is glTF JSON or binary .glb by the extension of `out_path`, which must differ from
-// `in_path`.
+// `in_path`. The input and the images it names are read under `access` (scene_files.h),
+// as the loader read them; a copied image never lands outside the output's folder.
 Status writeGltfWithLightmapUv(const std::string& in_path, const scene::Scene& scene, const LightmapAtlas& atlas,
-                               const std::string& out_path);
+                               const std::string& out_path, const scene::FileAccess& access = {});
 
 }  // namespace lightlink::charts

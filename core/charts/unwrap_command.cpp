@@ -14,12 +14,15 @@ Expected<UnwrapReport> runUnwrap(const UnwrapCommand& command) {
   if (Status s = validate(command.options); !s) return s;
   scene::LoadOptions load_options;
   load_options.load_textures = false;  // geometry only: textures are copied, never decoded
+  load_options.files = command.files;
   Expected<scene::Scene> scene = scene::loadGltf(command.input_path, load_options);
   if (!scene) return scene.status();
   Expected<UnwrapResult> result = unwrap(*scene, command.options);
   if (!result) return result.status();
   if (!command.output_path.empty()) {
-    if (Status s = writeGltfWithLightmapUv(command.input_path, *scene, result->atlas, command.output_path); !s)
+    if (Status s = writeGltfWithLightmapUv(command.input_path, *scene, result->atlas, command.output_path,
+                                           command.files);
+        !s)
       return s;
   }
   if (!command.preview_png.empty()) {

@@ -8,6 +8,7 @@
 
 #include "core/charts/unwrap.h"
 #include "core/common/status.h"
+#include "core/scene/scene_files.h"
 
 namespace lightlink::charts {
 
@@ -17,6 +18,7 @@ struct UnwrapCommand {
   std::string preview_png;   // empty = no preview
   std::string report_json;   // empty = no JSON file
   UnwrapOptions options;
+  scene::FileAccess files;   // which files the scene may name (default: its own folder only)
 };
 
 Expected<UnwrapReport> runUnwrap(const UnwrapCommand& command);

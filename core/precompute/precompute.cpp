@@ -789,29 +789,6 @@ Expected<LoadedPrecomputation> open(const std::string& path) {
 
 namespace {
 
-Expected<std::string> readBytes(const std::filesystem::path& path, std::string_view what) {
-  std::ifstream in(path, std::ios::binary);
-  if (!in) return notFound("cannot read {} {}", what, path.string());
-  std::ostringstream bytes;
-  bytes << in.rdbuf();
-  return bytes.str();
-}
-
-// glTF URIs are URI references: %XX escapes stand for bytes of the file name.
-std::string percentDecode(std::string_view uri) {
-  std::string out;
-  for (std::size_t i = 0; i < uri.size(); ++i) {
-    if (uri[i] == '%' && i + 2 < uri.size() && std::isxdigit(static_cast<unsigned char>(uri[i + 1])) &&
-        std::isxdigit(static_cast<unsigned char>(uri[i + 2]))) {
-      out.push_back(static_cast<char>(std::stoi(std::string(uri.substr(i + 1, 2)), nullptr, 16)));
-      i += 2;
-    } else {
-      out.push_back(uri[i]);
-    }
-  }
-  return out;
-}
-
 // The glTF JSON of a .gltf file or of a .glb's first chunk; empty when it cannot be found
 // (the loader reports malformed files; the key then covers the bytes alone).
 std::string_view gltfJson(const std::string& data) {
@@ -827,8 +804,11 @@ std::string_view gltfJson(const std::string& data) {
 
 }  // namespace
 
-Expected<std::uint64_t> cacheKeyFor(const std::string& scene_path, const PrecomputeOptions& options) {
-  auto data = readBytes(scene_path, "scene");
+Expected<std::uint64_t> cacheKeyFor(const std::string& scene_path, const PrecomputeOptions& options,
+                                    const scene::FileAccess& access) {
+  auto files = scene::SceneFiles::forScene(scene_path, access);
+  if (!files) return files.status();
+  auto data = files->readScene();
   if (!data) return data.status();
   // The key covers every file the scene reads, not just the .gltf: external buffers (.bin)
   // hold the geometry and images the albedo, so editing either must not reuse a stale
@@ -836,7 +816,6 @@ Expected<std::uint64_t> cacheKeyFor(const std::string& scene_path, const Precomp
   std::string keyed = std::move(data).value();
   const nlohmann::json j = nlohmann::json::parse(gltfJson(keyed), nullptr, /*allow_exceptions=*/false);
   if (!j.is_discarded() && j.is_object()) {
-    const std::filesystem::path dir = std::filesystem::path(scene_path).parent_path();
     std::string external;
     for (const char* list : {"buffers", "images"}) {
       const auto it = j.find(list);
@@ -846,7 +825,7 @@ Expected<std::uint64_t> cacheKeyFor(const std::string& scene_path, const Precomp
         if (!entry.is_object() || !entry.contains("uri") || !entry["uri"].is_string()) continue;
         const std::string uri = entry["uri"].get<std::string>();
         if (uri.rfind("data:", 0) == 0) continue;  // embedded: already in the bytes
-        auto bytes = readBytes(dir / percentDecode(uri), fmt::format("{}[{}].uri", list, i));
+        auto bytes = files->readUri(uri, fmt::format("{}[{}].uri", list, i));
         if (!bytes) return bytes.status();
         external += fmt::format("{}\n{}\n", uri, bytes->size());
         external += *bytes;

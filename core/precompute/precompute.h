@@ -28,6 +28,7 @@
 #include "core/hierarchy/tree.h"
 #include "core/links/links.h"
 #include "core/scene/scene.h"
+#include "core/scene/scene_files.h"
 #include "core/surfels/surfels.h"
 
 namespace lightlink::precompute {
@@ -149,7 +150,9 @@ struct LoadedPrecomputation {
 
 Expected<LoadedPrecomputation> open(const std::string& path);
 
-// Key for reusing an artifact: the scene file's bytes + options + format version.
-Expected<std::uint64_t> cacheKeyFor(const std::string& scene_path, const PrecomputeOptions& options);
+// Key for reusing an artifact: the scene file's bytes + options + format version. The files
+// the scene names are read under `access`, as the loader reads them (scene_files.h).
+Expected<std::uint64_t> cacheKeyFor(const std::string& scene_path, const PrecomputeOptions& options,
+                                    const scene::FileAccess& access = {});
 
 }  // namespace lightlink::precompute

@@ -74,7 +74,7 @@ Expected<ResidentScene> ResidentScene::openUnguarded(const ResidentRequest& requ
     auto scene = scene::loadGltf(request.scene_path, request.load);
     if (!scene) return scene.status();
     state->scene = std::move(scene).value();
-    auto key = cacheKeyFor(request.scene_path, request.options);
+    auto key = cacheKeyFor(request.scene_path, request.options, request.load.files);
     if (!key) return key.status();
     state->key = *key;
   }

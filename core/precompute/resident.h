@@ -35,7 +35,9 @@ struct ResidentRequest {
   PrecomputeOptions options;
   std::string cache_dir;    // artifacts as <cache_dir>/<key hex>.llk; created when missing
   bool use_cache = true;    // false: recompute even when a matching artifact exists (and replace it)
-  scene::LoadOptions load;  // how the scene is loaded, and its budgets (image size, triangles, lights)
+  // How the scene is loaded: which files it may name (default: its own folder only) and its
+  // budgets (image size, triangles, lights).
+  scene::LoadOptions load;
 };
 
 class ResidentScene {

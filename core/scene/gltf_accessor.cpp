@@ -131,8 +131,8 @@ Status readVec3(const Context& ctx, const AccessorView& view, std::vector<glm::v
     const std::uint8_t* p = view.data + i * view.stride_bytes;
     glm::vec3 v(load<float>(p), load<float>(p + 4), load<float>(p + 8));
     if (!finite(v.x) || !finite(v.y) || !finite(v.z)) {
-      return ctx.invalid(view.name, fmt::format("element {} is not finite ({}, {}, {})", i, v.x,
-                                                v.y, v.z));
+      // Which element, not its values: messages never quote the bytes of a buffer.
+      return ctx.invalid(view.name, fmt::format("element {} is not finite", i));
     }
     out[i] = v;
   }
@@ -157,7 +157,7 @@ Status readVec2(const Context& ctx, const AccessorView& view, std::vector<glm::v
         break;
     }
     if (!finite(v.x) || !finite(v.y)) {
-      return ctx.invalid(view.name, fmt::format("element {} is not finite ({}, {})", i, v.x, v.y));
+      return ctx.invalid(view.name, fmt::format("element {} is not finite", i));
     }
     out[i] = v;
   }

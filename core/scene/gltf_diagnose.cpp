@@ -93,9 +93,7 @@ class JsonPathFinder : public nlohmann::json_sax<nlohmann::json> {
   std::vector<Frame> frames_;
 };
 
-std::optional<Document> readDocument(const std::string& path, bool binary) {
-  std::ifstream in(path, std::ios::binary);
-  std::vector<char> bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+std::optional<Document> readDocument(const std::string& bytes, bool binary) {
   Document doc;
   std::string& text = doc.text;
   if (binary) {
@@ -214,9 +212,10 @@ std::string bufferName(std::size_t index, const nlohmann::json& b) {
 
 }  // namespace
 
-std::optional<Status> diagnoseLoadFailure(const std::string& path, bool binary,
+std::optional<Status> diagnoseLoadFailure(const SceneFiles& files, const std::string& bytes, bool binary,
                                           const std::string& tinygltf_error) {
-  std::optional<Document> doc = readDocument(path, binary);
+  const std::string& path = files.scenePath();
+  std::optional<Document> doc = readDocument(bytes, binary);
   if (!doc) return std::nullopt;
   if (doc->json.is_discarded()) {
     JsonPathFinder finder;
@@ -246,7 +245,6 @@ std::optional<Status> diagnoseLoadFailure(const std::string& path, bool binary,
 
   const auto buffers = j.find("buffers");
   if (buffers == j.end() || !buffers->is_array()) return std::nullopt;
-  const std::filesystem::path base = std::filesystem::path(path).parent_path();
   for (std::size_t i = 0; i < buffers->size(); ++i) {
     const nlohmann::json& b = (*buffers)[i];
     if (!b.is_object()) continue;
@@ -281,12 +279,15 @@ std::optional<Status> diagnoseLoadFailure(const std::string& path, bool binary,
       actual = base64DecodedBytes(uri);
       source = "its data URI";
     } else {
-      const std::filesystem::path file = base / uri;
+      // Resolved by the same rules as the loader: sizes of files outside the scene's folder
+      // are never looked at, so this message cannot reveal them.
+      Expected<std::filesystem::path> file = files.resolveUri(uri, object);
+      if (!file) return file.status();
       std::error_code ec;
-      if (!std::filesystem::is_regular_file(file, ec)) {
+      if (!std::filesystem::is_regular_file(*file, ec)) {
         return invalidInput("{}: {}: buffer file '{}' does not exist", path, object, uri);
       }
-      actual = static_cast<std::size_t>(std::filesystem::file_size(file, ec));
+      actual = static_cast<std::size_t>(std::filesystem::file_size(*file, ec));
       source = fmt::format("'{}'", uri);
     }
     if (byte_length > actual) {

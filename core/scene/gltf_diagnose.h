@@ -12,14 +12,15 @@
 #include <string>
 
 #include "core/common/status.h"
+#include "core/scene/scene_files.h"
 
 namespace lightlink::scene::gltf {
 
-// A precise Status for the failure of `path`, or nullopt when none of the known causes
-// applies (the caller then reports tinygltf's own message).
+// A precise Status for the failure of the scene `files` names (whose bytes are `bytes`), or
+// nullopt when none of the known causes applies (the caller then reports tinygltf's own message).
 // `tinygltf_error` is tinygltf's message; for its schema complaints ("'count' property is
 // not a positive integer") the offending member is located and named by JSON path.
-std::optional<Status> diagnoseLoadFailure(const std::string& path, bool binary,
+std::optional<Status> diagnoseLoadFailure(const SceneFiles& files, const std::string& bytes, bool binary,
                                           const std::string& tinygltf_error);
 
 // tinygltf's message, with data URIs cut short and the length capped for display.

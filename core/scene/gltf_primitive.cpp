@@ -137,8 +137,9 @@ Expected<MeshInstance> buildInstance(const Context& ctx, const PlacedNode& place
     readIndices(*indices, raw);
     for (std::size_t i = 0; i < raw.size(); ++i) {
       if (raw[i] >= vertex_count) {
-        return ctx.invalid(index_name, fmt::format("index {} (element {}) is out of range for {} "
-                                                   "vertices", raw[i], i, vertex_count));
+        // The value itself is not shown: messages never quote the bytes of a buffer.
+        return ctx.invalid(index_name, fmt::format("the index at element {} is out of range for {} vertices", i,
+                                                   vertex_count));
       }
     }
   } else {

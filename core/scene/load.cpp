@@ -4,8 +4,6 @@
 #include <cstdint>
 #include <cctype>
 #include <filesystem>
-#include <fstream>
-#include <iterator>
 #include <limits>
 #include <map>
 #include <optional>
@@ -33,21 +31,17 @@ constexpr double kDegenerateEdgeFraction = 1e-7;
 // Binary (.glb) by the "glTF" magic or the extension, JSON (.gltf) by the extension or a
 // leading '{'; anything else (an .obj, an .fbx) is named as unsupported rather than
 // reported as malformed JSON.
-Expected<bool> isBinaryGltf(const std::string& path) {
-  std::ifstream in(path, std::ios::binary);
-  if (!in) return ioError("{}: cannot open the file for reading", path);
-  char head[64] = {};
-  in.read(head, sizeof(head));
-  const auto got = static_cast<std::size_t>(in.gcount());
-  if (got >= 4 && std::string_view(head, 4) == "glTF") return true;
+Expected<bool> isBinaryGltf(const std::string& path, const std::string& bytes) {
+  const std::size_t got = std::min<std::size_t>(bytes.size(), 64);
+  if (got >= 4 && std::string_view(bytes.data(), 4) == "glTF") return true;
   std::string ext = std::filesystem::path(path).extension().string();
   std::transform(ext.begin(), ext.end(), ext.begin(),
                  [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
   if (ext == ".glb") return true;
   if (ext == ".gltf") return false;
   for (std::size_t i = 0; i < got; ++i) {
-    if (head[i] == '{') return false;
-    if (!std::isspace(static_cast<unsigned char>(head[i]))) break;
+    if (bytes[i] == '{') return false;
+    if (!std::isspace(static_cast<unsigned char>(bytes[i]))) break;
   }
   return unsupported("{}: is not a glTF file (expected .gltf JSON or .glb binary; convert "
                      "other formats to glTF 2.0 first)", path);
@@ -61,25 +55,18 @@ constexpr int kMaxJsonDepth = 256;
 
 // The JSON text of the file: all of a .gltf, the first (JSON) chunk of a .glb as far as the
 // file holds it. Empty when there is nothing to scan; tinygltf then names the problem.
-std::string jsonText(const std::string& path, bool binary) {
-  std::ifstream in(path, std::ios::binary);
-  if (!binary) return {std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
+std::string_view jsonText(const std::string& bytes, bool binary) {
+  if (!binary) return bytes;
   // GLB: magic, version, length (12 bytes), then chunk 0: length, type "JSON", data.
-  unsigned char head[20] = {};
-  if (!in.read(reinterpret_cast<char*>(head), sizeof(head))) return {};
+  constexpr std::size_t kHead = 20;
+  if (bytes.size() < kHead) return {};
+  const auto* head = reinterpret_cast<const unsigned char*>(bytes.data());
   const std::uint32_t json_bytes = std::uint32_t(head[12]) | std::uint32_t(head[13]) << 8 |
                                    std::uint32_t(head[14]) << 16 | std::uint32_t(head[15]) << 24;
-  std::error_code ec;
-  const std::uintmax_t size = std::filesystem::file_size(path, ec);
-  if (ec || size < sizeof(head)) return {};
-  std::string text(static_cast<std::size_t>(std::min<std::uintmax_t>(json_bytes, size - sizeof(head))), '\0');
-  in.read(text.data(), static_cast<std::streamsize>(text.size()));
-  text.resize(static_cast<std::size_t>(in.gcount()));
-  return text;
+  return std::string_view(bytes).substr(kHead, std::min<std::size_t>(json_bytes, bytes.size() - kHead));
 }
 
-Status checkJsonNesting(const std::string& path, bool binary) {
-  const std::string text = jsonText(path, binary);
+Status checkJsonNesting(const std::string& path, std::string_view text) {
   int depth = 0;
   bool in_string = false, escaped = false;
   for (std::size_t i = 0; i < text.size(); ++i) {
@@ -112,9 +99,13 @@ void addTinygltfWarnings(const std::string& path, const std::string& warn, Scene
   }
 }
 
-Status loadModel(const std::string& path, bool binary, const LoadOptions& options,
+Status loadModel(const SceneFiles& files, const std::string& bytes, bool binary, const LoadOptions& options,
                  tinygltf::Model& model, Scene& scene) {
+  const std::string& path = files.scenePath();
+  if (bytes.size() > std::numeric_limits<unsigned int>::max())
+    return invalidInput("{}: {} bytes is larger than tinygltf can parse", path, bytes.size());
   tinygltf::TinyGLTF loader;
+  files.install(loader);
   gltf::ImageDecodeState images;
   images.model = &model;
   images.decode = options.load_textures;
@@ -122,12 +113,18 @@ Status loadModel(const std::string& path, bool binary, const LoadOptions& option
   images.max_image_bytes = options.max_image_bytes;
   loader.SetImageLoader(&gltf::decodeImage, &images);
   std::string err, warn;
-  const bool ok = binary ? loader.LoadBinaryFromFile(&model, &err, &warn, path)
-                         : loader.LoadASCIIFromFile(&model, &err, &warn, path);
+  // From memory with the canonical folder as base: relative URIs resolve there, and every
+  // file read goes through `files` (tinygltf's own file callbacks are never used).
+  const auto size = static_cast<unsigned int>(bytes.size());
+  const std::string base = files.folder().string();
+  const bool ok =
+      binary ? loader.LoadBinaryFromMemory(&model, &err, &warn, reinterpret_cast<const unsigned char*>(bytes.data()),
+                                           size, base)
+             : loader.LoadASCIIFromString(&model, &err, &warn, bytes.data(), size, base);
   if (!ok) {
     if (!images.fatal.empty()) return invalidInput("{}: {}", path, images.fatal);
     if (!images.over_budget.empty()) return resourceExhausted("{}: {}", path, images.over_budget);
-    if (std::optional<Status> why = gltf::diagnoseLoadFailure(path, binary, err)) return *why;
+    if (std::optional<Status> why = gltf::diagnoseLoadFailure(files, bytes, binary, err)) return *why;
     const bool json_error = err.find("parse_error") != std::string::npos ||
                             err.find("JSON") != std::string::npos;
     return invalidInput("{}: {}{}", path, json_error ? "malformed JSON: " : "",
@@ -219,20 +216,22 @@ Status buildGeometry(const gltf::Context& ctx, const std::vector<gltf::PlacedNod
 }  // namespace
 
 Expected<Scene> loadGltf(const std::string& path, const LoadOptions& options) {
-  std::error_code ec;
-  if (!std::filesystem::exists(path, ec)) return notFound("{}: file not found", path);
-  if (!std::filesystem::is_regular_file(path, ec)) {
-    return invalidInput("{}: is not a regular file", path);
-  }
-  Expected<bool> binary = isBinaryGltf(path);
+  Expected<SceneFiles> files = SceneFiles::forScene(path, options.files);
+  if (!files) return files.status();
+  Expected<std::string> bytes = files->readScene();
+  if (!bytes) return bytes.status();
+  Expected<bool> binary = isBinaryGltf(path, *bytes);
   if (!binary) return binary.status();
 
-  if (Status s = checkJsonNesting(path, *binary); !s) return s;
+  const std::string_view json = jsonText(*bytes, *binary);
+  if (Status s = checkJsonNesting(path, json); !s) return s;
+  // Before tinygltf touches any external file: name the entry whose URI leaves the folder.
+  if (Status s = files->checkUris(json); !s) return s;
 
   Scene scene;
   scene.source_path = path;
   tinygltf::Model model;
-  if (Status s = loadModel(path, *binary, options, model, scene); !s) return s;
+  if (Status s = loadModel(*files, *bytes, *binary, options, model, scene); !s) return s;
 
   const gltf::Context ctx{path, model, scene, options};
   if (Status s = gltf::validateExtensions(ctx); !s) return s;

@@ -2,7 +2,7 @@
 // on, and produces a Scene. Any problem that makes the data unusable is a Status naming
 // the file, the object (mesh/primitive/accessor index and name) and what is wrong;
 // recoverable oddities (degenerate triangles, unknown optional extensions) become
-// Scene::warnings.
+// Scene::warnings. Every file the scene names is read through SceneFiles (scene_files.h).
 #pragma once
 
 #include <cstdint>
@@ -10,11 +10,13 @@
 
 #include "core/common/status.h"
 #include "core/scene/scene.h"
+#include "core/scene/scene_files.h"
 
 namespace lightlink::scene {
 
 struct LoadOptions {
   bool load_textures = true;  // decode base colour / emissive images for CPU sampling
+  FileAccess files;           // buffer and image URIs stay inside the scene's folder by default
   // Budgets, each checked before the work it bounds; over one, loadGltf fails with
   // Code::kResourceExhausted naming the limit and the value (docs/cli.md "Limits"). 0 = none.
   // Pixels of one image, read from its header before it is decoded (a decompression bomb

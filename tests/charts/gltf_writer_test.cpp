@@ -232,5 +232,49 @@ TEST(GltfWriter, ReplacedTexcoord1MovesWithItsMaterial) {
   expectSameGeometry(*scene, *again);
 }
 
+// External images are copied next to the output only inside the output's folder: an image
+// uri with `..` (readable when the scene is trusted with reading outside its folder) must not
+// make the writer create files elsewhere.
+TEST(GltfWriter, ImageCopiesStayInsideTheOutputFolder) {
+  const float pos[9] = {0, 0, 0, 1, 0, 0, 0, 0, -1};
+  const std::uint16_t idx[4] = {0, 1, 2, 0};
+  std::string bin(reinterpret_cast<const char*>(pos), sizeof(pos));
+  bin.append(reinterpret_cast<const char*>(idx), sizeof(idx));
+  const std::string json = R"({
+    "asset": {"version": "2.0"}, "scene": 0, "scenes": [{"nodes": [0]}], "nodes": [{"mesh": 0}],
+    "meshes": [{"primitives": [{"attributes": {"POSITION": 0}, "indices": 1, "material": 0}]}],
+    "materials": [{"pbrMetallicRoughness": {"baseColorTexture": {"index": 0}}}],
+    "textures": [{"source": 0}], "images": [{"uri": "../img/evil.png"}],
+    "accessors": [
+      {"bufferView": 0, "componentType": 5126, "count": 3, "type": "VEC3", "min": [0, 0, -1], "max": [1, 0, 0]},
+      {"bufferView": 1, "componentType": 5123, "count": 3, "type": "SCALAR"}],
+    "bufferViews": [{"buffer": 0, "byteOffset": 0, "byteLength": 36}, {"buffer": 0, "byteOffset": 36, "byteLength": 6}],
+    "buffers": [{"byteLength": 44, "uri": "data:application/octet-stream;base64,)" + base64(bin) + R"("}]
+  })";
+  lightlink::testing::TempDir tmp;
+  fs::create_directories(tmp / "scene");
+  fs::create_directories(tmp / "img");
+  lightlink::testing::writeFile(tmp / "img" / "evil.png", "not really a png");
+  const std::string in = lightlink::testing::writeFile(tmp / "scene" / "s.gltf", json);
+  scene::LoadOptions trusted;
+  trusted.load_textures = false;
+  trusted.files.allow_outside_folder = true;
+  Expected<scene::Scene> scene = scene::loadGltf(in, trusted);
+  ASSERT_TRUE(scene) << scene.status().toString();
+  Expected<UnwrapResult> result = unwrap(*scene, {});
+  ASSERT_TRUE(result) << result.status().toString();
+  const fs::path out = tmp / "a" / "b" / "s_lm.gltf";
+  fs::create_directories(out.parent_path());
+  // Confined (the default), the image outside the scene's folder is not read at all.
+  const Status confined = writeGltfWithLightmapUv(in, *scene, result->atlas, out.string());
+  EXPECT_FALSE(confined);
+  EXPECT_NE(confined.message().find("escapes the scene's folder"), std::string::npos) << confined.message();
+  // Trusted, it is read, but its copy would land in tmp/a/img: refused.
+  const Status copied = writeGltfWithLightmapUv(in, *scene, result->atlas, out.string(), trusted.files);
+  EXPECT_FALSE(copied);
+  EXPECT_NE(copied.message().find("outside the output's folder"), std::string::npos) << copied.message();
+  EXPECT_FALSE(fs::exists(tmp / "a" / "img" / "evil.png")) << "the writer created a file outside its output folder";
+}
+
 }  // namespace
 }  // namespace lightlink::charts

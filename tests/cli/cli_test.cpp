@@ -14,6 +14,7 @@
 #include <nlohmann/json.hpp>
 
 #include "clients/lightlink/exit_codes.h"
+#include "tests/common/escaping_scenes.h"
 #include "tests/common/testing.h"
 
 namespace lightlink {
@@ -278,6 +279,48 @@ TEST(Cli, DaemonTokenInArgvIsRefused) {
   EXPECT_EQ(r.exit_code, cli::kExitBadInput) << r.output;
   EXPECT_NE(r.output.find("--token-file"), std::string::npos) << r.output;
   EXPECT_NE(r.output.find("LIGHTLINK_TOKEN"), std::string::npos) << r.output;
+}
+
+// A scene may make the CLI read files only inside its own folder (docs/cli.md "Files a scene
+// may read"): `..`, an absolute path (also from `/`, where tinygltf fell back to the working
+// directory) and a symlink out are refused by every scene command, naming the entry and the
+// flag; --allow-outside-scene reads them.
+TEST(Cli, SceneCommandsReadOnlyInsideTheSceneFolder) {
+  for (testing::Escape how : {testing::Escape::kDotDot, testing::Escape::kAbsolute, testing::Escape::kSymlink}) {
+    SCOPED_TRACE(testing::escapeName(how));
+    testing::TempDir dir;
+    const std::string scene = testing::writeEscapingScene(dir.path(), how).string();
+    const std::string out = (dir / "out").string();
+    for (const std::string& command : {"inspect " + scene, "unwrap " + scene + " -o " + out + "/lm.gltf",
+                                       "precompute " + scene + " -q -o " + out + "/a.llk",
+                                       "bake " + scene + " -q --preset draft -o " + out}) {
+      const auto r = runCommand("cd / && " + kCli + " " + command);
+      EXPECT_EQ(r.exit_code, cli::kExitBadInput) << command << "\n" << r.output;
+      EXPECT_NE(r.output.find("buffers[0].uri"), std::string::npos) << command << "\n" << r.output;
+      EXPECT_NE(r.output.find("--allow-outside-scene"), std::string::npos) << command << "\n" << r.output;
+    }
+    const auto allowed = runCommand("cd / && " + kCli + " inspect --allow-outside-scene " + scene);
+    EXPECT_EQ(allowed.exit_code, cli::kExitOk) << allowed.output;
+    const auto unwrapped =
+        runCommand(kCli + " unwrap --allow-outside-scene " + scene + " -o " + out + "/lm.gltf");
+    EXPECT_EQ(unwrapped.exit_code, cli::kExitOk) << unwrapped.output;
+  }
+}
+
+// The attack of issue 44: an index buffer that is someone else's file. Refused by default;
+// allowed, the out-of-range index is named by position, never by the bytes it holds.
+TEST(Cli, MessagesNeverQuoteFileContent) {
+  testing::TempDir dir;
+  const std::string scene = testing::writeSecretReadingScene(dir.path()).string();
+  for (const std::string& flags : {std::string(), std::string("--allow-outside-scene ")}) {
+    const auto r = runCommand(kCli + " inspect " + flags + scene);
+    EXPECT_EQ(r.exit_code, cli::kExitBadInput) << r.output;
+    EXPECT_EQ(r.output.find(testing::secretFirstIndex()), std::string::npos) << "quotes the file: " << r.output;
+    EXPECT_EQ(r.output.find("TOPS"), std::string::npos) << r.output;
+    if (flags.empty()) {
+      EXPECT_NE(r.output.find("buffers[1].uri"), std::string::npos) << r.output;
+    }
+  }
 }
 
 }  // namespace

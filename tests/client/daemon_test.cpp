@@ -24,6 +24,7 @@ using lightlink::testing::runCommand;
 using lightlink::testing::TempDir;
 
 const std::string kCornell = (lightlink::testing::sourceDir() / "clients/demo/cornell_box.gltf").string();
+const std::string kDemoDir = (lightlink::testing::sourceDir() / "clients/demo").string();  // the daemons' scene root
 constexpr const char* kPreset = "draft";  // the smallest precompute: these tests are about the wire
 
 // OpenScene of the bundled Cornell box at the draft preset.
@@ -41,7 +42,7 @@ class ClientDaemon : public ::testing::Test {
     LocalDaemon::Options d;
     d.binary = LIGHTLINK_DAEMON_PATH;
     d.cache_dir = lightlink::testing::clientTestCacheDir();
-    d.extra = {"--no-restore"};  // the shared cache dir records earlier tests' scenes
+    d.extra = {"--no-restore", "--scene-root", kDemoDir};  // the shared cache dir records earlier tests' scenes
     auto started = LocalDaemon::start(d);
     ASSERT_TRUE(started) << started.status().toString();
     daemon_ = std::move(started).value();
@@ -220,7 +221,7 @@ TEST(ClientSharedMemory, SameResultAsTheStreamFallbackAndCleanup) {
   LocalDaemon::Options d;
   d.binary = LIGHTLINK_DAEMON_PATH;
   d.cache_dir = lightlink::testing::clientTestCacheDir();
-  d.extra = {"--no-restore", "--shared-memory-dir", shm.path().string()};
+  d.extra = {"--no-restore", "--scene-root", kDemoDir, "--shared-memory-dir", shm.path().string()};
   auto started = LocalDaemon::start(d);
   ASSERT_TRUE(started) << started.status().toString();
   auto daemon = std::move(started).value();
@@ -295,7 +296,7 @@ TEST(ClientSharedMemory, SameResultAsTheStreamFallbackAndCleanup) {
   EXPECT_FALSE(fs::exists(dirs[0]));
 
   // Delivery off: the flag is ignored, the stream carries the result.
-  d.extra = {"--no-restore", "--no-shared-memory"};
+  d.extra = {"--no-restore", "--scene-root", kDemoDir, "--no-shared-memory"};
   auto off = LocalDaemon::start(d);
   ASSERT_TRUE(off) << off.status().toString();
   o.target = (*off)->target();
@@ -424,7 +425,7 @@ TEST(ClientServe, RunsTheDaemonInProcessAndDrainsOnSigterm) {
   d.binary = LIGHTLINK_CLI_PATH;
   d.prefix = {"serve"};
   d.cache_dir = cache.path();
-  d.extra = {"--no-restore"};
+  d.extra = {"--no-restore", "--scene-root", kDemoDir};
   auto daemon = LocalDaemon::start(d);
   ASSERT_TRUE(daemon) << daemon.status().toString();
   ConnectOptions o;
@@ -444,7 +445,7 @@ TEST(ClientAuth, BearerTokenOnEveryCall) {
   LocalDaemon::Options d;
   d.binary = LIGHTLINK_DAEMON_PATH;
   d.cache_dir = cache.path();
-  d.extra = {"--no-restore", "--token-file", lightlink::testing::writeFile(cache.path() / "token", "s3cret-token-0123456789\n")};
+  d.extra = {"--no-restore", "--scene-root", kDemoDir, "--token-file", lightlink::testing::writeFile(cache.path() / "token", "s3cret-token-0123456789\n")};
   auto daemon = LocalDaemon::start(d);
   ASSERT_TRUE(daemon) << daemon.status().toString();
   ConnectOptions o;
@@ -481,7 +482,7 @@ TEST(ClientTls, RootCertificateConnects) {
   LocalDaemon::Options d;
   d.binary = LIGHTLINK_DAEMON_PATH;
   d.cache_dir = tmp / "cache";
-  d.extra = {"--no-restore", "--tls-cert", cert, "--tls-key", key};
+  d.extra = {"--no-restore", "--scene-root", kDemoDir, "--tls-cert", cert, "--tls-key", key};
   auto daemon = LocalDaemon::start(d);
   ASSERT_TRUE(daemon) << daemon.status().toString();
   ConnectOptions o;

@@ -9,6 +9,7 @@
 #include <tbb/global_control.h>
 
 #include "core/scene/load.h"
+#include "tests/common/escaping_scenes.h"
 #include "tests/common/testing.h"
 
 namespace lightlink::precompute {
@@ -185,6 +186,18 @@ TEST(Precompute, CacheKeyCoversExternalBuffersAndImages) {
   auto missing = cacheKeyFor(scene, smallOptions());
   ASSERT_FALSE(missing);
   EXPECT_NE(missing.status().message().find("images[0].uri"), std::string::npos) << missing.status().message();
+}
+
+// The key reads the scene's files under the loader's rules (core/scene/scene_files.h).
+TEST(Precompute, CacheKeyReadsOnlyInsideTheSceneFolder) {
+  lightlink::testing::TempDir dir;
+  const std::string scene = lightlink::testing::writeEscapingScene(dir.path(), lightlink::testing::Escape::kDotDot);
+  auto refused = cacheKeyFor(scene, smallOptions());
+  ASSERT_FALSE(refused) << "hashed a file outside the scene's folder";
+  EXPECT_NE(refused.status().message().find("buffers[0].uri"), std::string::npos) << refused.status().message();
+  scene::FileAccess allow;
+  allow.allow_outside_folder = true;
+  EXPECT_TRUE(cacheKeyFor(scene, smallOptions(), allow));
 }
 
 }  // namespace

@@ -2,6 +2,7 @@
 
 #include <signal.h>
 
+#include <algorithm>
 #include <cstring>
 #include <random>
 
@@ -18,6 +19,12 @@ DaemonProcess::DaemonProcess(const fs::path& cache_dir, std::vector<std::string>
   o.binary = LIGHTLINKD_PATH;
   o.cache_dir = cache_dir;
   o.extra = std::move(extra);
+  // Tests open the bundled scenes and scenes they write beside the cache: those are the
+  // scene roots unless the test sets its own (or a config file that may).
+  const bool own_roots = std::any_of(o.extra.begin(), o.extra.end(),
+                                     [](const std::string& a) { return a == "--scene-root" || a == "--config"; });
+  if (!own_roots)
+    o.extra.insert(o.extra.end(), {"--scene-root", sourceDir().string(), "--scene-root", cache_dir.parent_path().string()});
   auto d = client::LocalDaemon::start(o);
   if (!d) {
     error_ = d.status().toString();

@@ -31,7 +31,8 @@ using LightlinkRpc = v1::Lightlink::Stub;
 class DaemonProcess {
  public:
   // Starts lightlinkd with `--listen 127.0.0.1:0 --port-file ... --cache-dir cache_dir` and
-  // `extra` flags; waits (bounded) for the port. Check ok() / error().
+  // `extra` flags; waits (bounded) for the port. Check ok() / error(). Unless `extra` has a
+  // --scene-root or --config, the source tree and cache_dir's parent are the scene roots.
   DaemonProcess(const std::filesystem::path& cache_dir, std::vector<std::string> extra = {});
   ~DaemonProcess();  // SIGKILL if still running
 

@@ -796,7 +796,8 @@ TEST(Daemon, ConfigFileJsonLogsAndSceneLimit) {
   Fixture f;
   const std::string config = writeFile(f.tmp / "lightlinkd.json",
                                        R"({"token": "from-file-0123456789", "log_format": "json", "max_scenes": 1,
-                                           "bounces": 2, "log_level": "debug"})");
+                                           "bounces": 2, "log_level": "debug", "scene_roots": [")" +
+                                           (sourceDir() / "clients/demo").string() + R"("]})");
   DaemonProcess d(f.cache, {"--config", config});
   ASSERT_TRUE(d.ok()) << d.error();
   auto rpc = d.rpc();
