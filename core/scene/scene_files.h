@@ -81,4 +81,10 @@ Expected<std::filesystem::path> resolvePath(const std::filesystem::path& path);
 // blocking. `what` names the file in messages.
 Expected<std::string> readRegularFile(const std::filesystem::path& path, std::string_view what);
 
+// Reads the regular file `inside`, a path already checked to lie in `folder`, letting the
+// kernel resolve it again beneath `folder`: a link swapped into the path after the check
+// cannot lead out (refused as escaping). Where the kernel lacks openat2, the check stands alone.
+Expected<std::string> readRegularFileBeneath(const std::filesystem::path& folder, const std::filesystem::path& inside,
+                                             std::string_view what);
+
 }  // namespace lightlink::scene

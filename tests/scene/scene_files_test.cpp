@@ -3,7 +3,9 @@
 // bytes of a buffer.
 #include <fcntl.h>
 #include <sys/stat.h>
+#include <sys/syscall.h>
 #include <unistd.h>
+#include <linux/openat2.h>
 
 #include <atomic>
 #include <chrono>
@@ -145,6 +147,35 @@ TEST(SceneFiles, FifoIsRefusedWithoutBlocking) {
   unblock.join();
   ASSERT_FALSE(scene);
   EXPECT_NE(scene.status().message().find("not a regular file"), std::string::npos) << scene.status().message();
+}
+
+
+// The window between the check and the open: a folder inside the scene's folder is checked,
+// then swapped for a link that leads out. The read resolves the path again beneath the
+// scene's folder and refuses it, instead of reading the outside file.
+TEST(SceneFiles, LinkSwappedInAfterTheCheckIsRefused) {
+  open_how probe{};
+  probe.flags = O_PATH | O_CLOEXEC;
+  const long fd = ::syscall(SYS_openat2, AT_FDCWD, ".", &probe, sizeof(probe));
+  if (fd < 0) GTEST_SKIP() << "openat2 is not available here (errno " << errno << "): the check stands alone";
+  ::close(static_cast<int>(fd));
+  TempDir dir;
+  const fs::path scene_dir = dir / "scene";
+  fs::create_directories(scene_dir / "sub");
+  fs::create_directories(dir / "outside");
+  testing::writeFile(scene_dir / "sub" / "data.bin", "inside");
+  testing::writeFile(dir / "outside" / "data.bin", "SECRET");
+  const fs::path folder = fs::canonical(scene_dir);
+  const fs::path checked = folder / "sub" / "data.bin";
+  Expected<std::string> before = readRegularFileBeneath(folder, checked, "buffers[0].uri");
+  ASSERT_TRUE(before) << before.status().message();
+  EXPECT_EQ(*before, "inside");
+  fs::remove_all(scene_dir / "sub");
+  fs::create_directory_symlink(fs::canonical(dir / "outside"), scene_dir / "sub");
+  Expected<std::string> after = readRegularFileBeneath(folder, checked, "buffers[0].uri");
+  ASSERT_FALSE(after) << "read the outside file through the swapped link: " << *after;
+  EXPECT_NE(after.status().message().find("escapes the scene's folder"), std::string::npos) << after.status().message();
+  EXPECT_EQ(after.status().message().find("SECRET"), std::string::npos);
 }
 
 }  // namespace
