@@ -1,6 +1,7 @@
 #include "service/scene_session.h"
 
 #include <future>
+#include <new>
 
 #include "service/gpu/backend_factory.h"
 #include "service/logging.h"
@@ -242,7 +243,13 @@ bool SceneSession::relightAndPublish(const relight::LightSet& lights, std::uint6
                                      const relight::RelightOptions& options, bool preview,
                                      relight::RelightResult& result) {
   const auto t0 = Clock::now();
-  Status s = backend_->relightInto(lights, options, result);
+  Status s;
+  // Out of memory in a worker thread would end the daemon: it fails this relight instead.
+  try {
+    s = backend_->relightInto(lights, options, result);
+  } catch (const std::bad_alloc&) {
+    s = resourceExhausted("out of memory while relighting");
+  }
   const double ms = std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
   if (!s) {
     std::lock_guard lock(mutex_);
@@ -251,7 +258,15 @@ bool SceneSession::relightAndPublish(const relight::LightSet& lights, std::uint6
     // Readers waiting for this version run into their deadline.
     return false;
   }
-  auto snap = buildSnapshot(result, v, coalesced, ms, preview);
+  std::shared_ptr<const Snapshot> snap;
+  try {
+    snap = buildSnapshot(result, v, coalesced, ms, preview);
+  } catch (const std::bad_alloc&) {
+    std::lock_guard lock(mutex_);
+    ++relight_errors_;
+    logEvent(LogLevel::kError, "relight_failed", {{"scene", identity_.id}, {"version", v}, {"error", "out of memory while building the result"}});
+    return false;
+  }
   {
     std::lock_guard lock(mutex_);
     latest_ = std::move(snap);

@@ -524,6 +524,14 @@ grpc::Status LightlinkService::CloseScene(grpc::ServerContext* ctx, const v1::Cl
   if (!registry_.close(s->identity().id))
     return grpcError(grpc::StatusCode::NOT_FOUND, "scene_id: the scene was already closed");
   shared_.dropScene(s->identity().id);
+  // Durable like an update: a close acknowledged and then undone by a crash would bring the
+  // scene (and its token) back after the restart.
+  if (Status saved = registry_.persistNow(); !saved) {
+    logEvent(LogLevel::kError, "sessions_write_failed", {{"error", saved.message()}});
+    return grpcError(grpc::StatusCode::UNAVAILABLE,
+                     "sessions: the scene is closed, but the close could not be persisted (" + saved.message() +
+                         "); it may come back after a restart");
+  }
   return grpc::Status::OK;
 }
 

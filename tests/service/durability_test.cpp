@@ -235,6 +235,40 @@ TEST(Durability, KillNineDuringUpdateBurstsLosesNoAcknowledgedVersion) {
   RecordProperty("acknowledged_updates", static_cast<int>(total_acks));
 }
 
+// An acknowledged CloseScene is durable too: a kill -9 right after it never brings the scene
+// (and its token) back after the restart.
+TEST(Durability, AcknowledgedCloseSurvivesKillNine) {
+  TempDir tmp;
+  const fs::path cache = tmp / "cache";
+  v1::SceneRef kept, closed;
+  {
+    DaemonProcess d(cache, daemonFlags());
+    ASSERT_TRUE(d.ok()) << d.error();
+    auto rpc = d.rpc();
+    v1::SceneOpened a, b;
+    ASSERT_TRUE(openScene(*rpc, cornellInline(), &a).ok()) << d.log();
+    v1::OpenSceneRequest second = cornellInline();
+    second.set_name("second");
+    ASSERT_TRUE(openScene(*rpc, second, &b).ok()) << d.log();
+    kept = refOf(a);
+    closed = refOf(b);
+    v1::CloseSceneRequest close;
+    *close.mutable_scene() = closed;
+    v1::CloseSceneResponse closed_answer;
+    ASSERT_TRUE(rpc->CloseScene(context().get(), close, &closed_answer).ok()) << d.log();
+    ASSERT_EQ(d.signalAndWait(SIGKILL), 128 + SIGKILL);
+  }
+  DaemonProcess d(cache, daemonFlags());
+  ASSERT_TRUE(d.ok()) << d.error();
+  auto rpc = d.rpc();
+  v1::ListScenesResponse list;
+  ASSERT_TRUE(rpc->ListScenes(context(10000).get(), {}, &list).ok()) << d.log();
+  std::set<std::string> ids;
+  for (const auto& s : list.scenes()) ids.insert(s.scene_id());
+  EXPECT_EQ(ids.count(kept.scene_id()), 1u) << d.log();
+  EXPECT_EQ(ids.count(closed.scene_id()), 0u) << "the acknowledged close was undone by the crash\n" << d.log();
+}
+
 // A small filesystem for the cache (tmpfs, mounted here: needs root or CAP_SYS_ADMIN) and a
 // file that fills it.
 class SmallDisk {
