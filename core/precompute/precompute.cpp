@@ -826,6 +826,12 @@ Expected<std::uint64_t> cacheKeyFor(const std::string& scene_path, const Precomp
         const std::string uri = entry["uri"].get<std::string>();
         if (uri.rfind("data:", 0) == 0) continue;  // embedded: already in the bytes
         auto bytes = files->readUri(uri, fmt::format("{}[{}].uri", list, i));
+        // A missing image is a warning to the loader (the material falls back to its factor),
+        // so it is keyed as missing; restoring the file then changes the key.
+        if (!bytes && bytes.status().code() == Code::kNotFound && std::string_view(list) == "images") {
+          external += fmt::format("{}\nmissing\n", uri);
+          continue;
+        }
         if (!bytes) return bytes.status();
         external += fmt::format("{}\n{}\n", uri, bytes->size());
         external += *bytes;

@@ -182,10 +182,15 @@ TEST(Precompute, CacheKeyCoversExternalBuffersAndImages) {
   ASSERT_TRUE(c);
   EXPECT_NE(*b, *c) << "an edited texture must not reuse the artifact";
   EXPECT_EQ(*c, *cacheKeyFor(scene, smallOptions()));
+  // A missing texture is keyed as missing (the loader only warns); a missing buffer fails.
   std::filesystem::remove(dir / "albedo.png");
+  auto no_texture = cacheKeyFor(scene, smallOptions());
+  ASSERT_TRUE(no_texture) << no_texture.status().message();
+  EXPECT_NE(*c, *no_texture);
+  std::filesystem::remove(dir / "geo a.bin");
   auto missing = cacheKeyFor(scene, smallOptions());
   ASSERT_FALSE(missing);
-  EXPECT_NE(missing.status().message().find("images[0].uri"), std::string::npos) << missing.status().message();
+  EXPECT_NE(missing.status().message().find("buffers[0].uri"), std::string::npos) << missing.status().message();
 }
 
 // The key reads the scene's files under the loader's rules (core/scene/scene_files.h).
@@ -198,6 +203,33 @@ TEST(Precompute, CacheKeyReadsOnlyInsideTheSceneFolder) {
   scene::FileAccess allow;
   allow.allow_outside_folder = true;
   EXPECT_TRUE(cacheKeyFor(scene, smallOptions(), allow));
+}
+
+
+// A downloaded scene often lacks some texture files: the loader warns and the material uses
+// its factor, so the key must not fail on them either. Restoring the file changes the key;
+// an image URI that leaves the folder is still refused.
+TEST(Precompute, CacheKeyKeysAMissingImageAsMissing) {
+  lightlink::testing::TempDir dir;
+  lightlink::testing::writeFile(dir / "geo.bin", lightlink::testing::triangleBin());
+  auto withImage = [](const std::string& uri) {
+    std::string gltf = lightlink::testing::triangleGltf("geo.bin");
+    gltf.insert(1, fmt::format(R"("images": [{{"uri": "{}"}}], )", uri));
+    return gltf;
+  };
+  const std::string scene = lightlink::testing::writeFile(dir / "scene.gltf", withImage("albedo.png"));
+  auto missing = cacheKeyFor(scene, smallOptions());
+  ASSERT_TRUE(missing) << missing.status().message();
+  auto loaded = scene::loadGltf(scene);
+  ASSERT_TRUE(loaded) << "the loader must take the scene too: " << loaded.status().message();
+  lightlink::testing::writeFile(dir / "albedo.png", "not really a png");
+  auto present = cacheKeyFor(scene, smallOptions());
+  ASSERT_TRUE(present) << present.status().message();
+  EXPECT_NE(*missing, *present);
+  lightlink::testing::writeFile(dir / "scene.gltf", withImage("../albedo.png"));
+  auto escaping = cacheKeyFor(scene, smallOptions());
+  ASSERT_FALSE(escaping);
+  EXPECT_NE(escaping.status().message().find("images[0].uri"), std::string::npos) << escaping.status().message();
 }
 
 }  // namespace
