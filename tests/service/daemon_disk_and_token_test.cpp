@@ -220,8 +220,8 @@ TEST(DaemonDisk, RestartListensAtOnceWhileASlowSceneIsRestored) {
   nlohmann::json sessions = nlohmann::json::parse(readAll(cache / "sessions.json"));
   ASSERT_EQ(sessions["scenes"].size(), 1u);
   auto& params = sessions["scenes"][0]["params"];
-  params["surfels"] = 100000;  // modest memory (links), many rays: time, not space
-  params["rays"] = 16384;
+  params["surfels"] = 200000;  // modest memory (links), many rays: time, not space
+  params["rays"] = 65536;
   params["links"] = 64;
   writeFile(cache / "sessions.json", sessions.dump());
   for (const auto& f : filesIn(cache, ".llk")) fs::remove(f);
@@ -241,7 +241,8 @@ TEST(DaemonDisk, RestartListensAtOnceWhileASlowSceneIsRestored) {
   ASSERT_EQ(list.scenes_size(), 1);
   EXPECT_EQ(list.scenes(0).scene_id(), opened.scene_id());
   EXPECT_EQ(list.scenes(0).backend(), "restoring");
-  // A call naming the scene waits within its deadline, then says it is still restoring; a
+  // A call naming the scene waits within its deadline, then says it is still restoring (or,
+  // on a machine fast enough to finish the restore within the deadline, is answered); a
   // wrong scene token is refused at once.
   v1::GetTexturesRequest g;
   g.mutable_scene()->set_scene_id(opened.scene_id());
@@ -252,8 +253,17 @@ TEST(DaemonDisk, RestartListensAtOnceWhileASlowSceneIsRestored) {
   const auto st = readOne(reader.get(), r, nullptr);
   // The answer leaves 250 ms before the deadline; on a machine the restore keeps busy it
   // may still arrive late, which the client sees as its own deadline.
-  EXPECT_TRUE(st.error_code() == grpc::StatusCode::UNAVAILABLE || st.error_code() == grpc::StatusCode::DEADLINE_EXCEEDED)
-      << st.error_code() << " " << st.error_message();
+  RecordProperty("waiting_call_code", static_cast<int>(st.error_code()));
+  if (st.ok()) {
+    v1::ListScenesResponse after;
+    ASSERT_TRUE(rpc->ListScenes(context(5000).get(), {}, &after).ok());
+    ASSERT_EQ(after.scenes_size(), 1);
+    EXPECT_NE(after.scenes(0).backend(), "restoring") << "answered while still restoring";
+  } else {
+    EXPECT_TRUE(st.error_code() == grpc::StatusCode::UNAVAILABLE ||
+                st.error_code() == grpc::StatusCode::DEADLINE_EXCEEDED)
+        << st.error_code() << " " << st.error_message();
+  }
   if (st.error_code() == grpc::StatusCode::UNAVAILABLE) {
     EXPECT_NE(st.error_message().find("restored"), std::string::npos) << st.error_message();
   }
