@@ -34,7 +34,8 @@ struct ValidityOptions {
 };
 
 struct LightmapCacheOptions {
-  int resolution = 0;  // atlas width = height in texels (the unwrap's resolution)
+  int resolution = 0;  // page width = height in texels (the unwrap's resolution)
+  int pages = 1;       // pages stacked along v: the atlas is resolution x (pages * resolution)
   ValidityOptions validity;
 };
 

@@ -113,6 +113,9 @@ Expected<LightmapCaches> placeLightmapCaches(const scene::Scene& scene, const rt
   const int res = options.resolution;
   if (res <= 0 || res > 16384)
     return invalidInput("lightmap resolution {} is out of range (1..16384)", res);
+  if (options.pages < 1 || std::int64_t(options.pages) * res > 16384)
+    return invalidInput("lightmap pages {} of {} rows are out of range (at most 16384 rows)", options.pages, res);
+  const int rows = res * options.pages;
   if (options.validity.rays <= 0 || options.validity.rays > 65536)
     return invalidInput("validity rays {} is out of range (1..65536)", options.validity.rays);
   if (!(options.validity.max_backface_fraction >= 0.0f && options.validity.max_backface_fraction <= 1.0f))
@@ -127,12 +130,12 @@ Expected<LightmapCaches> placeLightmapCaches(const scene::Scene& scene, const rt
     if (!mesh.is_static || !mesh.hasLightmapUv()) return;
     for (std::size_t tri = 0; tri < mesh.triangleCount(); ++tri) {
       glm::vec2 t[3];
-      for (int k = 0; k < 3; ++k) t[k] = mesh.uv1[mesh.indices[3 * tri + k]] * glm::vec2(res, res);
+      for (int k = 0; k < 3; ++k) t[k] = mesh.uv1[mesh.indices[3 * tri + k]] * glm::vec2(res, rows);
       if (std::abs(cross2(t[1] - t[0], t[2] - t[0])) < 1e-10f) {
         ++degenerate[m];
         continue;
       }
-      rasterizeTriangle(t, res, res, static_cast<std::uint32_t>(m), static_cast<std::uint32_t>(tri),
+      rasterizeTriangle(t, res, rows, static_cast<std::uint32_t>(m), static_cast<std::uint32_t>(tri),
                         per_mesh[m]);
     }
   });
@@ -151,8 +154,9 @@ Expected<LightmapCaches> placeLightmapCaches(const scene::Scene& scene, const rt
     return a.triangle < b.triangle;
   });
 
-  out.width = out.height = res;
-  out.cache_of_texel.assign(static_cast<std::size_t>(res) * res, -1);
+  out.width = res;
+  out.height = rows;
+  out.cache_of_texel.assign(static_cast<std::size_t>(res) * rows, -1);
   std::vector<glm::vec3> bary;
   for (std::size_t i = 0; i < all.size(); ++i) {
     if (i > 0 && all[i].texel == all[i - 1].texel) continue;
@@ -188,8 +192,8 @@ Expected<LightmapCaches> placeLightmapCaches(const scene::Scene& scene, const rt
     const glm::vec3 p0 = mesh.positions[idx[0]], p1 = mesh.positions[idx[1]], p2 = mesh.positions[idx[2]];
     const glm::vec3 centroid = (p0 + p1 + p2) / 3.0f;
     // World size of one texel on this triangle: sqrt(world area / texel area).
-    const glm::vec2 t0 = mesh.uv1[idx[0]] * float(res), t1 = mesh.uv1[idx[1]] * float(res),
-                    t2 = mesh.uv1[idx[2]] * float(res);
+    const glm::vec2 size(res, rows);
+    const glm::vec2 t0 = mesh.uv1[idx[0]] * size, t1 = mesh.uv1[idx[1]] * size, t2 = mesh.uv1[idx[2]] * size;
     const float texel_area = std::abs(cross2(t1 - t0, t2 - t0));
     const float world_area = glm::length(glm::cross(p1 - p0, p2 - p0));
     const float texel_m = std::sqrt(world_area / std::max(texel_area, 1e-12f));

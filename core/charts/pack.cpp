@@ -159,19 +159,25 @@ void turnedProfile(const Mask& m, int turns, std::vector<int>& bottom, std::vect
 
 }  // namespace
 
-int packCharts(const std::vector<Chart>& charts, double texel_m, int resolution, int gutter,
-               std::vector<Placement>& placements, const Progress* progress) {
+namespace {
+
+// The skyline packer of packCharts (page_rows == 0: one strip, unlimited height) and
+// packChartsPaged (square pages of `resolution`, stacked along y).
+int packImpl(const std::vector<Chart>& charts, double texel_m, int resolution, int gutter, bool paged,
+             std::vector<Placement>& placements, const Progress* progress) {
   const std::size_t n = charts.size();
   placements.assign(n, {});
   if (resolution <= 2 * gutter) return -1;
   // The mask of a chart is its box in texels: one wider than the strip on its short side
   // cannot fit, and building it first (billions of texels at 1e-9 m) would never end.
+  const double side_limit = double(resolution - 2 * gutter);
   for (const Chart& chart : charts) {
     glm::dvec2 ext(0.0);
     for (const glm::dvec2& p : chart.uv) ext = glm::max(ext, p);
     const double w = std::floor(ext.x / texel_m + 0.5 + kMaskSlack) + 1.0;
     const double h = std::floor(ext.y / texel_m + 0.5 + kMaskSlack) + 1.0;
-    if (!(std::min(w, h) <= double(resolution - 2 * gutter)) || !(std::max(w, h) <= double(kMaxPackSide))) return -1;
+    if (!(std::min(w, h) <= side_limit) || !(std::max(w, h) <= double(kMaxPackSide))) return -1;
+    if (paged && !(std::max(w, h) <= side_limit)) return -1;
   }
   std::vector<Mask> masks(n);
   tbb::parallel_for(std::size_t{0}, n, [&](std::size_t i) {
@@ -194,44 +200,57 @@ int packCharts(const std::vector<Chart>& charts, double texel_m, int resolution,
     return a < b;
   });
 
-  // Column heights: rows below are taken (or gutter). Border columns are closed.
+  // Column heights per page: rows below are taken (or gutter). Border columns are closed.
   const int r = resolution;
-  std::vector<int> height(static_cast<std::size_t>(r), gutter);
+  // A paged chart must end at or below the page's top gutter; a strip has no top.
+  const int top_limit = paged ? r - gutter : std::numeric_limits<int>::max();
+  std::vector<std::vector<int>> pages(1, std::vector<int>(static_cast<std::size_t>(r), gutter));
   std::vector<int> bottom, top;
   int used = gutter;
   std::size_t placed = 0;
   for (std::uint32_t id : order) {
     if (++placed % 64 == 0 && stopRequested(progress)) return -1;
     const Mask& m = masks[id];
-    int best_top = std::numeric_limits<int>::max(), best_x = -1, best_y = 0, best_turns = 0;
     // Tiny charts gain nothing from half turns (their masks are nearly symmetric), and a
     // square one nothing from quarter turns either; they are most of a game level's charts.
     const int turn_count = std::max(m.w, m.h) <= 3 ? (m.w == m.h ? 1 : 2) : 4;
-    for (int turns = 0; turns < turn_count; ++turns) {
-      turnedProfile(m, turns, bottom, top);
-      const int w = static_cast<int>(bottom.size());
-      int top_max = 0;
-      for (int t : top) top_max = std::max(top_max, t);
-      for (int x = gutter; x + w <= r - gutter; ++x) {
-        // The lowest y at which no column of the chart dips below the column heights;
-        // give up on this x as soon as it cannot beat the best top found.
-        const int limit = best_top - top_max;  // y must stay below this to improve
-        int y = gutter;
-        for (int c = 0; c < w && y < limit; ++c) y = std::max(y, height[static_cast<std::size_t>(x + c)] - bottom[static_cast<std::size_t>(c)]);
-        if (y >= limit) continue;
-        best_top = y + top_max;
-        best_x = x;
-        best_y = y;
-        best_turns = turns;
+    int best_top = 0, best_x = -1, best_y = 0, best_turns = 0;
+    std::size_t page = 0;
+    for (;; ++page) {
+      const bool fresh = page == pages.size();
+      if (fresh) pages.emplace_back(static_cast<std::size_t>(r), gutter);
+      const std::vector<int>& height = pages[page];
+      best_top = top_limit == std::numeric_limits<int>::max() ? top_limit : top_limit + 1;
+      for (int turns = 0; turns < turn_count; ++turns) {
+        turnedProfile(m, turns, bottom, top);
+        const int w = static_cast<int>(bottom.size());
+        int top_max = 0;
+        for (int t : top) top_max = std::max(top_max, t);
+        for (int x = gutter; x + w <= r - gutter; ++x) {
+          // The lowest y at which no column of the chart dips below the column heights;
+          // give up on this x as soon as it cannot beat the best top found.
+          const int limit = best_top - top_max;  // y must stay below this to improve
+          int y = gutter;
+          for (int c = 0; c < w && y < limit; ++c)
+            y = std::max(y, height[static_cast<std::size_t>(x + c)] - bottom[static_cast<std::size_t>(c)]);
+          if (y >= limit) continue;
+          best_top = y + top_max;
+          best_x = x;
+          best_y = y;
+          best_turns = turns;
+        }
       }
+      if (best_x >= 0) break;
+      // A strip has one page; an empty page that cannot take the chart never will.
+      if (!paged || fresh) return -1;
     }
-    if (best_x < 0) return -1;
     used = std::max(used, best_top);
     Placement& p = placements[id];
     p.x = best_x;
-    p.y = best_y;
+    p.y = best_y + static_cast<int>(page) * r;
     p.quarter_turns = best_turns;
     turnedProfile(m, best_turns, bottom, top);
+    std::vector<int>& height = pages[page];
     const int w = static_cast<int>(bottom.size());
     for (int c = 0; c < w; ++c) {
       if (top[static_cast<std::size_t>(c)] < 0) continue;
@@ -240,7 +259,26 @@ int packCharts(const std::vector<Chart>& charts, double texel_m, int resolution,
         height[static_cast<std::size_t>(col)] = std::max(height[static_cast<std::size_t>(col)], raised);
     }
   }
-  return used;
+  return paged ? static_cast<int>(pages.size()) : used;
+}
+
+}  // namespace
+
+int packCharts(const std::vector<Chart>& charts, double texel_m, int resolution, int gutter,
+               std::vector<Placement>& placements, const Progress* progress) {
+  return packImpl(charts, texel_m, resolution, gutter, false, placements, progress);
+}
+
+int packChartsPaged(const std::vector<Chart>& charts, double texel_m, int resolution, int gutter,
+                    std::vector<Placement>& placements, const Progress* progress) {
+  return packImpl(charts, texel_m, resolution, gutter, true, placements, progress);
+}
+
+int chartMaskSide(const Chart& chart, double texel_m) {
+  glm::dvec2 ext(0.0);
+  for (const glm::dvec2& p : chart.uv) ext = glm::max(ext, p);
+  const double side = std::floor(std::max(ext.x, ext.y) / texel_m + 0.5 + kMaskSlack) + 1.0;
+  return side < double(kMaxPackSide) ? static_cast<int>(side) : static_cast<int>(kMaxPackSide);
 }
 
 void applyPlacement(Chart& chart, const Placement& placement, double texel_m) {

@@ -14,7 +14,11 @@
 // charts (or a chart and the border) are always more than `gutter` texels apart. The
 // strip is packed without a height limit: the height used tells the caller how far the
 // texel size is from filling the square, which drives its search in a few packs.
-// Integer arithmetic in a fixed order: deterministic.
+// Paged packing (`page_rows` > 0) stacks square pages of `resolution` texels along y
+// instead: a chart goes onto the first page where it fits below the page's top gutter
+// (first fit, so small charts fill the gaps of earlier pages), else onto a new page; no
+// chart straddles two pages, so each page is a self-contained atlas. Integer arithmetic in
+// a fixed order: deterministic.
 #pragma once
 
 #include <cstdint>
@@ -42,6 +46,15 @@ struct Placement {
 // polled for cancellation only: a cancelled pack returns -1 too.
 int packCharts(const std::vector<Chart>& charts, double texel_m, int resolution, int gutter,
                std::vector<Placement>& placements, const Progress* progress = nullptr);
+
+// Paged packing: every chart on one of as many `resolution` x `resolution` pages as needed,
+// page p's rows at [p * resolution, (p + 1) * resolution) of the placements' y. Returns the
+// page count, or -1 if some chart does not fit an empty page (or on cancellation).
+int packChartsPaged(const std::vector<Chart>& charts, double texel_m, int resolution, int gutter,
+                    std::vector<Placement>& placements, const Progress* progress = nullptr);
+
+// Texels along the longer side of a chart's mask at `texel_m` (the packer's rounding).
+int chartMaskSide(const Chart& chart, double texel_m);
 
 // Moves a chart's uv from metres (aligned box) to atlas texel coordinates per placement.
 void applyPlacement(Chart& chart, const Placement& placement, double texel_m);

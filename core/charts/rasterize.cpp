@@ -2,22 +2,22 @@
 
 namespace lightlink::charts {
 
-AtlasCheck checkAtlas(const AtlasTriangles& tris, int resolution, int gutter) {
+AtlasCheck checkAtlas(const AtlasTriangles& tris, int width, int height, int gutter) {
   constexpr int kBand = 256;
-  const int r = resolution;
+  const int r = width, rows_total = height;
   const int halo = std::max(gutter, 0);
   const std::size_t n = tris.chart.size();
   AtlasCheck out;
   out.chart_texels.assign(tris.chart_count, 0);
-  const int bands = (r + kBand - 1) / kBand;
+  const int bands = (rows_total + kBand - 1) / kBand;
 
   // Bucket triangles by the bands their rows (plus the gutter halo) reach: counting sort.
   std::vector<std::uint32_t> start(static_cast<std::size_t>(bands) + 1, 0);
   auto bandRange = [&](std::size_t t, int& b0, int& b1) {
     const glm::dvec2* q = &tris.texels[3 * t];
     const double ymin = std::min({q[0].y, q[1].y, q[2].y}), ymax = std::max({q[0].y, q[1].y, q[2].y});
-    const int y0 = std::clamp(static_cast<int>(std::floor(ymin)) - 1 - halo, 0, r - 1);
-    const int y1 = std::clamp(static_cast<int>(std::floor(ymax)) + 1 + halo, 0, r - 1);
+    const int y0 = std::clamp(static_cast<int>(std::floor(ymin)) - 1 - halo, 0, rows_total - 1);
+    const int y1 = std::clamp(static_cast<int>(std::floor(ymax)) + 1 + halo, 0, rows_total - 1);
     b0 = y0 / kBand;
     b1 = y1 / kBand;
   };
@@ -41,8 +41,8 @@ AtlasCheck checkAtlas(const AtlasTriangles& tris, int resolution, int gutter) {
   constexpr std::uint32_t kClash = 0xffffffffu;
   std::vector<std::uint32_t> owner, center;
   for (int b = 0; b < bands; ++b) {
-    const int row0 = b * kBand, row1 = std::min(r, row0 + kBand);
-    const int ext0 = std::max(0, row0 - halo), ext1 = std::min(r, row1 + halo);
+    const int row0 = b * kBand, row1 = std::min(rows_total, row0 + kBand);
+    const int ext0 = std::max(0, row0 - halo), ext1 = std::min(rows_total, row1 + halo);
     const std::size_t rows = static_cast<std::size_t>(ext1 - ext0);
     owner.assign(rows * r, 0);
     center.assign(static_cast<std::size_t>(row1 - row0) * r, 0);
@@ -51,7 +51,7 @@ AtlasCheck checkAtlas(const AtlasTriangles& tris, int resolution, int gutter) {
       const glm::dvec2* q = &tris.texels[3 * t];
       const std::uint32_t c = tris.chart[t];
       if (c != kNoChart) {
-        forEachConservativeTexel(q, r, r, ext0, ext1, [&](int x, int y) {
+        forEachConservativeTexel(q, r, rows_total, ext0, ext1, [&](int x, int y) {
           std::uint32_t& o = owner[static_cast<std::size_t>(y - ext0) * r + x];
           if (o == 0) {
             o = c + 1;
@@ -60,7 +60,7 @@ AtlasCheck checkAtlas(const AtlasTriangles& tris, int resolution, int gutter) {
           }
         });
       }
-      forEachCenterTexel(q, r, r, row0, row1, [&](int x, int y) {
+      forEachCenterTexel(q, r, rows_total, row0, row1, [&](int x, int y) {
         std::uint32_t& o = center[static_cast<std::size_t>(y - row0) * r + x];
         if (o == 0) {
           o = t + 1;

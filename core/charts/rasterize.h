@@ -112,6 +112,6 @@ struct AtlasCheck {
   std::vector<std::size_t> chart_texels;    // per chart, conservative
 };
 
-AtlasCheck checkAtlas(const AtlasTriangles& tris, int resolution, int gutter);
+AtlasCheck checkAtlas(const AtlasTriangles& tris, int width, int height, int gutter);
 
 }  // namespace lightlink::charts

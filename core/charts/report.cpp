@@ -27,6 +27,9 @@ nlohmann::json UnwrapReport::toJson() const {
   j["flipped"] = flipped;
   j["out_of_range"] = out_of_range;
   j["resolution"] = resolution;
+  j["pages"] = pages;
+  j["probe_lit_meshes"] = probe_lit_meshes;
+  j["probe_lit"] = probe_lit;
   j["gutter_texels"] = gutter_texels;
   j["texel_size_m"] = texel_size_m;
   j["seconds"] = seconds;
@@ -40,8 +43,11 @@ std::string UnwrapReport::toText() const {
   std::string s;
   s += fmt::format("lightmap uv: {} ({} static meshes, {} triangles)\n",
                    generated ? "generated" : "kept existing TEXCOORD_1", meshes, triangles);
-  s += fmt::format("  atlas        {0}x{0} texels, {1:.4g} m/texel, gutter {2}\n", resolution,
-                   texel_size_m, gutter_texels);
+  s += fmt::format("  atlas        {0} page{1} of {2}x{2} texels, {3:.4g} m/texel, gutter {4}\n", pages,
+                   pages == 1 ? "" : "s", resolution, texel_size_m, gutter_texels);
+  if (probe_lit_meshes > 0)
+    s += fmt::format("  probe-lit    {} static meshes too small for the lightmap (lit from the volume)\n",
+                     probe_lit_meshes);
   if (generated) {
     s += fmt::format("  charts       {} ({} planar, {} LSCM, {} splits)\n", charts, planar_charts,
                      lscm_charts, chart_splits);

@@ -3,6 +3,8 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <cstring>
+#include <numeric>
 #include <unordered_map>
 
 #include <tbb/parallel_for.h>
@@ -104,10 +106,69 @@ double signedUvArea(const glm::vec2& a, const glm::vec2& b, const glm::vec2& c) 
   return 0.5 * (static_cast<double>(b.x - a.x) * (c.y - a.y) - static_cast<double>(b.y - a.y) * (c.x - a.x));
 }
 
+// Existing uv1 as atlas triangles at `resolution`, each triangle's chart its uv island:
+// triangles joined by a shared vertex or by vertices at bitwise-equal uv1 within a mesh
+// (a layout split for normals is still one island). Islands of different meshes differ.
+AtlasTriangles existingTriangles(const scene::Scene& scene, const std::vector<std::uint32_t>& statics,
+                                 int resolution) {
+  AtlasTriangles tris;
+  for (std::uint32_t m : statics) {
+    const scene::MeshInstance& mesh = scene.meshes[m];
+    std::vector<std::uint32_t> parent(mesh.uv1.size());
+    std::iota(parent.begin(), parent.end(), 0u);
+    const auto find = [&](std::uint32_t v) {
+      while (parent[v] != v) v = parent[v] = parent[parent[v]];
+      return v;
+    };
+    const auto join = [&](std::uint32_t a, std::uint32_t b) {
+      a = find(a), b = find(b);
+      if (a != b) parent[std::max(a, b)] = std::min(a, b);
+    };
+    std::unordered_map<std::uint64_t, std::uint32_t> first_at;
+    for (std::uint32_t v = 0; v < mesh.uv1.size(); ++v) {
+      std::uint32_t bits[2];
+      std::memcpy(bits, &mesh.uv1[v], sizeof bits);
+      const auto [it, inserted] = first_at.try_emplace((std::uint64_t(bits[0]) << 32) | bits[1], v);
+      if (!inserted) join(it->second, v);
+    }
+    for (std::size_t t = 0; t < mesh.triangleCount(); ++t) {
+      join(mesh.indices[3 * t], mesh.indices[3 * t + 1]);
+      join(mesh.indices[3 * t], mesh.indices[3 * t + 2]);
+    }
+    std::unordered_map<std::uint32_t, std::uint32_t> island;
+    for (std::size_t t = 0; t < mesh.triangleCount(); ++t) {
+      const auto [it, inserted] = island.try_emplace(find(mesh.indices[3 * t]), tris.chart_count);
+      if (inserted) ++tris.chart_count;
+      tris.chart.push_back(it->second);
+      for (int k = 0; k < 3; ++k)
+        tris.texels.emplace_back(glm::dvec2(mesh.uv1[mesh.indices[3 * t + k]]) * static_cast<double>(resolution));
+    }
+  }
+  return tris;
+}
+
+AtlasTriangles rescaled(AtlasTriangles tris, double factor) {
+  for (glm::dvec2& q : tris.texels) q *= factor;
+  return tris;
+}
+
+// The resolution an existing layout was packed for: the smallest power of two from 64 to
+// 4096 (within `max_texels`) at which its islands neither overlap nor come within `gutter`
+// texels of each other. 0 when none does: triangles that overlap (a texel centre in two),
+// which no resolution separates, end the search at once.
+int packedResolution(const AtlasTriangles& unit_tris, int gutter, std::uint64_t max_texels) {
+  for (int r = 64; r <= 4096; r *= 2) {
+    if (max_texels != 0 && std::uint64_t(r) * std::uint64_t(r) > max_texels) break;
+    const AtlasCheck check = checkAtlas(rescaled(unit_tris, r), r, r, gutter);
+    if (check.triangle_overlap_texels > 0) return 0;
+    if (check.chart_overlap_texels == 0 && check.gutter_violations == 0) return r;
+  }
+  return 0;
+}
+
 // Existing uv1: checked at `resolution`, never modified.
 void checkExisting(const scene::Scene& scene, const std::vector<std::uint32_t>& statics, int resolution,
                    UnwrapReport& report) {
-  AtlasTriangles tris;
   double surface_m2 = 0.0, uv_texels = 0.0;
   for (std::uint32_t m : statics) {
     const scene::MeshInstance& mesh = scene.meshes[m];
@@ -124,8 +185,6 @@ void checkExisting(const scene::Scene& scene, const std::vector<std::uint32_t>& 
       const glm::dvec3 p0(mesh.positions[mesh.indices[3 * t]]), p1(mesh.positions[mesh.indices[3 * t + 1]]),
           p2(mesh.positions[mesh.indices[3 * t + 2]]);
       surface_m2 += 0.5 * glm::length(glm::cross(p1 - p0, p2 - p0));
-      for (const glm::vec2& q : {a, b, c}) tris.texels.emplace_back(glm::dvec2(q) * static_cast<double>(resolution));
-      tris.chart.push_back(kNoChart);
     }
     // Mirrored uv1 is legitimate; triangles against the mesh's majority, or of zero area, are not.
     const std::size_t flipped = mesh.triangleCount() - std::max(positive, negative);
@@ -139,12 +198,13 @@ void checkExisting(const scene::Scene& scene, const std::vector<std::uint32_t>& 
   }
   // Mean metres per texel of the existing layout, for the precompute's spacing.
   report.texel_size_m = uv_texels > 0.0 ? static_cast<float>(std::sqrt(surface_m2 / uv_texels)) : 0.0f;
-  const AtlasCheck check = checkAtlas(tris, resolution, 0);
-  report.overlaps = check.triangle_overlap_texels;
+  const AtlasCheck check = checkAtlas(existingTriangles(scene, statics, resolution), resolution, resolution, 0);
+  report.overlaps = check.triangle_overlap_texels + check.chart_overlap_texels;
+  report.charts = static_cast<int>(check.chart_texels.size());
   report.utilisation = static_cast<double>(check.center_texels) / (static_cast<double>(resolution) * resolution);
   if (report.overlaps > 0)
     report.warnings.push_back(fmt::format(
-        "existing TEXCOORD_1: {} texel centres at {}x{} lie in two or more triangles (overlapping lightmap uv)",
+        "existing TEXCOORD_1: {} texels at {}x{} lie in two or more uv islands or triangles (overlapping lightmap uv)",
         report.overlaps, resolution, resolution));
 }
 
@@ -158,6 +218,10 @@ Status validate(const UnwrapOptions& o) {
   if (o.target_resolution < 1 || o.target_resolution > kMaxAtlasResolution)
     return invalidInput("unwrap: target resolution must be in [1, {}] texels, got {}", kMaxAtlasResolution,
                         o.target_resolution);
+  if (o.max_atlas < 16 || o.max_atlas > kMaxAtlasResolution)
+    return invalidInput("unwrap: --max-atlas must be in [16, {}] texels, got {}", kMaxAtlasResolution, o.max_atlas);
+  if (o.texel_budget > (std::uint64_t(1) << 32))
+    return invalidInput("unwrap: texel budget {} is above 2^32", o.texel_budget);
   if (o.gutter_texels < 0 || o.gutter_texels > 64)
     return invalidInput("unwrap: gutter must be in [0, 64] texels, got {}", o.gutter_texels);
   if (!(o.normal_cone_deg > 0.0f && o.normal_cone_deg < 90.0f))
@@ -175,6 +239,15 @@ Status validate(const UnwrapOptions& o) {
   return Status::ok();
 }
 
+double texelSizeForBudget(double area_sum, double perimeter_sum, std::size_t charts, std::uint64_t budget) {
+  const double n = static_cast<double>(charts);
+  const double room = std::max(static_cast<double>(budget), 2.0 * n) - n;
+  if (!(area_sum > 0.0) || !(room > 0.0)) return 0.0;
+  const double x = (-perimeter_sum + std::sqrt(perimeter_sum * perimeter_sum + 4.0 * area_sum * room)) /
+                   (2.0 * area_sum);
+  return x > 0.0 ? 1.0 / x : 0.0;
+}
+
 Expected<UnwrapResult> unwrap(scene::Scene& scene, const UnwrapOptions& options) {
   const auto t0 = std::chrono::steady_clock::now();
   if (Status s = validate(options); !s) return s;
@@ -189,13 +262,20 @@ Expected<UnwrapResult> unwrap(scene::Scene& scene, const UnwrapOptions& options)
   std::vector<std::uint32_t> statics;
   std::size_t with_uv1 = 0;
   for (std::size_t m = 0; m < scene.meshes.size(); ++m) {
-    const scene::MeshInstance& mesh = scene.meshes[m];
+    scene::MeshInstance& mesh = scene.meshes[m];
     if (!mesh.is_static || mesh.triangleCount() == 0) continue;
+    if (mesh.probe_lit) {  // flagged in the scene: never in the atlas
+      mesh.uv1.clear();
+      atlas.probe_lit.push_back(static_cast<std::uint32_t>(m));
+      continue;
+    }
     statics.push_back(static_cast<std::uint32_t>(m));
     with_uv1 += mesh.hasLightmapUv();
   }
   report.meshes = static_cast<int>(statics.size());
-  if (statics.empty()) return invalidInput("unwrap: '{}' has no static triangle meshes", scene.source_path);
+  if (statics.empty())
+    return invalidInput("unwrap: '{}' has no static triangle meshes{}", scene.source_path,
+                        atlas.probe_lit.empty() ? "" : " that are lightmapped (all are marked lightmap: false)");
 
   const Progress* progress = options.progress;
   const auto stopped = [&] { return cancelled("unwrap: cancelled"); };
@@ -214,28 +294,43 @@ Expected<UnwrapResult> unwrap(scene::Scene& scene, const UnwrapOptions& options)
     return Expected<UnwrapResult>(std::move(result));
   };
 
-  if (!options.texel_size_m || options.resolution)
+  if (options.resolution || (!options.texel_size_m && options.texel_budget == 0))
     if (Status s = overBudget(options.resolution.value_or(options.target_resolution)); !s) return s;
-  if (options.keep_existing_uv1 && with_uv1 == statics.size()) {
-    const int res = options.resolution.value_or(options.target_resolution);
-    atlas.generated = false;
-    atlas.resolution = res;
-    report.resolution = res;
-    for (std::uint32_t m : statics)
-      atlas.meshes[m].triangle_chart.assign(scene.meshes[m].triangleCount(), kNoChart);
-    checkExisting(scene, statics, res, report);
-    atlas.texel_size_m = report.texel_size_m;
-    return finish();
-  }
-  if (with_uv1 > 0) {
+  if (options.uv_mode != UvMode::kGenerate && with_uv1 == statics.size()) {
+    int res = options.resolution.value_or(0);
+    if (res == 0) {
+      res = packedResolution(existingTriangles(scene, statics, 1), options.gutter_texels, options.max_texels);
+      if (res == 0) res = std::max(options.max_atlas, 64);  // islands touch at every size: checked below
+    }
+    UnwrapReport kept;
+    kept.gutter_texels = options.gutter_texels;
+    kept.meshes = report.meshes;
+    checkExisting(scene, statics, res, kept);
+    const bool broken = kept.overlaps > 0 || kept.out_of_range > 0;
+    if (options.uv_mode == UvMode::kKeep || !broken) {
+      report = std::move(kept);
+      atlas.generated = false;
+      atlas.resolution = res;
+      report.resolution = res;
+      for (std::uint32_t m : statics)
+        atlas.meshes[m].triangle_chart.assign(scene.meshes[m].triangleCount(), kNoChart);
+      atlas.texel_size_m = report.texel_size_m;
+      return finish();
+    }
+    report.warnings.push_back(fmt::format(
+        "existing TEXCOORD_1 regenerated: {} overlapping texels at {}x{}, {} values outside [0,1] (--uv keep keeps it)",
+        kept.overlaps, res, res, kept.out_of_range));
+  } else if (with_uv1 > 0) {
     for (std::uint32_t m : statics) {
       if (!scene.meshes[m].hasLightmapUv()) continue;
-      report.warnings.push_back(fmt::format(
-          "mesh '{}': existing TEXCOORD_1 replaced ({} of {} static meshes have none; one atlas is generated for all)",
-          scene.meshes[m].name, statics.size() - with_uv1, statics.size()));
+      report.warnings.push_back(
+          options.uv_mode == UvMode::kGenerate
+              ? fmt::format("mesh '{}': existing TEXCOORD_1 replaced (--uv generate)", scene.meshes[m].name)
+              : fmt::format("mesh '{}': existing TEXCOORD_1 replaced ({} of {} static meshes have none; one atlas is "
+                            "generated for all)",
+                            scene.meshes[m].name, statics.size() - with_uv1, statics.size()));
     }
   }
-
   // 1-2. Prepare and segment each static mesh (independent: parallel over meshes).
   const double weld_m = static_cast<double>(options.weld_tolerance) * scene.scale;
   std::vector<PreparedMesh> prepared(statics.size());
@@ -283,18 +378,92 @@ Expected<UnwrapResult> unwrap(scene::Scene& scene, const UnwrapOptions& options)
   flattened.clear();
   if (stopRequested(progress)) return stopped();
 
-  // 4. Texel size and resolution, then pack.
-  double area_m2 = 0.0;
-  for (const Chart& c : charts) area_m2 += c.area_m2;
+  // 4. Texel size, probe-lit objects, page size and pages, then pack.
   const int gutter = options.gutter_texels;
+  // Per chart: texels per metre relative to the atlas's texel size (the mesh's
+  // lightmap_scale, times the scale-down of a chart larger than a page).
+  std::vector<double> chart_density(charts.size(), 1.0);
+  for (std::size_t c = 0; c < charts.size(); ++c) {
+    const double k = scene.meshes[statics[charts[c].mesh]].lightmap_scale;
+    if (!(k > 0.0) || k == 1.0) continue;
+    for (glm::dvec2& q : charts[c].uv) q *= k;
+    chart_density[c] = k;
+  }
+  std::vector<glm::dvec2> extent(charts.size(), glm::dvec2(0.0));
+  double area_m2 = 0.0, scaled_area = 0.0, perimeter = 0.0;
+  for (std::size_t c = 0; c < charts.size(); ++c) {
+    for (const glm::dvec2& q : charts[c].uv) extent[c] = glm::max(extent[c], q);
+    area_m2 += charts[c].area_m2;
+    scaled_area += charts[c].area_m2 * chart_density[c] * chart_density[c];
+    perimeter += extent[c].x + extent[c].y;
+  }
   std::vector<Placement> placements;
-  int res = 0;
+  int res = 0, pages = 1;
   double texel_m = 0.0;
-  if (options.texel_size_m) {
-    texel_m = *options.texel_size_m;
+  std::vector<char> mesh_probe_lit(statics.size(), 0);
+  if (options.texel_size_m || options.texel_budget > 0) {
+    texel_m = options.texel_size_m ? double(*options.texel_size_m)
+                                   : texelSizeForBudget(scaled_area, perimeter, charts.size(), options.texel_budget);
+    if (!(texel_m > 0.0) || !std::isfinite(texel_m))
+      return invalidInput("unwrap: '{}' has no chart area to lay out", scene.source_path);
+    // Objects too small for the lightmap: every chart of the mesh under 2 texels a side.
+    if (options.probe_lit_small) {
+      std::vector<char> big(statics.size(), 0);
+      for (std::size_t c = 0; c < charts.size(); ++c)
+        if (std::max(extent[c].x, extent[c].y) >= 2.0 * texel_m) big[charts[c].mesh] = 1;
+      std::size_t kept = 0;
+      for (std::size_t i = 0; i < statics.size(); ++i) kept += big[i];
+      if (kept > 0)  // an atlas needs one mesh: a scene of only tiny objects keeps them all
+        for (std::size_t i = 0; i < statics.size(); ++i) mesh_probe_lit[i] = !big[i];
+    }
+    if (std::count(mesh_probe_lit.begin(), mesh_probe_lit.end(), 1) > 0) {
+      std::vector<Chart> kept;
+      std::vector<double> kept_density;
+      std::vector<glm::dvec2> kept_extent;
+      area_m2 = 0.0;
+      for (std::size_t c = 0; c < charts.size(); ++c) {
+        if (mesh_probe_lit[charts[c].mesh]) continue;
+        area_m2 += charts[c].area_m2;
+        kept.push_back(std::move(charts[c]));
+        kept_density.push_back(chart_density[c]);
+        kept_extent.push_back(extent[c]);
+      }
+      charts = std::move(kept);
+      chart_density = std::move(kept_density);
+      extent = std::move(kept_extent);
+      for (std::size_t i = 0; i < statics.size(); ++i)
+        if (mesh_probe_lit[i]) atlas.probe_lit.push_back(statics[i]);
+      std::sort(atlas.probe_lit.begin(), atlas.probe_lit.end());
+    }
+    const int page = options.resolution.value_or(options.max_atlas);
+    // A chart larger than a page is scaled down to fit one: its texels are coarser, never
+    // "cannot fit". Named per mesh so a user can split the mesh or raise --max-atlas.
+    const double max_side = double(page - 2 * gutter - 2) * texel_m;
+    if (!(max_side > 0.0))
+      return invalidInput("unwrap: a {}-texel page with a {}-texel gutter has no room for a chart", page, gutter);
+    std::vector<std::size_t> shrunk(statics.size(), 0);
+    std::vector<double> coarsest(statics.size(), 0.0);
+    for (std::size_t c = 0; c < charts.size(); ++c) {
+      const double side = std::max(extent[c].x, extent[c].y);
+      if (side <= max_side) continue;
+      const double f = max_side / side;
+      for (glm::dvec2& q : charts[c].uv) q *= f;
+      extent[c] *= f;
+      chart_density[c] *= f;
+      ++shrunk[charts[c].mesh];
+      coarsest[charts[c].mesh] = std::max(coarsest[charts[c].mesh], texel_m / chart_density[c]);
+    }
+    for (std::size_t i = 0; i < statics.size(); ++i)
+      if (shrunk[i] > 0)
+        report.warnings.push_back(fmt::format(
+            "mesh '{}': {} chart(s) larger than a {}x{} page at {:.4g} m/texel were scaled down to fit (texels up to "
+            "{:.4g} m there); raise --max-atlas or split the mesh",
+            scene.meshes[statics[i]].name, shrunk[i], page, page, texel_m, coarsest[i]));
     // The charts alone need area / texel^2 texels: a tiny texel size is refused here, before
-    // any packing, rather than searched for an atlas that cannot exist.
-    const double needed = area_m2 / (texel_m * texel_m);
+    // any packing, rather than searched for pages that cannot exist.
+    double needed = 0.0;
+    for (std::size_t c = 0; c < charts.size(); ++c)
+      needed += charts[c].area_m2 * chart_density[c] * chart_density[c] / (texel_m * texel_m);
     const double limit = options.max_texels ? double(options.max_texels)
                                             : double(kMaxAtlasResolution) * double(kMaxAtlasResolution);
     if (!(needed <= limit))
@@ -303,33 +472,39 @@ Expected<UnwrapResult> unwrap(scene::Scene& scene, const UnwrapOptions& options)
                                                      "raise the texel size",
                                                      texel_m, needed, area_m2, options.max_texels)
                                  : invalidInput("unwrap: {} charts at {} m/texel need at least {:.3g} texels, more than "
-                                                "a {}x{} atlas holds; raise the texel size",
-                                                charts.size(), texel_m, needed, kMaxAtlasResolution,
-                                                kMaxAtlasResolution));
-    if (options.resolution) {
-      res = *options.resolution;
-      const int used = packCharts(charts, texel_m, res, gutter, placements, progress);
-      if (stopRequested(progress)) return stopped();
-      if (used < 0 || used > res - gutter)
-        return invalidInput("unwrap: {} charts at {} m/texel do not fit into {}x{} texels; raise the resolution "
-                            "or the texel size", charts.size(), texel_m, res, res);
-    } else {
-      for (int r = 16; r <= kMaxAtlasResolution && res == 0 && overBudget(r).isOk(); r *= 2) {
+                                                "the {} texels the largest atlas holds; raise the texel size",
+                                                charts.size(), texel_m, needed, limit));
+    // One page when one fits: the smallest power of two (or the given resolution) that
+    // holds every chart; else as many pages of the page size as needed.
+    if (!options.resolution) {
+      for (int r = 16; r <= page && res == 0; r *= 2) {
+        if (double(r) * r < needed) continue;
         if (const int used = packCharts(charts, texel_m, r, gutter, placements, progress); used >= 0 && used <= r - gutter)
           res = r;
         if (stopRequested(progress)) return stopped();
       }
-      if (res == 0 && options.max_texels != 0 && !overBudget(kMaxAtlasResolution))
-        return resourceExhausted("lightmap: {} charts at {} m/texel do not fit into the largest atlas the limit of {} "
-                                 "texels allows (max_texels); raise the texel size",
-                                 charts.size(), texel_m, options.max_texels);
-      if (res == 0)
-        return invalidInput("unwrap: {} charts at {} m/texel do not fit into {}x{} texels; raise the texel size",
-                            charts.size(), texel_m, kMaxAtlasResolution, kMaxAtlasResolution);
+    } else if (const int used = packCharts(charts, texel_m, page, gutter, placements, progress);
+               used >= 0 && used <= page - gutter) {
+      res = page;
     }
+    if (stopRequested(progress)) return stopped();
+    if (res == 0) {
+      res = page;
+      pages = packChartsPaged(charts, texel_m, page, gutter, placements, progress);
+      if (stopRequested(progress)) return stopped();
+      if (pages < 0) return internalError("unwrap: a chart scaled to fit a {}x{} page did not fit one", page, page);
+    }
+    if (std::uint64_t(res) * std::uint64_t(pages) > std::uint64_t(kMaxAtlasResolution))
+      return invalidInput("unwrap: {} charts at {} m/texel need {} pages of {}x{}, more than the {} rows an atlas may "
+                          "have; raise the texel size or --max-atlas",
+                          charts.size(), texel_m, pages, res, res, kMaxAtlasResolution);
+    if (options.max_texels != 0 && std::uint64_t(res) * res * std::uint64_t(pages) > options.max_texels)
+      return resourceExhausted("lightmap: {} pages of {}x{} = {} texels are above the limit of {} texels (max_texels); "
+                               "raise the texel size",
+                               pages, res, res, std::uint64_t(res) * res * std::uint64_t(pages), options.max_texels);
   } else {
     res = options.resolution.value_or(options.target_resolution);
-    texel_m = fitTexelSize(charts, area_m2, res, gutter, placements, progress);
+    texel_m = fitTexelSize(charts, scaled_area, res, gutter, placements, progress);
     if (stopRequested(progress)) return stopped();
     if (texel_m == 0.0)
       return invalidInput("unwrap: {} charts with a {}-texel gutter cannot fit into {}x{} texels at any texel size; "
@@ -337,23 +512,33 @@ Expected<UnwrapResult> unwrap(scene::Scene& scene, const UnwrapOptions& options)
   }
   atlas.generated = report.generated = true;
   atlas.resolution = report.resolution = res;
+  atlas.pages = report.pages = pages;
   atlas.texel_size_m = report.texel_size_m = static_cast<float>(texel_m);
   atlas.chart_count = static_cast<std::uint32_t>(charts.size());
   report.charts = static_cast<int>(charts.size());
+  report.probe_lit_meshes = atlas.probe_lit.size();
+  for (std::uint32_t m : atlas.probe_lit) {
+    report.probe_lit.push_back(scene.meshes[m].name);
+    scene.meshes[m].probe_lit = true;
+    scene.meshes[m].uv1.clear();
+    atlas.meshes[m].triangle_chart.assign(scene.meshes[m].triangleCount(), kNoChart);
+  }
   tbb::parallel_for(std::size_t{0}, charts.size(),
                     [&](std::size_t c) { applyPlacement(charts[c], placements[c], texel_m); });
 
   // 5. Rewrite the meshes with seam-split vertices and uv1, one new vertex per NewVertexKey.
   std::vector<std::vector<std::pair<std::uint32_t, std::uint32_t>>> face_ref(statics.size());  // (chart, index in chart)
-  for (std::size_t i = 0; i < statics.size(); ++i) face_ref[i].resize(prepared[i].faceCount());
+  for (std::size_t i = 0; i < statics.size(); ++i)
+    if (!mesh_probe_lit[i]) face_ref[i].resize(prepared[i].faceCount());
   for (std::size_t c = 0; c < charts.size(); ++c) {
     const Chart& chart = charts[c];
     for (std::size_t fi = 0; fi < chart.faces.size(); ++fi)
       face_ref[chart.mesh][chart.faces[fi]] = {static_cast<std::uint32_t>(c), static_cast<std::uint32_t>(fi)};
   }
-  const double inv_res = 1.0 / res;
+  const glm::dvec2 inv_size(1.0 / res, 1.0 / (double(res) * pages));
   if (stopRequested(progress)) return stopped();
   tbb::parallel_for(std::size_t{0}, statics.size(), [&](std::size_t i) {
+    if (mesh_probe_lit[i]) return;
     scene::MeshInstance& mesh = scene.meshes[statics[i]];
     MeshLightmap& lm = atlas.meshes[statics[i]];
     const PreparedMesh& pm = prepared[i];
@@ -375,7 +560,7 @@ Expected<UnwrapResult> unwrap(scene::Scene& scene, const UnwrapOptions& options)
           positions.push_back(mesh.positions[src]);
           if (!mesh.normals.empty()) normals.push_back(mesh.normals[src]);
           if (!mesh.uv0.empty()) uv0.push_back(mesh.uv0[src]);
-          uv1.emplace_back(chart.uv[chart.local_corners[3 * fi + k]] * inv_res);
+          uv1.emplace_back(chart.uv[chart.local_corners[3 * fi + k]] * inv_size);
           lm.source_vertex.push_back(src);
         }
         indices.push_back(it->second);
@@ -395,19 +580,25 @@ Expected<UnwrapResult> unwrap(scene::Scene& scene, const UnwrapOptions& options)
   double weight = 0.0, sum_stretch = 0.0, sum_angle = 0.0;
   report.max_area_stretch = report.max_angle_distortion = 1.0;
   const double texels_per_m2 = 1.0 / (texel_m * texel_m);
+  const glm::dvec2 size(res, double(res) * pages);
   for (std::uint32_t m : statics) {
     const scene::MeshInstance& mesh = scene.meshes[m];
+    if (mesh.probe_lit) continue;
     report.triangles += mesh.triangleCount();
     for (std::size_t t = 0; t < mesh.triangleCount(); ++t) {
       glm::dvec3 p[3];
       glm::dvec2 q[3];
       for (int k = 0; k < 3; ++k) {
         p[k] = glm::dvec3(mesh.positions[mesh.indices[3 * t + k]]);
-        q[k] = glm::dvec2(mesh.uv1[mesh.indices[3 * t + k]]) * static_cast<double>(res);
+        q[k] = glm::dvec2(mesh.uv1[mesh.indices[3 * t + k]]) * size;
         tris.texels.push_back(q[k]);
       }
-      tris.chart.push_back(atlas.meshes[m].triangle_chart[t]);
-      const TriangleDistortion d = triangleDistortion(p[0], p[1], p[2], q[0], q[1], q[2], texels_per_m2);
+      const std::uint32_t chart = atlas.meshes[m].triangle_chart[t];
+      tris.chart.push_back(chart);
+      // Stretch against the density the chart was laid out at (lightmap_scale, scale-down).
+      const double density = chart_density[chart];
+      const TriangleDistortion d =
+          triangleDistortion(p[0], p[1], p[2], q[0], q[1], q[2], texels_per_m2 * density * density);
       if (!(d.signed_area_ratio > 0.0)) {
         ++report.flipped;
         continue;
@@ -424,10 +615,10 @@ Expected<UnwrapResult> unwrap(scene::Scene& scene, const UnwrapOptions& options)
     report.mean_area_stretch = sum_stretch / weight;
     report.mean_angle_distortion = sum_angle / weight;
   }
-  const AtlasCheck check = checkAtlas(tris, res, gutter);
+  const AtlasCheck check = checkAtlas(tris, res, res * pages, gutter);
   report.overlaps = check.chart_overlap_texels + check.triangle_overlap_texels;
   report.gutter_violations = check.gutter_violations;
-  report.utilisation = static_cast<double>(check.covered_texels) / (static_cast<double>(res) * res);
+  report.utilisation = static_cast<double>(check.covered_texels) / (static_cast<double>(res) * res * pages);
   std::vector<std::size_t> texels = check.chart_texels;
   std::sort(texels.begin(), texels.end());
   if (!texels.empty()) {

@@ -128,6 +128,10 @@ Status PrecomputeOptions::validate() const {
     return invalidInput("grid resolution {} is out of range (2..1024)", grid_resolution);
   if (texel_size_m && !(*texel_size_m > 0.0f && std::isfinite(*texel_size_m)))
     return invalidInput("--texel-size {} must be a finite number > 0", *texel_size_m);
+  if (texel_budget > (std::uint64_t(1) << 28))
+    return invalidInput("texel budget {} is out of range (0..268435456)", texel_budget);
+  if (max_atlas < 16 || max_atlas > charts::kMaxAtlasResolution)
+    return invalidInput("--max-atlas {} is out of range (16..{})", max_atlas, charts::kMaxAtlasResolution);
   if (lightmap_resolution && (*lightmap_resolution < 1 || *lightmap_resolution > charts::kMaxAtlasResolution))
     return invalidInput("lightmap resolution {} is out of range (1..{})", *lightmap_resolution,
                         charts::kMaxAtlasResolution);
@@ -145,18 +149,18 @@ Expected<PrecomputeOptions> preset(std::string_view name) {
     o.surfels = 4096;
     o.links = 64;
     o.rays = 512;
-    o.target_resolution = 64;
+    o.texel_budget = 16384;
   } else if (name == "medium") {
     o.surfels = 32768;
     o.links = 128;
     o.rays = 1024;
-    o.target_resolution = 128;
+    o.texel_budget = 65536;
   } else if (name == "high") {
     o.surfels = 16384;
     o.links = 256;
     o.bands = 3;
     o.rays = 2048;
-    o.target_resolution = 128;
+    o.texel_budget = 262144;
   } else {
     return invalidInput("--preset '{}' must be draft, medium or high", name);
   }
@@ -166,10 +170,11 @@ Expected<PrecomputeOptions> preset(std::string_view name) {
 std::string PrecomputeOptions::canonical() const {
   return fmt::format(
       "surfels={};links={};bands={};rays={};builder={};grid={};grid_spacing={:a};grid_resolution={};"
-      "texel_size={};lightmap_resolution={};target_resolution={};validity_rays={};seed={};generator={}",
+      "texel_size={};texel_budget={};max_atlas={};lightmap_resolution={};target_resolution={};validity_rays={};"
+      "seed={};generator={}",
       surfels, links, bands, rays, builder == hierarchy::Builder::kAgglomerative ? "hac" : "kd",
       static_cast<int>(grid), grid_spacing_m, grid_resolution,
-      texel_size_m ? fmt::format("{:a}", *texel_size_m) : "auto",
+      texel_size_m ? fmt::format("{:a}", *texel_size_m) : "auto", texel_budget, max_atlas,
       lightmap_resolution ? std::to_string(*lightmap_resolution) : "auto", target_resolution, validity_rays, seed,
       kGeneratorRevision);
 }
@@ -193,6 +198,8 @@ Expected<charts::UnwrapResult> unwrapFor(scene::Scene& scene, const PrecomputeOp
                                          const Progress* progress) {
   charts::UnwrapOptions u;
   u.texel_size_m = options.texel_size_m;
+  u.texel_budget = options.texel_budget;
+  u.max_atlas = options.max_atlas;
   u.resolution = options.lightmap_resolution;
   u.target_resolution = options.target_resolution;
   u.max_texels = options.limits.max_texels;
@@ -229,9 +236,15 @@ Expected<Precomputation> run(scene::Scene& scene, const PrecomputeOptions& optio
     auto r = unwrapFor(scene, options, &sink);
     if (!r) return r.status();
     p.atlas = std::move(r->atlas);
-    p.notes.push_back(p.atlas.generated ? fmt::format("lightmap UVs generated: {} charts in {}x{}",
-                                                      p.atlas.chart_count, p.atlas.resolution, p.atlas.resolution)
-                                        : "lightmap UVs: every static mesh has TEXCOORD_1, kept");
+    p.notes.push_back(p.atlas.generated
+                          ? fmt::format("lightmap UVs generated: {} charts on {} page{} of {}x{} at {:.4g} m/texel",
+                                        p.atlas.chart_count, p.atlas.pages, p.atlas.pages == 1 ? "" : "s",
+                                        p.atlas.resolution, p.atlas.resolution, p.atlas.texel_size_m)
+                          : "lightmap UVs: every static mesh has TEXCOORD_1, kept");
+    if (!p.atlas.probe_lit.empty())
+      p.notes.push_back(fmt::format("{} static meshes lit from the irradiance volume (too small for the lightmap "
+                                    "or marked lightmap: false)",
+                                    p.atlas.probe_lit.size()));
     return {};
   });
   if (!s) return s;
@@ -266,20 +279,38 @@ Expected<Precomputation> run(scene::Scene& scene, const PrecomputeOptions& optio
 
   const caches::ValidityOptions validity{.rays = options.validity_rays, .progress = &sink};
   s = stage("caches", [&]() -> Status {
-    auto lm = caches::placeLightmapCaches(scene, *accel, {.resolution = p.atlas.resolution, .validity = validity});
+    auto lm = caches::placeLightmapCaches(
+        scene, *accel, {.resolution = p.atlas.resolution, .pages = p.atlas.pages, .validity = validity});
     if (!lm) return lm.status();
     p.lightmap = std::move(lm).value();
     bool dynamic = false;
+    Aabb probe_lit_bounds;
     for (const auto& m : scene.meshes) dynamic |= !m.is_static;
-    p.has_grid = options.grid == GridMode::kOn || (options.grid == GridMode::kAuto && dynamic);
+    for (std::uint32_t m : p.atlas.probe_lit)
+      for (const glm::vec3& v : scene.meshes[m].positions) probe_lit_bounds.grow(v);
+    const bool probe_lit = !p.atlas.probe_lit.empty();
+    p.has_grid = options.grid == GridMode::kOn || (options.grid == GridMode::kAuto && (dynamic || probe_lit));
     if (options.grid == GridMode::kAuto)
-      p.notes.push_back(dynamic ? "grid caches: the scene has dynamic meshes"
-                                : "grid caches skipped: no dynamic meshes and no grid requested");
+      p.notes.push_back(dynamic     ? "grid caches: the scene has dynamic meshes"
+                        : probe_lit ? "grid caches: around the probe-lit static meshes"
+                                    : "grid caches skipped: no dynamic or probe-lit meshes and no grid requested");
     if (p.has_grid) {
       caches::GridCacheOptions g;
       g.spacing_m = options.grid_spacing_m;
       g.resolution = options.grid_resolution;
       g.validity = validity;
+      // Only probe-lit objects need it: a volume around them (a grid spacing of margin at
+      // the scene's resolution), not the whole level.
+      if (!dynamic && probe_lit && options.grid != GridMode::kOn) {
+        const glm::vec3 ext = scene.bounds.max - scene.bounds.min;
+        const float spacing = options.grid_spacing_m > 0.0f
+                                  ? options.grid_spacing_m
+                                  : std::max({ext.x, ext.y, ext.z}) / float(options.grid_resolution - 1);
+        g.spacing_m = spacing;
+        g.volume = probe_lit_bounds;
+        g.volume.min -= glm::vec3(spacing);
+        g.volume.max += glm::vec3(spacing);
+      }
       auto grid = caches::placeGridCaches(scene, *accel, g);
       if (!grid) return grid.status();
       p.grid = std::move(grid).value();
@@ -755,6 +786,8 @@ Expected<LoadedPrecomputation> open(const std::string& path) {
   out.p.lightmap.width = meta.integer("lightmap", "width", -1, 1, charts::kMaxAtlasResolution);
   out.p.lightmap.height = meta.integer("lightmap", "height", -1, 1, charts::kMaxAtlasResolution);
   out.p.atlas.resolution = out.p.lightmap.width;
+  // Pages are stacked along v (charts::LightmapAtlas).
+  out.p.atlas.pages = std::max(1, out.p.lightmap.height / std::max(1, out.p.lightmap.width));
   out.p.atlas.texel_size_m = meta.number("lightmap", "texel_size_m", -1);
   out.p.atlas.gutter_texels = meta.integer("lightmap", "gutter_texels", -1, 0, charts::kMaxAtlasResolution);
   out.p.atlas.generated = meta.boolean("lightmap", "generated_uv");

@@ -63,9 +63,14 @@ struct PrecomputeOptions {
   GridMode grid = GridMode::kAuto; // auto: a grid only when the scene has dynamic meshes
   float grid_spacing_m = 0.0f;     // 0 = derived from grid_resolution
   int grid_resolution = 16;        // grid points along the longest axis when spacing is 0
-  std::optional<float> texel_size_m;     // lightmap texel size; unset = from the resolution
+  // Lightmap density (charts::UnwrapOptions; docs/lightmaps.md): a texel size in scene units,
+  // or, unset, the size at which the charts cover about `texel_budget` texels; the atlas is
+  // packed onto pages of at most `max_atlas` (or exactly `lightmap_resolution`) texels.
+  std::optional<float> texel_size_m;
+  std::uint64_t texel_budget = 0;  // the presets set one
+  int max_atlas = 1024;
   std::optional<int> lightmap_resolution;
-  int target_resolution = 128;     // default atlas size when neither of the above is set
+  int target_resolution = 128;     // with texel_budget 0 and no texel size: one atlas this size
   int validity_rays = 64;
   std::uint64_t seed = 1;
   PrecomputeLimits limits;         // not in canonical(): budgets, not parameters of the result

@@ -99,16 +99,31 @@ Expected<glm::dmat4> localTransform(const Context& ctx, int index) {
 
 }  // namespace
 
-Expected<int> staticOverride(const Context& ctx, int index) {
+Expected<NodeOverrides> nodeOverrides(const Context& ctx, int index) {
+  NodeOverrides out;
   const tinygltf::Value& extras = ctx.model.nodes[static_cast<std::size_t>(index)].extras;
-  if (!extras.IsObject() || !extras.Has("lightlink")) return -1;
+  if (!extras.IsObject() || !extras.Has("lightlink")) return out;
   const tinygltf::Value& ours = extras.Get("lightlink");
   const std::string object = describeNode(ctx.model, index);
   if (!ours.IsObject()) return ctx.invalid(object, "extras.lightlink must be an object");
-  if (!ours.Has("static")) return -1;
-  const tinygltf::Value& flag = ours.Get("static");
-  if (!flag.IsBool()) return ctx.invalid(object, "extras.lightlink.static must be true or false");
-  return flag.Get<bool>() ? 1 : 0;
+  if (ours.Has("static")) {
+    const tinygltf::Value& flag = ours.Get("static");
+    if (!flag.IsBool()) return ctx.invalid(object, "extras.lightlink.static must be true or false");
+    out.is_static = flag.Get<bool>() ? 1 : 0;
+  }
+  if (ours.Has("lightmap")) {
+    const tinygltf::Value& flag = ours.Get("lightmap");
+    if (!flag.IsBool()) return ctx.invalid(object, "extras.lightlink.lightmap must be true or false");
+    out.lightmap = flag.Get<bool>() ? 1 : 0;
+  }
+  if (ours.Has("lightmap_scale")) {
+    const tinygltf::Value& v = ours.Get("lightmap_scale");
+    const double scale = v.IsNumber() ? v.GetNumberAsDouble() : std::nan("");
+    if (!(scale >= 1.0 / 64.0 && scale <= 64.0))
+      return ctx.invalid(object, "extras.lightlink.lightmap_scale must be a number in [1/64, 64]");
+    out.lightmap_scale = static_cast<float>(scale);
+  }
+  return out;
 }
 
 Expected<std::vector<PlacedNode>> placeNodes(const Context& ctx) {
@@ -140,6 +155,8 @@ Expected<std::vector<PlacedNode>> placeNodes(const Context& ctx) {
     glm::dmat4 parent_world;
     bool parent_static;
     int parent;
+    float parent_scale = 1.0f;
+    bool parent_probe_lit = false;
   };
   std::vector<Pending> stack;
   for (auto it = roots.rbegin(); it != roots.rend(); ++it) {
@@ -177,9 +194,11 @@ Expected<std::vector<PlacedNode>> placeNodes(const Context& ctx) {
     if (relativeDeterminant(world) < kMinRelativeDeterminant) {
       return ctx.invalid(object, "world transform (parent * local) is degenerate");
     }
-    Expected<int> flag = staticOverride(ctx, p.node);
-    if (!flag) return flag.status();
-    const bool is_static = *flag < 0 ? p.parent_static : *flag == 1;
+    Expected<NodeOverrides> flags = nodeOverrides(ctx, p.node);
+    if (!flags) return flags.status();
+    const bool is_static = flags->is_static < 0 ? p.parent_static : flags->is_static == 1;
+    const float lightmap_scale = flags->lightmap_scale > 0.0f ? flags->lightmap_scale : p.parent_scale;
+    const bool probe_lit = flags->lightmap < 0 ? p.parent_probe_lit : flags->lightmap == 0;
 
     const tinygltf::Node& node = model.nodes[static_cast<std::size_t>(p.node)];
     if (node.mesh >= 0 && static_cast<std::size_t>(node.mesh) >= model.meshes.size()) {
@@ -189,9 +208,9 @@ Expected<std::vector<PlacedNode>> placeNodes(const Context& ctx) {
     if (node.mesh >= 0 && node.skin >= 0) {
       ctx.warn(object, "skin is ignored; the mesh is placed by the node transform (bind pose)");
     }
-    placed.push_back({p.node, world, is_static});
+    placed.push_back({p.node, world, is_static, lightmap_scale, probe_lit});
     for (auto it = node.children.rbegin(); it != node.children.rend(); ++it) {
-      stack.push_back({*it, world, is_static, p.node});
+      stack.push_back({*it, world, is_static, p.node, lightmap_scale, probe_lit});
     }
   }
   return placed;

@@ -16,13 +16,22 @@ struct PlacedNode {
   int node = -1;
   glm::dmat4 world_from_node{1.0};
   bool is_static = true;
+  float lightmap_scale = 1.0f;  // extras.lightlink.lightmap_scale, inherited
+  bool probe_lit = false;       // extras.lightlink.lightmap == false, inherited
 };
 
 // Nodes of the default scene (scene 0 when `scene` is absent; every root node when the
 // file has no scenes) in depth-first order, parents before children.
 Expected<std::vector<PlacedNode>> placeNodes(const Context& ctx);
 
-// The lightlink static flag a node sets for itself and its descendants, if any.
-Expected<int> staticOverride(const Context& ctx, int node);  // -1 none, 0 dynamic, 1 static
+// What a node's extras {"lightlink": {...}} set for itself and its descendants: "static"
+// (bool), "lightmap_scale" (number in [1/64, 64]: texel density multiplier), "lightmap"
+// (bool; false = indirect light from the irradiance volume, not the lightmap).
+struct NodeOverrides {
+  int is_static = -1;            // -1 none, 0 dynamic, 1 static
+  float lightmap_scale = 0.0f;   // 0 = none
+  int lightmap = -1;             // -1 none, 0 probe-lit, 1 lightmapped
+};
+Expected<NodeOverrides> nodeOverrides(const Context& ctx, int node);
 
 }  // namespace lightlink::scene::gltf

@@ -86,6 +86,8 @@ Expected<MeshInstance> buildInstance(const Context& ctx, const PlacedNode& place
   out.gltf_primitive = primitive;
   out.material = prim.material;
   out.is_static = placed.is_static;
+  out.lightmap_scale = placed.lightmap_scale;
+  out.probe_lit = placed.probe_lit;
   out.world_from_mesh = glm::mat4(placed.world_from_node);
 
   const auto attribute = [&](const char* semantic) {

@@ -66,6 +66,13 @@ struct MeshInstance {
   int gltf_primitive = -1;
   int material = -1;         // index into Scene::materials; -1 = glTF default material
   bool is_static = true;     // node extras {"lightlink": {"static": false}} marks it dynamic
+  // Lightmap texel density multiplier (node extras {"lightlink": {"lightmap_scale": s}}):
+  // 2 gives the mesh texels half as large as the atlas's texel size.
+  float lightmap_scale = 1.0f;
+  // Static, but indirect light from the irradiance volume instead of the lightmap: set by
+  // node extras {"lightlink": {"lightmap": false}}, or by the unwrap for objects too small
+  // for the lightmap (every chart under 2x2 texels). Such a mesh has no uv1.
+  bool probe_lit = false;
   glm::mat4 world_from_mesh{1.0f};
 
   // Vertices stay 1:1 with the glTF primitive's accessors (vertex i here is vertex i

@@ -45,8 +45,8 @@ bool strictlyInside(const glm::dvec2& p, const glm::dvec2 q[3]) {
 
 OracleResult checkWithOracle(const scene::Scene& scene, const LightmapAtlas& atlas) {
   OracleResult r;
-  const int res = atlas.resolution;
-  const std::size_t texels = static_cast<std::size_t>(res) * res;
+  const int res = atlas.resolution, rows = atlas.height();  // pages stacked along v
+  const std::size_t texels = static_cast<std::size_t>(res) * rows;
   std::vector<std::uint32_t> owner(texels, 0);  // chart + 1; kClash on collision
   std::vector<std::uint32_t> centre(texels, 0); // triangle serial + 1
   constexpr std::uint32_t kClash = 0xffffffffu;
@@ -56,11 +56,11 @@ OracleResult checkWithOracle(const scene::Scene& scene, const LightmapAtlas& atl
   };
   for (std::size_t m = 0; m < scene.meshes.size(); ++m) {
     const scene::MeshInstance& mesh = scene.meshes[m];
-    if (!mesh.is_static) continue;
+    if (!mesh.is_static || mesh.probe_lit) continue;
     for (const glm::vec2& t : mesh.uv1) r.out_of_range += !(t.x >= 0 && t.x <= 1 && t.y >= 0 && t.y <= 1);
     for (std::size_t t = 0; t < mesh.triangleCount(); ++t, ++serial) {
       glm::dvec2 q[3];
-      for (int k = 0; k < 3; ++k) q[k] = glm::dvec2(mesh.uv1[mesh.indices[3 * t + k]]) * static_cast<double>(res);
+      for (int k = 0; k < 3; ++k) q[k] = glm::dvec2(mesh.uv1[mesh.indices[3 * t + k]]) * glm::dvec2(res, rows);
       const double area = (q[1].x - q[0].x) * (q[2].y - q[0].y) - (q[1].y - q[0].y) * (q[2].x - q[0].x);
       if (!(area > 0.0)) {
         ++r.flipped;
@@ -71,7 +71,7 @@ OracleResult checkWithOracle(const scene::Scene& scene, const LightmapAtlas& atl
       const int x0 = std::max(0, static_cast<int>(std::floor(std::min({q[0].x, q[1].x, q[2].x}))) - 1);
       const int x1 = std::min(res - 1, static_cast<int>(std::floor(std::max({q[0].x, q[1].x, q[2].x}))) + 1);
       const int y0 = std::max(0, static_cast<int>(std::floor(std::min({q[0].y, q[1].y, q[2].y}))) - 1);
-      const int y1 = std::min(res - 1, static_cast<int>(std::floor(std::max({q[0].y, q[1].y, q[2].y}))) + 1);
+      const int y1 = std::min(rows - 1, static_cast<int>(std::floor(std::max({q[0].y, q[1].y, q[2].y}))) + 1);
       for (int y = y0; y <= y1; ++y) {
         for (int x = x0; x <= x1; ++x) {
           const std::size_t i = static_cast<std::size_t>(y) * res + x;
@@ -96,7 +96,7 @@ OracleResult checkWithOracle(const scene::Scene& scene, const LightmapAtlas& atl
     }
   }
   const int g = atlas.gutter_texels;
-  for (int y = 0; y < res; ++y) {
+  for (int y = 0; y < rows; ++y) {
     for (int x = 0; x < res; ++x) {
       const std::uint32_t o = owner[static_cast<std::size_t>(y) * res + x];
       if (o == 0) continue;
@@ -104,7 +104,7 @@ OracleResult checkWithOracle(const scene::Scene& scene, const LightmapAtlas& atl
       for (int dy = -g; dy <= g; ++dy) {
         for (int dx = -g; dx <= g; ++dx) {
           const int xx = x + dx, yy = y + dy;
-          if (xx < 0 || yy < 0 || xx >= res || yy >= res) continue;
+          if (xx < 0 || yy < 0 || xx >= res || yy >= rows) continue;
           const std::uint32_t other = owner[static_cast<std::size_t>(yy) * res + xx];
           if (other != 0 && other != o) {
             ++r.gutter_violations;

@@ -82,7 +82,9 @@ TEST(GltfWriter, ExistingLightmapUvSurvivesBitExactly) {
   Expected<scene::Scene> original = scene::loadGltf(in.string(), {.load_textures = false});
   ASSERT_TRUE(original);
   scene::Scene scene = *original;
-  Expected<UnwrapResult> result = unwrap(scene, {});
+  UnwrapOptions keep;  // this TEXCOORD_1 maps a texture, not a lightmap: auto would regenerate
+  keep.uv_mode = UvMode::kKeep;
+  Expected<UnwrapResult> result = unwrap(scene, keep);
   ASSERT_TRUE(result);
   EXPECT_FALSE(result->report.generated);
   lightlink::testing::TempDir tmp;

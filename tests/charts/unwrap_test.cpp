@@ -159,8 +159,11 @@ TEST(Unwrap, InvalidParametersAreRejectedWithAMessage) {
   rejects(o, "stretch");
   o = {};
   o.texel_size_m = 1.0f;  // 1 m texels: the 1 m cube's faces are 2 texels, fine...
-  o.resolution = 4;       // ...but six of them with gutters do not fit into 4x4
-  rejects(o, "do not fit");
+  o.resolution = 4;       // ...but a 4x4 page is all gutter
+  rejects(o, "no room");
+  o = {};
+  o.max_atlas = 8;
+  rejects(o, "max-atlas");
   // Nothing was modified by the rejected calls.
   EXPECT_TRUE(scene.meshes[0].uv1.empty());
 }
@@ -173,7 +176,9 @@ TEST(Unwrap, ExistingLightmapUvIsKeptBitExactlyAndChecked) {
   for (const glm::vec2& t : b.uv0) b.uv1.push_back(t * 1.5f - 0.1f);
   scene::Scene scene = tm::makeScene({a, b});
   const scene::Scene before = scene;
-  Expected<UnwrapResult> result = unwrap(scene, {});
+  UnwrapOptions keep;
+  keep.uv_mode = UvMode::kKeep;
+  Expected<UnwrapResult> result = unwrap(scene, keep);
   ASSERT_TRUE(result) << result.status().toString();
   EXPECT_FALSE(result->report.generated);
   for (std::size_t m = 0; m < 2; ++m) {
@@ -212,7 +217,7 @@ TEST(Unwrap, KeepExistingFalseRegenerates) {
   a.uv1 = a.uv0;
   scene::Scene scene = tm::makeScene({a});
   UnwrapOptions options;
-  options.keep_existing_uv1 = false;
+  options.uv_mode = UvMode::kGenerate;
   Expected<UnwrapResult> result = unwrap(scene, options);
   ASSERT_TRUE(result);
   EXPECT_TRUE(result->report.generated);
