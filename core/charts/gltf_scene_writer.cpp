@@ -176,7 +176,6 @@ Status writeGltfFromScene(const std::string& in_path, const scene::Scene& scene,
     gm.pbrMetallicRoughness.metallicFactor = m.metallic;
     gm.pbrMetallicRoughness.roughnessFactor = m.roughness;
     gm.doubleSided = m.double_sided;
-    if (m.base_color_factor.w < 1.0f) gm.alphaMode = "BLEND";
     Expected<int> base = textures.textureFor(scene, m.base_color_texture);
     if (!base) return base.status();
     gm.pbrMetallicRoughness.baseColorTexture.index = *base;
