@@ -20,7 +20,7 @@ std::string ConfinedIOSystem::normalise(const std::string& name) const {
 bool ConfinedIOSystem::Exists(const char* file) const {
   if (file == nullptr) return false;
   const std::string name = normalise(file);
-  Expected<fs::path> path = files_.resolveName(name, "file");
+  Expected<fs::path> path = files_.resolveName(name, what_);
   if (!path) {
     if (refused_.empty()) refused_ = path.status().message();
     return false;
@@ -38,7 +38,7 @@ Assimp::IOStream* ConfinedIOSystem::Open(const char* file, const char* mode) {
     return nullptr;
   }
   const std::string name = normalise(file);
-  Expected<std::string> bytes = files_.readName(name, "file");
+  Expected<std::string> bytes = files_.readName(name, what_);
   if (!bytes) {
     if (bytes.status().code() == Code::kNotFound) {
       if (std::find(missing_.begin(), missing_.end(), name) == missing_.end()) missing_.push_back(name);

@@ -18,7 +18,8 @@ namespace lightlink::scene {
 
 class ConfinedIOSystem : public Assimp::IOSystem {
  public:
-  explicit ConfinedIOSystem(const SceneFiles& files) : files_(files) {}
+  // `what` names the files in messages ("mtllib" for an OBJ).
+  ConfinedIOSystem(const SceneFiles& files, std::string what) : files_(files), what_(std::move(what)) {}
 
   bool Exists(const char* file) const override;
   char getOsSeparator() const override { return '/'; }
@@ -36,6 +37,7 @@ class ConfinedIOSystem : public Assimp::IOSystem {
 
  private:
   const SceneFiles& files_;
+  std::string what_;
   mutable std::string refused_;
   mutable std::vector<std::string> missing_;
 };

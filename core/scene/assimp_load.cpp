@@ -122,7 +122,7 @@ class Loader {
 };
 
 Status Loader::readFile(const std::string& bytes) {
-  io_ = new ConfinedIOSystem(files_);
+  io_ = new ConfinedIOSystem(files_, obj_ ? "mtllib" : "file");
   importer_.SetIOHandler(io_);
   const char* hint = obj_ ? "obj" : "fbx";
   if (obj_) {
