@@ -1,6 +1,7 @@
 #include "core/charts/gltf_scene_writer.h"
 
 #include <algorithm>
+#include <cctype>
 #include <cstring>
 #include <filesystem>
 #include <fstream>

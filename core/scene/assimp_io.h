@@ -2,9 +2,9 @@
 // `mtllib`, anything else assimp opens by name) is read under the same rules as a glTF's
 // URIs: inside the scene's folder unless FileAccess allows outside, regular files only,
 // never written. The scene file itself is handed to assimp from memory by the loader, so
-// this only sees the names the file mentions. A name refused by the folder rule is kept
-// (assimp would carry on without it) so the loader can fail naming it; a name not found
-// is kept so the loader can warn.
+// this only sees the names the file mentions. A read refused by the folder rule is kept
+// (assimp would carry on without the file) so the loader can fail naming it; a name not
+// found is kept so the loader can warn.
 #pragma once
 
 #include <string>

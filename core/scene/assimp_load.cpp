@@ -107,6 +107,7 @@ class Loader {
   Expected<TextureRef> loadTexture(const aiMaterial& material, const std::string& object, aiTextureType type,
                                    const char* key);
   Status buildGeometry(const std::vector<PlacedMesh>& placed);
+  void dropUnusedDefaultMaterial();
 
   const std::string& path_;
   const SceneFiles& files_;
@@ -234,12 +235,12 @@ Expected<TextureRef> Loader::loadTexture(const aiMaterial& material, const std::
   } else {
     // The folder rule is checked even when nothing is decoded (the writer copies the file).
     Expected<fs::path> resolved = files_.resolveName(name, key);
-    if (!resolved) return invalidInput("{} (material {})", resolved.status().message(), object);
+    if (!resolved) return invalidInput("{} ({})", resolved.status().message(), object);
     if (options_.load_textures) {
       Expected<std::string> bytes = files_.readName(name, key);
       if (!bytes) {
         if (bytes.status().code() != Code::kNotFound)
-          return Status(bytes.status().code(), fmt::format("{} (material {})", bytes.status().message(), object));
+          return Status(bytes.status().code(), fmt::format("{} ({})", bytes.status().message(), object));
         warn(what, "not found; the factor alone applies");
         return ref;
       }
@@ -438,6 +439,21 @@ Status Loader::buildGeometry(const std::vector<PlacedMesh>& placed) {
   return Status::ok();
 }
 
+// assimp's OBJ reader adds "DefaultMaterial" for faces without `usemtl`; when every face has
+// one, it is not the file's and would only inflate the material count.
+void Loader::dropUnusedDefaultMaterial() {
+  for (std::size_t i = 0; i < scene_.materials.size(); ++i) {
+    if (scene_.materials[i].name != AI_DEFAULT_MATERIAL_NAME) continue;
+    const int index = static_cast<int>(i);
+    if (std::any_of(scene_.meshes.begin(), scene_.meshes.end(), [&](const MeshInstance& m) { return m.material == index; }))
+      return;
+    scene_.materials.erase(scene_.materials.begin() + index);
+    for (MeshInstance& m : scene_.meshes)
+      if (m.material > index) --m.material;
+    return;
+  }
+}
+
 Status Loader::run(const std::string& bytes) {
   if (obj_) text_ = bytes;
   if (Status s = readFile(bytes); !s) return s;
@@ -448,6 +464,7 @@ Status Loader::run(const std::string& bytes) {
   if (ai_ == nullptr) return invalidInput("{}: assimp post-processing failed: {}", path_, importer_.GetErrorString());
   if (Status s = loadMaterials(); !s) return s;
   if (Status s = buildGeometry(placeMeshes(*ai_)); !s) return s;
+  dropUnusedDefaultMaterial();
   if (ai_->mNumLights > 0)
     warn("scene", fmt::format("{} lights in the file are not read (give lights in a light set)", ai_->mNumLights));
   return Status::ok();

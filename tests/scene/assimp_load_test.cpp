@@ -375,14 +375,15 @@ TEST(AssimpLoad, SharedObjLevelsLoadWithMissingTexturesAsWarnings) {
   struct Level {
     const char* file;
     std::size_t triangles;  // as stored (shared/scenes/README.md)
+    std::size_t materials;  // README; assimp's unused DefaultMaterial is not counted
   };
   const Level levels[] = {
-      {"cornell_box_mcguire_obj/CornellBox-Original.obj", 36},
-      {"redeclipse_cyanide_obj/cyanide.obj", 34876},
-      {"redeclipse_institute_obj/institute.obj", 35376},
-      {"tesseract_steelribs_obj/steelribs.obj", 45904},
-      {"sauerbraten_memento_obj/memento.obj", 50701},
-      {"sauerbraten_forge_obj/forge.obj", 59582},
+      {"cornell_box_mcguire_obj/CornellBox-Original.obj", 36, 8},
+      {"redeclipse_cyanide_obj/cyanide.obj", 34876, 62},
+      {"redeclipse_institute_obj/institute.obj", 35376, 122},
+      {"tesseract_steelribs_obj/steelribs.obj", 45904, 38},
+      {"sauerbraten_memento_obj/memento.obj", 50701, 102},
+      {"sauerbraten_forge_obj/forge.obj", 59582, 44},
   };
   for (const Level& level : levels) {
     SCOPED_TRACE(level.file);
@@ -391,7 +392,8 @@ TEST(AssimpLoad, SharedObjLevelsLoadWithMissingTexturesAsWarnings) {
     Expected<Scene> scene = loadScene((lightlink::testing::sharedScenesDir() / level.file).string(), options);
     ASSERT_TRUE(scene.hasValue()) << scene.status().toString();
     EXPECT_EQ(scene->stats.triangles_in, level.triangles);
-    EXPECT_GT(scene->materials.size(), 0u);
+    EXPECT_EQ(scene->materials.size(), level.materials);
+    EXPECT_EQ(scene->triangleCount() + scene->stats.degenerate_dropped, level.triangles);
   }
 }
 
