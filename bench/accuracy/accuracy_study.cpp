@@ -264,7 +264,7 @@ class Study {
       }
       writeCsv();
     };
-    auto scene = scene::loadGltf(sa.path);
+    auto scene = scene::loadScene(sa.path);
     if (!scene) return failAll(scene.status());
     auto lights = relight::LightSet::fromScene(*scene);
     if (!sa.lights.empty())

@@ -98,7 +98,7 @@ int main(int argc, char** argv) {
     else return fail(invalidInput("unknown option {}", k));
   }
   if (a.scene.empty()) return fail(invalidInput("--scene is required"));
-  auto scene = scene::loadGltf(a.scene);
+  auto scene = scene::loadScene(a.scene);
   if (!scene) return fail(scene.status());
   auto lights = relight::LightSet::fromScene(*scene);
   if (!a.lights.empty())

@@ -84,7 +84,7 @@ struct Loaded {
 
 Expected<std::unique_ptr<Loaded>> load(const std::string& path, const std::string& preset) {
   auto l = std::make_unique<Loaded>();
-  auto s = scene::loadGltf(path);
+  auto s = scene::loadScene(path);
   if (!s) return s.status();
   l->scene = std::move(*s);
   auto o = precompute::preset(preset);

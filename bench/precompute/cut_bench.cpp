@@ -69,7 +69,7 @@ int main(int argc, char** argv) {
                          "[--caches N] [--repeats N] [--cut-kernel best|scalar] [--json OUT]\n");
     return 1;
   }
-  auto scene = scene::loadGltf(args.scene);
+  auto scene = scene::loadScene(args.scene);
   if (bench::failed(scene)) return 2;
   auto p = precompute::run(*scene, args.options);
   if (bench::failed(p)) return 2;

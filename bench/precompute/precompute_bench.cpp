@@ -85,7 +85,7 @@ int main(int argc, char** argv) {
                          "[--hit-credit best|scalar]\n");
     return 1;
   }
-  auto scene = scene::loadGltf(args.scene);
+  auto scene = scene::loadScene(args.scene);
   if (bench::failed(scene)) return 2;
   scene::subdivide(*scene, args.subdivide);
   const std::size_t triangles = scene->triangleCount();

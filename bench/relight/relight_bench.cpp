@@ -85,7 +85,7 @@ int main(int argc, char** argv) {
                          "[--resolution R] [--repeats N] [--sky L] [--json OUT]\n");
     return 1;
   }
-  auto scene = scene::loadGltf(args.scene);
+  auto scene = scene::loadScene(args.scene);
   if (!scene) {
     std::fprintf(stderr, "%s\n", scene.status().toString().c_str());
     return 2;

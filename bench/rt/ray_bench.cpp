@@ -117,7 +117,7 @@ int main(int argc, char** argv) {
   } else {
     scene::LoadOptions load_options;
     load_options.load_textures = false;
-    Expected<scene::Scene> loaded = scene::loadGltf(args.scene_path, load_options);
+    Expected<scene::Scene> loaded = scene::loadScene(args.scene_path, load_options);
     if (!loaded) {
       std::fprintf(stderr, "ray_bench: %s\n", loaded.status().toString().c_str());
       return 1;

@@ -93,7 +93,7 @@ int run(const Args& a) {
     if (scene_path.empty() || scene_path.starts_with("<inline"))
       return fail(invalidInput("--scene-file: required (the daemon has no path for scene '{}')", session.scene.id));
   }
-  auto scene = scene::loadGltf(scene_path);
+  auto scene = scene::loadScene(scene_path);
   if (!scene) return fail(scene.status());
   auto options = precompute::preset(a.preset);
   if (!options) return fail(options.status());

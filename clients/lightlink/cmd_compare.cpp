@@ -52,7 +52,7 @@ int runCompare(const CompareArgs& args) {
   if (!options) return reportError(kCmd, options.status());
   scene::LoadOptions load;
   load.files = sceneFileAccess(args.allow_outside_scene);
-  auto scene = scene::loadGltf(args.scene_path, load);
+  auto scene = scene::loadScene(args.scene_path, load);
   if (!scene) return reportError(kCmd, scene.status());
   auto lights = relight::LightSet::fromScene(*scene);
   if (!args.lights_path.empty())

@@ -12,7 +12,7 @@ namespace lightlink::cli {
 int runInspect(const InspectArgs& args) {
   scene::LoadOptions load;
   load.files = sceneFileAccess(args.allow_outside_scene);
-  auto scene = scene::loadGltf(args.scene_path, load);
+  auto scene = scene::loadScene(args.scene_path, load);
   if (!scene) return reportError("inspect", scene.status());
   const auto summary = summarizeScene(*scene);
   const std::string text = args.json ? summary.dump(2) + "\n" : formatSummary(summary);

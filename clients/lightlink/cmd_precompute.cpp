@@ -82,7 +82,7 @@ int runPrecompute(const PrecomputeArgs& args) {
     return reportError("precompute", invalidInput("--subdivide {} is out of range (0..4)", args.subdivide));
   scene::LoadOptions load;
   load.files = sceneFileAccess(args.allow_outside_scene);
-  auto scene = scene::loadGltf(args.scene_path, load);
+  auto scene = scene::loadScene(args.scene_path, load);
   if (!scene) return reportError("precompute", scene.status());
   if (args.subdivide > 0) scene::subdivide(*scene, args.subdivide);
   auto key = precompute::cacheKeyFor(args.scene_path, *options, load.files);

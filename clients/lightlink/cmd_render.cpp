@@ -17,7 +17,7 @@ int runRender(const RenderArgs& args) {
   constexpr const char* kCmd = "render";
   scene::LoadOptions load;
   load.files = sceneFileAccess(args.allow_outside_scene);
-  auto scene = scene::loadGltf(args.scene_path, load);
+  auto scene = scene::loadScene(args.scene_path, load);
   if (!scene) return reportError(kCmd, scene.status());
   bool any_uv1 = false;
   for (const auto& m : scene->meshes) any_uv1 |= m.is_static && m.hasLightmapUv();

@@ -32,13 +32,13 @@ int main(int argc, char** argv) {
 
   InspectArgs inspect;
   auto* inspect_cmd = app.add_subcommand("inspect", "Load and validate a glTF scene and print a summary");
-  inspect_cmd->add_option("scene", inspect.scene_path, "glTF scene (.gltf or .glb)")->required();
+  inspect_cmd->add_option("scene", inspect.scene_path, "Scene file (.gltf, .glb, .obj or .fbx)")->required();
   inspect_cmd->add_flag("--json", inspect.json, "Print the summary as JSON");
   inspect_cmd->add_flag("--allow-outside-scene", inspect.allow_outside_scene, "Read files the scene names outside its own folder (only for scenes you trust)");
 
   UnwrapArgs unwrap;
   auto* unwrap_cmd = app.add_subcommand("unwrap", "Generate lightmap UVs (TEXCOORD_1) and write the glTF back");
-  unwrap_cmd->add_option("scene", unwrap.scene_path, "glTF scene (.gltf or .glb)")->required();
+  unwrap_cmd->add_option("scene", unwrap.scene_path, "Scene file (.gltf, .glb, .obj or .fbx)")->required();
   unwrap_cmd->add_option("-o,--output", unwrap.output_path, "Output glTF with TEXCOORD_1 (.gltf or .glb)");
   unwrap_cmd->add_option("--preview", unwrap.preview_png, "Write a PNG of the chart layout");
   unwrap_cmd->add_option("--report", unwrap.report_json, "Write the quality report as JSON");
@@ -50,7 +50,7 @@ int main(int argc, char** argv) {
 
   PrecomputeArgs pre;
   auto* pre_cmd = app.add_subcommand("precompute", "Surfels, hierarchy, caches and links into one artifact (.llk)");
-  pre_cmd->add_option("scene", pre.scene_path, "glTF scene (.gltf or .glb)")->required();
+  pre_cmd->add_option("scene", pre.scene_path, "Scene file (.gltf, .glb, .obj or .fbx)")->required();
   pre_cmd->add_option("-o,--output", pre.output_path, "Artifact to write (.llk)")->required();
   pre_cmd->add_option("--report", pre.report_json, "Write the report (counts, times, memory) as JSON");
   pre_cmd->add_option("--surfels", pre.surfels, "nS: number of surfels")->capture_default_str();
@@ -69,7 +69,7 @@ int main(int argc, char** argv) {
 
   BakeArgs bake;
   auto* bake_cmd = app.add_subcommand("bake", "Unwrap, precompute (or reuse), relight and write lightmaps, grid, report");
-  bake_cmd->add_option("scene", bake.scene_path, "glTF scene (.gltf or .glb)")->required();
+  bake_cmd->add_option("scene", bake.scene_path, "Scene file (.gltf, .glb, .obj or .fbx)")->required();
   bake_cmd->add_option("-o,--output", bake.output_dir, "Output directory")->required();
   bake_cmd->add_option("--preset", bake.preset, "Quality: draft, medium or high")->capture_default_str();
   bake_cmd->add_option("--lights", bake.lights_path, "Light-set JSON adding to or overriding the scene's lights");
@@ -100,7 +100,7 @@ int main(int argc, char** argv) {
 
   CompareArgs cmp;
   auto* cmp_cmd = app.add_subcommand("compare", "Bake a scene and measure its lightmap against the path-traced reference");
-  cmp_cmd->add_option("scene", cmp.scene_path, "glTF scene (.gltf or .glb)")->required();
+  cmp_cmd->add_option("scene", cmp.scene_path, "Scene file (.gltf, .glb, .obj or .fbx)")->required();
   cmp_cmd->add_option("--against", cmp.against, "What to compare with: reference")->capture_default_str();
   cmp_cmd->add_option("--preset", cmp.preset, "Bake quality: draft, medium or high")->capture_default_str();
   cmp_cmd->add_option("--lights", cmp.lights_path, "Light-set JSON adding to or overriding the scene's lights");
@@ -120,7 +120,7 @@ int main(int argc, char** argv) {
 
   OpenArgs open;
   auto* open_cmd = app.add_subcommand("open", "Open a scene on a daemon and print its id, token and info as JSON");
-  open_cmd->add_option("scene", open.scene_path, "glTF scene (.gltf or .glb)")->required();
+  open_cmd->add_option("scene", open.scene_path, "Scene file (.gltf, .glb, .obj or .fbx)")->required();
   addRemoteOptions(open_cmd, open.remote);
   open_cmd->add_flag("--upload", open.upload, "Send the file's bytes instead of its path");
   open_cmd->add_option("--preset", open.preset, "Quality: draft, medium or high (daemon default medium)");

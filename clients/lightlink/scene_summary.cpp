@@ -61,7 +61,7 @@ std::string formatSummary(const nlohmann::ordered_json& j) {
     out += fmt::format("{:<12} {}\n", key, value);
   };
   line("scene", j["file"].get<std::string>());
-  line("meshes", fmt::format("{} instances of {} glTF meshes ({} static, {} dynamic)",
+  line("meshes", fmt::format("{} instances of {} meshes ({} static, {} dynamic)",
                              j["mesh_instances"].get<std::size_t>(), j["gltf_meshes"].get<std::size_t>(),
                              j["static_mesh_instances"].get<std::size_t>(),
                              j["dynamic_mesh_instances"].get<std::size_t>()));

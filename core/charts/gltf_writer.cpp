@@ -9,6 +9,9 @@
 
 #include <tiny_gltf.h>
 
+#include "core/charts/gltf_scene_writer.h"
+#include "core/scene/load.h"
+
 namespace lightlink::charts {
 namespace {
 
@@ -247,6 +250,8 @@ Status writeGltfWithLightmapUv(const std::string& in_path, const scene::Scene& s
     return invalidInput("glTF writer: output '{}' would overwrite the input", out_path);
   if (atlas.meshes.size() != scene.meshes.size())
     return internalError("glTF writer: atlas has {} meshes, scene {}", atlas.meshes.size(), scene.meshes.size());
+  // An OBJ or FBX has no glTF to edit: the lightmapped scene is written from the Scene.
+  if (scene::isAssimpScenePath(in_path)) return writeGltfFromScene(in_path, scene, out_path, access);
 
   Expected<scene::SceneFiles> files = scene::SceneFiles::forScene(in_path, access);
   if (!files) return files.status();

@@ -15,7 +15,7 @@ Expected<UnwrapReport> runUnwrap(const UnwrapCommand& command) {
   scene::LoadOptions load_options;
   load_options.load_textures = false;  // geometry only: textures are copied, never decoded
   load_options.files = command.files;
-  Expected<scene::Scene> scene = scene::loadGltf(command.input_path, load_options);
+  Expected<scene::Scene> scene = scene::loadScene(command.input_path, load_options);
   if (!scene) return scene.status();
   Expected<UnwrapResult> result = unwrap(*scene, command.options);
   if (!result) return result.status();

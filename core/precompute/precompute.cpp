@@ -19,6 +19,8 @@
 
 #include "core/links/surfel_locator.h"
 #include "core/rt/accel.h"
+#include "core/scene/load.h"
+#include "core/scene/obj_files.h"
 
 namespace lightlink::precompute {
 namespace {
@@ -847,6 +849,12 @@ Expected<std::uint64_t> cacheKeyFor(const std::string& scene_path, const Precomp
   // hold the geometry and images the albedo, so editing either must not reuse a stale
   // artifact. Each external file is appended as (uri, size, bytes), in the JSON's order.
   std::string keyed = std::move(data).value();
+  if (scene::isAssimpScenePath(scene_path)) {  // OBJ: its .mtl files and textures (obj_files.h)
+    auto deps = scene::objDependencyBytes(*files, keyed);
+    if (!deps) return deps.status();
+    keyed += *deps;
+    return artifact::cacheKey(std::as_bytes(std::span<const char>(keyed.data(), keyed.size())), options.canonical());
+  }
   const nlohmann::json j = nlohmann::json::parse(gltfJson(keyed), nullptr, /*allow_exceptions=*/false);
   if (!j.is_discarded() && j.is_object()) {
     std::string external;

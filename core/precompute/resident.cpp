@@ -71,7 +71,7 @@ Expected<ResidentScene> ResidentScene::openUnguarded(const ResidentRequest& requ
 
   {
     Stage stage(progress, "load");
-    auto scene = scene::loadGltf(request.scene_path, request.load);
+    auto scene = scene::loadScene(request.scene_path, request.load);
     if (!scene) return scene.status();
     state->scene = std::move(scene).value();
     auto key = cacheKeyFor(request.scene_path, request.options, request.load.files);

@@ -43,8 +43,8 @@ Expected<bool> isBinaryGltf(const std::string& path, const std::string& bytes) {
     if (bytes[i] == '{') return false;
     if (!std::isspace(static_cast<unsigned char>(bytes[i]))) break;
   }
-  return unsupported("{}: is not a glTF file (expected .gltf JSON or .glb binary; convert "
-                     "other formats to glTF 2.0 first)", path);
+  return unsupported("{}: unknown scene format '{}': lightlink reads {}", path,
+                     ext.empty() ? std::string("(no extension)") : ext, acceptedSceneExtensions());
 }
 
 // tinygltf converts extras and extensions recursively, and so does the failure diagnosis:

@@ -1,3 +1,4 @@
+// Scene ingest. loadScene picks the reader by extension; loadGltf below is the glTF one.
 // glTF ingest: loads .gltf/.glb through tinygltf, validates everything lightlink relies
 // on, and produces a Scene. Any problem that makes the data unusable is a Status naming
 // the file, the object (mesh/primitive/accessor index and name) and what is wrong;
@@ -31,5 +32,18 @@ struct LoadOptions {
 };
 
 Expected<Scene> loadGltf(const std::string& path, const LoadOptions& options = {});
+
+// The one entry point for a scene file, by its extension (case-insensitive): .gltf/.glb
+// -> loadGltf, .obj/.fbx -> assimp (assimp_load.h); any other name is read as glTF if its
+// content is glTF (a .glb magic or JSON) and is otherwise Code::kUnsupported naming the
+// accepted extensions. Same options and promises for every format.
+Expected<Scene> loadScene(const std::string& path, const LoadOptions& options = {});
+
+// True for the extensions loadScene reads through assimp (.obj, .fbx): a scene written
+// back from them is a fresh glTF, not an edit of the input.
+bool isAssimpScenePath(const std::string& path);
+
+// "'.gltf', '.glb', '.obj', '.fbx'", for messages.
+const char* acceptedSceneExtensions();
 
 }  // namespace lightlink::scene

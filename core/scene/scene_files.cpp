@@ -213,7 +213,15 @@ std::string SceneFiles::decodeUri(std::string_view uri) {
 }
 
 Expected<fs::path> SceneFiles::resolveUri(const std::string& uri, std::string_view what) const {
-  const std::string name = decodeUri(uri);
+  return resolveDecoded(decodeUri(uri), uri, what);
+}
+
+Expected<fs::path> SceneFiles::resolveName(const std::string& name, std::string_view what) const {
+  return resolveDecoded(name, name, what);
+}
+
+Expected<fs::path> SceneFiles::resolveDecoded(const std::string& name, std::string_view uri,
+                                              std::string_view what) const {
   if (name.empty()) return invalidInput("{}: {}: the URI is empty", scene_path_, what);
   if (name.find('\0') != std::string::npos)
     return invalidInput("{}: {} '{}': a file name cannot contain a NUL byte", scene_path_, what, shortUri(uri));
@@ -241,6 +249,13 @@ Expected<std::string> SceneFiles::readUri(const std::string& uri, std::string_vi
   Expected<fs::path> path = resolveUri(uri, what);
   if (!path) return path.status();
   const std::string named = fmt::format("{}: {} '{}'", scene_path_, what, shortUri(uri));
+  return access_.allow_outside_folder ? readRegularFile(*path, named) : readRegularFileBeneath(folder_, *path, named);
+}
+
+Expected<std::string> SceneFiles::readName(const std::string& name, std::string_view what) const {
+  Expected<fs::path> path = resolveName(name, what);
+  if (!path) return path.status();
+  const std::string named = fmt::format("{}: {} '{}'", scene_path_, what, shortUri(name));
   return access_.allow_outside_folder ? readRegularFile(*path, named) : readRegularFileBeneath(folder_, *path, named);
 }
 

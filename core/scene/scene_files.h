@@ -48,6 +48,11 @@ class SceneFiles {
   // The bytes of the file that URI names (regular files only).
   Expected<std::string> readUri(const std::string& uri, std::string_view what) const;
 
+  // As resolveUri/readUri for a plain file name (an OBJ `mtllib` or `map_Kd`, an FBX texture
+  // path): taken literally, no %XX decoding, under the same folder rule.
+  Expected<std::filesystem::path> resolveName(const std::string& name, std::string_view what) const;
+  Expected<std::string> readName(const std::string& name, std::string_view what) const;
+
   // Checks every external `buffers[i].uri` and `images[i].uri` of the glTF JSON `json_text`
   // against the folder rule (and that what it names, if anything, is a regular file), naming
   // the first entry that fails. Data URIs are skipped; malformed JSON passes (the loader
@@ -67,6 +72,8 @@ class SceneFiles {
 
  private:
   SceneFiles() = default;
+  Expected<std::filesystem::path> resolveDecoded(const std::string& name, std::string_view shown,
+                                                 std::string_view what) const;
   std::string scene_path_;
   std::filesystem::path folder_;  // canonical, absolute
   FileAccess access_;

@@ -232,6 +232,48 @@ TEST(Render, DrawsTheBakedCornellBox) {
   EXPECT_NE(r.output.find("grid.raw: field 'dims'"), std::string::npos) << r.output;
 }
 
+// An OBJ in: bake writes the lightmapped scene as glTF (room_lm.gltf), which render reads.
+TEST(Bake, AnObjSceneBakesToAGltfThatRenders) {
+  testing::TempDir dir;
+  // A closed 2 m room (faces wound to look inward) with an emissive panel under the ceiling.
+  testing::writeFile(dir / "room.mtl", "newmtl wall\nKd 0.7 0.7 0.7\nnewmtl lamp\nKd 0 0 0\nKe 10 10 10\n");
+  testing::writeFile(dir / "room.obj", R"(mtllib room.mtl
+v -1 0 -1
+v 1 0 -1
+v 1 0 1
+v -1 0 1
+v -1 2 -1
+v 1 2 -1
+v 1 2 1
+v -1 2 1
+v -0.3 1.95 -0.3
+v 0.3 1.95 -0.3
+v 0.3 1.95 0.3
+v -0.3 1.95 0.3
+o Room
+usemtl wall
+f 1 2 3 4
+f 5 8 7 6
+f 1 5 6 2
+f 2 6 7 3
+f 3 7 8 4
+f 4 8 5 1
+o Lamp
+usemtl lamp
+f 9 10 11 12
+)");
+  const auto out = dir / "out";
+  auto r = runCommand(kCli + " bake " + (dir / "room.obj").string() + " -o " + out.string() +
+                      " --preset draft --bounces 1 -q");
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  ASSERT_TRUE(std::filesystem::exists(out / "room_lm.gltf")) << r.output;
+  const auto png = dir / "frame.png";
+  r = runCommand(kCli + " render " + (out / "room_lm.gltf").string() + " --bake " + out.string() + " -o " +
+                 png.string() + " --eye 0,1,0.9 --target 0,1,-1 --width 64 --height 64");
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_EQ(r.output.find(" 0 pixels from the lightmap"), std::string::npos) << r.output;
+}
+
 TEST(Compare, MeasuresTheBakeAgainstTheReference) {
   testing::TempDir dir;
   const auto out = dir / "cmp";

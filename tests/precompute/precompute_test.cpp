@@ -193,6 +193,42 @@ TEST(Precompute, CacheKeyCoversExternalBuffersAndImages) {
   EXPECT_NE(missing.status().message().find("buffers[0].uri"), std::string::npos) << missing.status().message();
 }
 
+// An OBJ's materials and textures live in other files: editing the .mtl or a map_Kd image
+// must not reuse the artifact, a missing texture is keyed as missing, and an mtllib outside
+// the folder is refused as the loader refuses it (core/scene/obj_files.h).
+TEST(Precompute, CacheKeyCoversAnObjsMtlAndTextures) {
+  lightlink::testing::TempDir dir;
+  std::filesystem::create_directories(dir.path() / "level");
+  auto write = [&](const std::string& name, const std::string& text) {
+    std::ofstream(dir.path() / name, std::ios::binary) << text;
+  };
+  write("level/scene.obj", "mtllib scene.mtl\nv 0 0 0\nv 1 0 0\nv 0 1 0\nusemtl red\nf 1 2 3\n");
+  write("level/scene.mtl", "newmtl red\nKd 0.5 0 0\nmap_Kd -s 1 1 1 tex\\red.png\n");
+  std::filesystem::create_directories(dir.path() / "level/tex");
+  write("level/tex/red.png", "png1");
+  const std::string scene = (dir.path() / "level/scene.obj").string();
+  auto a = cacheKeyFor(scene, smallOptions());
+  ASSERT_TRUE(a) << a.status().message();
+  EXPECT_EQ(*a, *cacheKeyFor(scene, smallOptions()));
+  write("level/scene.mtl", "newmtl red\nKd 0.6 0 0\nmap_Kd -s 1 1 1 tex\\red.png\n");
+  auto b = cacheKeyFor(scene, smallOptions());
+  ASSERT_TRUE(b);
+  EXPECT_NE(*a, *b) << "an edited .mtl must not reuse the artifact";
+  write("level/tex/red.png", "png2");
+  auto c = cacheKeyFor(scene, smallOptions());
+  ASSERT_TRUE(c);
+  EXPECT_NE(*b, *c) << "an edited map_Kd image must not reuse the artifact";
+  std::filesystem::remove(dir.path() / "level/tex/red.png");
+  auto d = cacheKeyFor(scene, smallOptions());
+  ASSERT_TRUE(d) << d.status().message();
+  EXPECT_NE(*c, *d);
+  write("outside.mtl", "newmtl red\nKd 1 1 1\n");
+  write("level/scene.obj", "mtllib ../outside.mtl\nv 0 0 0\nv 1 0 0\nv 0 1 0\nusemtl red\nf 1 2 3\n");
+  auto refused = cacheKeyFor(scene, smallOptions());
+  ASSERT_FALSE(refused) << "hashed a file outside the scene's folder";
+  EXPECT_NE(refused.status().message().find("outside.mtl"), std::string::npos) << refused.status().message();
+}
+
 // The key reads the scene's files under the loader's rules (core/scene/scene_files.h).
 TEST(Precompute, CacheKeyReadsOnlyInsideTheSceneFolder) {
   lightlink::testing::TempDir dir;

@@ -66,7 +66,7 @@ TEST(SceneValidation, GlbWithoutMagic) {
 TEST(SceneValidation, OtherFormatsAreUnsupported) {
   TempDir dir;
   const std::string path = testing::writeFile(dir / "box.obj", "# Wavefront\nv 0 0 0\n");
-  expectError(path, Code::kUnsupported, {"not a glTF file"});
+  expectError(path, Code::kUnsupported, {"unknown scene format", ".gltf", ".obj"});
 }
 
 TEST(SceneValidation, MalformedJson) {
