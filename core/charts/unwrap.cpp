@@ -220,6 +220,8 @@ Status validate(const UnwrapOptions& o) {
                         o.target_resolution);
   if (o.max_atlas < 16 || o.max_atlas > kMaxAtlasResolution)
     return invalidInput("unwrap: --max-atlas must be in [16, {}] texels, got {}", kMaxAtlasResolution, o.max_atlas);
+  if (o.max_pages < 0 || o.max_pages > 1024)
+    return invalidInput("unwrap: --max-pages must be in [0, 1024] (0 = as many as needed), got {}", o.max_pages);
   if (o.texel_budget > (std::uint64_t(1) << 32))
     return invalidInput("unwrap: texel budget {} is above 2^32", o.texel_budget);
   if (o.gutter_texels < 0 || o.gutter_texels > 64)
@@ -404,6 +406,7 @@ Expected<UnwrapResult> unwrap(scene::Scene& scene, const UnwrapOptions& options)
   if (options.texel_size_m || options.texel_budget > 0) {
     texel_m = options.texel_size_m ? double(*options.texel_size_m)
                                    : texelSizeForBudget(scaled_area, perimeter, charts.size(), options.texel_budget);
+    texel_m = static_cast<double>(static_cast<float>(texel_m));  // the float the atlas reports
     if (!(texel_m > 0.0) || !std::isfinite(texel_m))
       return invalidInput("unwrap: '{}' has no chart area to lay out", scene.source_path);
     // Objects too small for the lightmap: every chart of the mesh under 2 texels a side.
@@ -490,9 +493,22 @@ Expected<UnwrapResult> unwrap(scene::Scene& scene, const UnwrapOptions& options)
     if (stopRequested(progress)) return stopped();
     if (res == 0) {
       res = page;
-      pages = packChartsPaged(charts, texel_m, page, gutter, placements, progress);
-      if (stopRequested(progress)) return stopped();
-      if (pages < 0) return internalError("unwrap: a chart scaled to fit a {}x{} page did not fit one", page, page);
+      const double asked = texel_m;
+      for (int attempt = 0;; ++attempt) {
+        pages = packChartsPaged(charts, texel_m, page, gutter, placements, progress);
+        if (stopRequested(progress)) return stopped();
+        if (pages < 0) return internalError("unwrap: a chart scaled to fit a {}x{} page did not fit one", page, page);
+        if (options.max_pages == 0 || pages <= options.max_pages) break;
+        if (attempt == 16)
+          return invalidInput("unwrap: {} charts do not fit {} page(s) of {}x{} even at {:.4g} m/texel; raise "
+                              "--max-pages or --max-atlas",
+                              charts.size(), options.max_pages, page, page, texel_m);
+        // Fewer pages: coarser texels, by the square root of the page ratio and a little more.
+        texel_m = static_cast<float>(texel_m * std::sqrt(double(pages) / double(options.max_pages)) * 1.02);
+      }
+      if (texel_m != asked)
+        report.warnings.push_back(fmt::format("texel size raised from {:.4g} to {:.4g} m to fit --max-pages {}", asked,
+                                              texel_m, options.max_pages));
     }
     if (std::uint64_t(res) * std::uint64_t(pages) > std::uint64_t(kMaxAtlasResolution))
       return invalidInput("unwrap: {} charts at {} m/texel need {} pages of {}x{}, more than the {} rows an atlas may "

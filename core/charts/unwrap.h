@@ -60,6 +60,9 @@ struct UnwrapOptions {
   // neither the texel size nor the budget is set).
   std::optional<int> resolution;
   int max_atlas = 1024;
+  // Most pages; 0 = as many as needed. More needed: the texel size is raised until they fit
+  // (with a warning).
+  int max_pages = 0;
   int target_resolution = 1024;
   // Objects too small for the lightmap (every chart of the mesh under 2x2 texels at the
   // chosen size) become probe-lit (MeshInstance::probe_lit) instead of taking atlas space.

@@ -132,6 +132,8 @@ Status PrecomputeOptions::validate() const {
     return invalidInput("--texel-size {} must be a finite number > 0", *texel_size_m);
   if (texel_budget > (std::uint64_t(1) << 28))
     return invalidInput("texel budget {} is out of range (0..268435456)", texel_budget);
+  if (max_pages < 0 || max_pages > 1024)
+    return invalidInput("--max-pages {} is out of range (0..1024, 0 = as many as needed)", max_pages);
   if (max_atlas < 16 || max_atlas > charts::kMaxAtlasResolution)
     return invalidInput("--max-atlas {} is out of range (16..{})", max_atlas, charts::kMaxAtlasResolution);
   if (lightmap_resolution && (*lightmap_resolution < 1 || *lightmap_resolution > charts::kMaxAtlasResolution))
@@ -172,11 +174,11 @@ Expected<PrecomputeOptions> preset(std::string_view name) {
 std::string PrecomputeOptions::canonical() const {
   return fmt::format(
       "surfels={};links={};bands={};rays={};builder={};grid={};grid_spacing={:a};grid_resolution={};"
-      "texel_size={};texel_budget={};max_atlas={};lightmap_resolution={};target_resolution={};validity_rays={};"
+      "texel_size={};texel_budget={};max_atlas={};max_pages={};lightmap_resolution={};target_resolution={};validity_rays={};"
       "seed={};generator={}",
       surfels, links, bands, rays, builder == hierarchy::Builder::kAgglomerative ? "hac" : "kd",
       static_cast<int>(grid), grid_spacing_m, grid_resolution,
-      texel_size_m ? fmt::format("{:a}", *texel_size_m) : "auto", texel_budget, max_atlas,
+      texel_size_m ? fmt::format("{:a}", *texel_size_m) : "auto", texel_budget, max_atlas, max_pages,
       lightmap_resolution ? std::to_string(*lightmap_resolution) : "auto", target_resolution, validity_rays, seed,
       kGeneratorRevision);
 }
@@ -202,6 +204,7 @@ Expected<charts::UnwrapResult> unwrapFor(scene::Scene& scene, const PrecomputeOp
   u.texel_size_m = options.texel_size_m;
   u.texel_budget = options.texel_budget;
   u.max_atlas = options.max_atlas;
+  u.max_pages = options.max_pages;
   u.resolution = options.lightmap_resolution;
   u.target_resolution = options.target_resolution;
   u.max_texels = options.limits.max_texels;

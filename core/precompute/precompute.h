@@ -69,6 +69,7 @@ struct PrecomputeOptions {
   std::optional<float> texel_size_m;
   std::uint64_t texel_budget = 0;  // the presets set one
   int max_atlas = 1024;
+  int max_pages = 0;               // 0 = as many as needed; else the texel size is raised to fit
   std::optional<int> lightmap_resolution;
   int target_resolution = 128;     // with texel_budget 0 and no texel size: one atlas this size
   int validity_rays = 64;

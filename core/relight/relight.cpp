@@ -175,6 +175,12 @@ struct Relighter::Impl {
   // otherwise only the last pass's grid values are used (output).
   bool grid_gathered = false;
   std::vector<std::uint8_t> lm_has_value, grid_has_value;  // valid or filled
+  // Every output texel as a weighted sum of lightmap caches: a texel with a cache is that
+  // cache, a dilated texel the dilation plan's averages flattened to caches (they are fixed
+  // per precomputation), so writing the texels is one parallel gather, not a serial pass
+  // over the dilation plan. Texels without an entry are empty (invalid, zero).
+  std::vector<std::uint32_t> texel_begin, texel_cache;
+  std::vector<float> texel_weight;
   PullAreas pull;  // leaf areas and node inverse areas of the pull (pullAreas)
 
   // Per-relight state, kept for incremental updates.
@@ -233,6 +239,7 @@ struct Relighter::Impl {
       : scene(s), accel(a), p(pc), lm_links(lm), grid_links(grid) {}
 
   void buildGather();
+  void buildTexelMap();
   void buildInverted();
   EffectsPlan makePlan(const LightSet& lights, const RelightOptions& o) const;
   void computeEmission(const LightSet& lights);
@@ -328,6 +335,7 @@ Expected<Relighter> Relighter::create(const scene::Scene& scene, const rt::Accel
   impl->surfel_material.resize(ns);
   for (std::size_t i = 0; i < ns; ++i) impl->surfel_material[i] = scene.meshes[p.surfels.mesh[i]].material;
   impl->buildGather();
+  impl->buildTexelMap();
   const std::size_t nodes = p.tree.nodeCount();
   // The AVX2 runtime kernel gathers with 32-bit offsets 4 * node.
   if (nodes >= (std::size_t(1) << 29)) return invalidInput("relight: {} tree nodes exceed 2^29", nodes);
@@ -426,6 +434,62 @@ void Relighter::Impl::buildGather() {
     gather_begin.push_back(std::uint32_t(gather_cache.size()));
   }
   grid_gathered = std::find(gather_from_grid.begin(), gather_from_grid.end(), std::uint8_t(1)) != gather_from_grid.end();
+}
+
+void Relighter::Impl::buildTexelMap() {
+  const std::size_t texels = std::size_t(p.lightmap.width) * std::size_t(p.lightmap.height);
+  const auto& cot = p.lightmap.cache_of_texel;
+  const auto& d = p.dilation;
+  // Dilated texels' cache weights, built in plan order exactly as the per-relight dilation
+  // would average them: a source counts when it holds a value at that point of the plan.
+  using Entry = std::pair<std::uint32_t, float>;
+  std::vector<std::int32_t> dilated(texels, -1);
+  std::vector<std::vector<Entry>> lists;
+  std::vector<Entry> acc;
+  for (std::size_t t = 0; t < d.target.size(); ++t) {
+    acc.clear();
+    std::uint32_t used = 0;
+    for (std::uint32_t k = d.source_begin[t]; k < d.source_begin[t + 1]; ++k) {
+      const std::uint32_t src = d.source[k];
+      const std::int32_t c = src < cot.size() ? cot[src] : -1;
+      if (c >= 0 && lm_has_value[std::size_t(c)]) {
+        acc.emplace_back(std::uint32_t(c), 1.0f);
+        ++used;
+      } else if (dilated[src] >= 0) {
+        for (const Entry& e : lists[std::size_t(dilated[src])]) acc.push_back(e);
+        ++used;
+      }
+    }
+    if (used == 0) continue;
+    std::sort(acc.begin(), acc.end(), [](const Entry& a, const Entry& b) { return a.first < b.first; });
+    std::vector<Entry> merged;
+    for (const Entry& e : acc) {
+      if (!merged.empty() && merged.back().first == e.first) merged.back().second += e.second;
+      else merged.push_back(e);
+    }
+    const float inv = 1.0f / float(used);
+    for (Entry& e : merged) e.second *= inv;
+    dilated[d.target[t]] = std::int32_t(lists.size());
+    lists.push_back(std::move(merged));
+  }
+  texel_begin.assign(texels + 1, 0);
+  for (std::size_t t = 0; t < texels; ++t) {
+    std::size_t n = 0;
+    if (cot[t] >= 0 && lm_has_value[std::size_t(cot[t])]) n = 1;
+    else if (dilated[t] >= 0) n = lists[std::size_t(dilated[t])].size();
+    texel_begin[t + 1] = texel_begin[t] + std::uint32_t(n);
+  }
+  texel_cache.resize(texel_begin[texels]);
+  texel_weight.resize(texel_begin[texels]);
+  for (std::size_t t = 0; t < texels; ++t) {
+    std::uint32_t k = texel_begin[t];
+    if (cot[t] >= 0 && lm_has_value[std::size_t(cot[t])]) {
+      texel_cache[k] = std::uint32_t(cot[t]);
+      texel_weight[k] = 1.0f;
+    } else if (dilated[t] >= 0) {
+      for (const Entry& e : lists[std::size_t(dilated[t])]) texel_cache[k] = e.first, texel_weight[k++] = e.second;
+    }
+  }
 }
 
 void Relighter::Impl::buildInverted() {
@@ -1235,39 +1299,34 @@ Status Relighter::relightInto(const LightSet& lights, const RelightOptions& o, R
     res.texel_valid.resize(texels);
     forChunks(texels, 4096, [&](std::size_t, std::size_t begin, std::size_t end) {
       for (std::size_t t = begin; t < end; ++t) {
-        const std::int32_t c = m.p.lightmap.cache_of_texel[t];
         float* dst = res.lightmap_sh.data() + t * stride;
-        if (c < 0 || !m.lm_has_value[c]) {
+        const std::uint32_t b0 = m.texel_begin[t], b1 = m.texel_begin[t + 1];
+        if (b0 == b1) {
           std::fill(dst, dst + stride, 0.0f);
           res.direct[t] = glm::vec3(0.0f);
           res.texel_valid[t] = 0;
           continue;
         }
-        std::memcpy(dst, m.lm_sh.data() + std::size_t(c) * stride, stride * sizeof(float));
-        res.direct[t] = m.cache_direct[c];
+        if (b1 - b0 == 1 && m.texel_weight[b0] == 1.0f) {  // a texel with its own cache
+          const std::uint32_t c = m.texel_cache[b0];
+          std::memcpy(dst, m.lm_sh.data() + std::size_t(c) * stride, stride * sizeof(float));
+          res.direct[t] = m.cache_direct[c];
+          res.texel_valid[t] = 1;
+          continue;
+        }
+        std::fill(dst, dst + stride, 0.0f);
+        glm::vec3 dir(0.0f);
+        for (std::uint32_t k = b0; k < b1; ++k) {
+          const std::uint32_t c = m.texel_cache[k];
+          const float w = m.texel_weight[k];
+          const float* src = m.lm_sh.data() + std::size_t(c) * stride;
+          for (std::size_t i = 0; i < stride; ++i) dst[i] += w * src[i];
+          dir += w * m.cache_direct[c];
+        }
+        res.direct[t] = dir;
         res.texel_valid[t] = 1;
       }
     });
-    const auto& d = m.p.dilation;
-    for (std::size_t t = 0; t < d.target.size(); ++t) {
-      const std::uint32_t b0i = d.source_begin[t], b1i = d.source_begin[t + 1];
-      std::uint32_t used = 0;
-      float* dst = res.lightmap_sh.data() + std::size_t(d.target[t]) * stride;
-      glm::vec3 dir(0.0f);
-      for (std::uint32_t k = b0i; k < b1i; ++k) {
-        const std::uint32_t src_t = d.source[k];
-        if (!res.texel_valid[src_t]) continue;
-        ++used;
-        const float* src = res.lightmap_sh.data() + std::size_t(src_t) * stride;
-        for (std::size_t i = 0; i < stride; ++i) dst[i] += src[i];
-        dir += res.direct[src_t];
-      }
-      if (used == 0) continue;
-      const float inv = 1.0f / float(used);
-      for (std::size_t i = 0; i < stride; ++i) dst[i] *= inv;
-      res.direct[d.target[t]] = dir * inv;
-      res.texel_valid[d.target[t]] = 1;
-    }
     res.counts.texels = texels;
     res.counts.texels_filled = std::size_t(std::count(res.texel_valid.begin(), res.texel_valid.end(), 1));
     if (plan.grid) res.grid_sh = m.grid_sh;

@@ -91,6 +91,18 @@ TEST(Density, ChartsGoOntoAsManyPagesAsNeededNeverStraddlingTwo) {
   ASSERT_TRUE(one);
   EXPECT_EQ(one->atlas.pages, 1);
   EXPECT_LE(one->atlas.resolution, 512);
+  // A page cap raises the texel size until the charts fit, and says so.
+  scene::Scene capped = tm::makeScene({tm::planeWithHoles(4.0f, 9), moved(tm::cube(2.0f, 2), {5, 0, 0}, "cube"),
+                                       moved(tm::sphere(1.0f, 24, 12), {-5, 0, 0}, "sphere")});
+  o.max_atlas = 64;
+  o.max_pages = 2;
+  Expected<UnwrapResult> two = unwrap(capped, o);
+  ASSERT_TRUE(two) << two.status().toString();
+  EXPECT_LE(two->atlas.pages, 2);
+  EXPECT_GT(two->atlas.texel_size_m, 0.05f);
+  ASSERT_FALSE(two->report.warnings.empty());
+  EXPECT_NE(two->report.warnings.back().find("--max-pages"), std::string::npos);
+  expectValid(capped, *two);
 }
 
 TEST(Density, AChartLargerThanAPageIsScaledDownWithAWarning) {
