@@ -50,15 +50,17 @@ struct PlacedMesh {
   glm::dmat4 world{1.0};
 };
 
-// Every (node, mesh) pair in pre-order, with the world transform and the node's path.
-std::vector<PlacedMesh> placeMeshes(const aiScene& ai) {
+// Every (node, mesh) pair in pre-order, with the world transform (in metres) and the path.
+std::vector<PlacedMesh> placeMeshes(const aiScene& ai, double metres_per_unit) {
   std::vector<PlacedMesh> placed;
   struct Item {
     const aiNode* node;
     glm::dmat4 parent;
     std::string parent_path;
   };
-  std::vector<Item> stack{{ai.mRootNode, glm::dmat4(1.0), std::string()}};
+  const glm::dmat4 to_metres(glm::dvec4(metres_per_unit, 0, 0, 0), glm::dvec4(0, metres_per_unit, 0, 0),
+                             glm::dvec4(0, 0, metres_per_unit, 0), glm::dvec4(0, 0, 0, 1));
+  std::vector<Item> stack{{ai.mRootNode, to_metres, std::string()}};
   int ordinal = 0;
   while (!stack.empty()) {
     Item item = std::move(stack.back());
@@ -117,6 +119,7 @@ class Loader {
   Assimp::Importer importer_;
   ConfinedIOSystem* io_ = nullptr;  // owned by importer_
   const aiScene* ai_ = nullptr;
+  double metres_per_unit_ = 1.0;    // FBX UnitScaleFactor / 100; OBJ: 1
   std::string text_;                // the OBJ text, for diagnoses
   ImageBudget budget_;
   std::map<std::string, int> textures_by_name_;
@@ -454,16 +457,30 @@ void Loader::dropUnusedDefaultMaterial() {
   }
 }
 
+// FBX states its unit as UnitScaleFactor, centimetres per unit (1 for Maya's cm, 100 for
+// Blender's metres); lightlink works in metres. assimp leaves coordinates in file units.
+double fbxMetresPerUnit(const aiScene& ai) {
+  if (ai.mMetaData == nullptr) return 1.0;
+  double cm = 0.0;
+  float cm_float = 0.0f;
+  if (!ai.mMetaData->Get("UnitScaleFactor", cm)) {
+    if (!ai.mMetaData->Get("UnitScaleFactor", cm_float)) return 1.0;
+    cm = cm_float;
+  }
+  return std::isfinite(cm) && cm > 0.0 ? cm / 100.0 : 1.0;
+}
+
 Status Loader::run(const std::string& bytes) {
   if (obj_) text_ = bytes;
   if (Status s = readFile(bytes); !s) return s;
   if (ai_->mRootNode == nullptr) return invalid("scene", "has no root node");
-  if (Status s = validateRaw(placeMeshes(*ai_)); !s) return s;
+  if (!obj_) metres_per_unit_ = fbxMetresPerUnit(*ai_);
+  if (Status s = validateRaw(placeMeshes(*ai_, metres_per_unit_)); !s) return s;
   ai_ = importer_.ApplyPostProcessing(aiProcess_Triangulate | aiProcess_JoinIdenticalVertices | aiProcess_SortByPType |
                                       aiProcess_FlipUVs);
   if (ai_ == nullptr) return invalidInput("{}: assimp post-processing failed: {}", path_, importer_.GetErrorString());
   if (Status s = loadMaterials(); !s) return s;
-  if (Status s = buildGeometry(placeMeshes(*ai_)); !s) return s;
+  if (Status s = buildGeometry(placeMeshes(*ai_, metres_per_unit_)); !s) return s;
   dropUnusedDefaultMaterial();
   if (ai_->mNumLights > 0)
     warn("scene", fmt::format("{} lights in the file are not read (give lights in a light set)", ai_->mNumLights));

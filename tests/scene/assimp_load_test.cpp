@@ -2,6 +2,8 @@
 // point loadScene: materials reach the Scene, bad data names the file, object and field,
 // files stay inside the scene's folder, and the shared game levels load.
 #include <cmath>
+#include <fstream>
+#include <sstream>
 #include <limits>
 #include <memory>
 
@@ -56,6 +58,13 @@ void writeRedPng(const std::filesystem::path& path) {
   std::filesystem::create_directories(path.parent_path());
   const std::uint8_t rgb[] = {255, 0, 0, 255, 0, 0, 255, 0, 0, 255, 0, 0};
   ASSERT_TRUE(writePngRgb8(path.string(), 2, 2, rgb, "test").isOk());
+}
+
+std::string readText(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  std::stringstream ss;
+  ss << in.rdbuf();
+  return ss.str();
 }
 
 const Material* materialNamed(const Scene& scene, const std::string& name) {
@@ -343,11 +352,29 @@ TEST(AssimpLoad, FbxLoadsNodesTransformsAndMaterials) {
   EXPECT_EQ(scene->triangleCount(), 2u);
   ASSERT_EQ(scene->meshes.size(), 1u);
   EXPECT_THAT(scene->meshes[0].name, HasSubstr("Crate"));
-  EXPECT_NEAR(scene->bounds.min.x, 10.0f, 1e-4f);
-  EXPECT_NEAR(scene->bounds.max.x, 11.0f, 1e-4f);
+  // assimp's exporter writes UnitScaleFactor 1 (a centimetre per unit): x 10..11 cm.
+  EXPECT_NEAR(scene->bounds.min.x, 0.10f, 1e-6f);
+  EXPECT_NEAR(scene->bounds.max.x, 0.11f, 1e-6f);
   const Material& m = scene->materialOf(scene->meshes[0]);
   EXPECT_EQ(m.name, "Paint");
   EXPECT_NEAR(m.base_color_factor.y, 0.4f, 1e-6f);
+}
+
+// UnitScaleFactor is centimetres per unit (Blender writes 100 for metres): lengths come out in metres.
+TEST(AssimpLoad, FbxUnitsAreConvertedToMetres) {
+  TempDir dir;
+  const std::string fbx = exportFbx(*crateScene(0.0f), dir / "crate.fbx");
+  std::string text = readText(fbx);
+  const std::string cm = "\"UnitScaleFactor\", \"double\", \"Number\", \"\", 1\n";
+  const std::size_t at = text.find(cm);
+  ASSERT_NE(at, std::string::npos) << "assimp's ASCII FBX no longer states its unit this way";
+  text.replace(at, cm.size(), "\"UnitScaleFactor\", \"double\", \"Number\", \"\", 100\n");
+  const std::string metres = writeFile(dir / "metres.fbx", text);
+  Expected<Scene> scene = loadScene(metres);
+  ASSERT_TRUE(scene.hasValue()) << scene.status().toString();
+  EXPECT_NEAR(scene->bounds.min.x, 10.0f, 1e-4f);
+  EXPECT_NEAR(scene->bounds.max.x, 11.0f, 1e-4f);
+  EXPECT_NEAR(scene->bounds.max.y, 1.0f, 1e-5f);
 }
 
 TEST(AssimpLoad, FbxWithANanPositionNamesTheNode) {
