@@ -90,7 +90,8 @@ class Loader {
  private:
   std::string describeObject(const PlacedMesh& p, const aiMesh& mesh) const {
     const char* kind = obj_ ? "object" : "node";
-    std::string label = p.node_path.empty() ? fmt::format("{} (root)", kind) : fmt::format("{} '{}'", kind, p.node_path);
+    std::string label =
+        p.node_path.empty() ? fmt::format("{} (root)", kind) : fmt::format("{} '{}'", kind, p.node_path);
     const std::string mesh_name = mesh.mName.C_Str();
     const std::string leaf = p.node_path.substr(p.node_path.rfind('/') + 1);
     if (!mesh_name.empty() && mesh_name != leaf) label += fmt::format(" mesh '{}'", mesh_name);
@@ -355,7 +356,8 @@ Status Loader::buildGeometry(const std::vector<PlacedMesh>& placed) {
     }
     if (mesh.mTextureCoords[0] != nullptr) {
       out.uv0.resize(n);
-      for (std::size_t v = 0; v < n; ++v) out.uv0[v] = glm::vec2(mesh.mTextureCoords[0][v].x, mesh.mTextureCoords[0][v].y);
+      for (std::size_t v = 0; v < n; ++v)
+        out.uv0[v] = glm::vec2(mesh.mTextureCoords[0][v].x, mesh.mTextureCoords[0][v].y);
     }
     out.indices.reserve(std::size_t(mesh.mNumFaces) * 3);
     for (unsigned f = 0; f < mesh.mNumFaces; ++f) {
@@ -448,8 +450,8 @@ void Loader::dropUnusedDefaultMaterial() {
   for (std::size_t i = 0; i < scene_.materials.size(); ++i) {
     if (scene_.materials[i].name != AI_DEFAULT_MATERIAL_NAME) continue;
     const int index = static_cast<int>(i);
-    if (std::any_of(scene_.meshes.begin(), scene_.meshes.end(), [&](const MeshInstance& m) { return m.material == index; }))
-      return;
+    const auto uses = [&](const MeshInstance& m) { return m.material == index; };
+    if (std::any_of(scene_.meshes.begin(), scene_.meshes.end(), uses)) return;
     scene_.materials.erase(scene_.materials.begin() + index);
     for (MeshInstance& m : scene_.meshes)
       if (m.material > index) --m.material;

@@ -202,11 +202,14 @@ struct BadObj {
 
 TEST(AssimpLoad, BadObjDataIsAnErrorNamingTheFileObjectAndField) {
   const BadObj cases[] = {
-      {"nan.obj", "o Crate\nv 0 0 0\nv 1 0 0\nv nan 1 0\nf 1 2 3\n", {"nan.obj", "object 'Crate'", "position", "not finite", "line 4"}},
-      {"index.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\no Bad\nf 1 2 7\n", {"index.obj", "line 5", "object 'Bad'", "vertex 7", "has 3"}},
+      {"nan.obj", "o Crate\nv 0 0 0\nv 1 0 0\nv nan 1 0\nf 1 2 3\n",
+       {"nan.obj", "object 'Crate'", "position", "not finite", "line 4"}},
+      {"index.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\no Bad\nf 1 2 7\n",
+       {"index.obj", "line 5", "object 'Bad'", "vertex 7", "has 3"}},
       {"zero.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\no Zero\nf 1 2 0\n", {"zero.obj", "object 'Zero'", "vertex 0"}},
       {"relative.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\ng Rel\nf -1 -2 -9\n", {"relative.obj", "group 'Rel'", "vertex -9"}},
-      {"uv.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nvt 0 0\no Tex\nf 1/1 2/2 3/1\n", {"uv.obj", "object 'Tex'", "texture coordinate 2"}},
+      {"uv.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nvt 0 0\no Tex\nf 1/1 2/2 3/1\n",
+       {"uv.obj", "object 'Tex'", "texture coordinate 2"}},
       {"empty.obj", "", {"empty.obj", "empty"}},
       {"nofaces.obj", "o Lonely\nv 0 0 0\nv 1 0 0\n", {"nofaces.obj", "no triangles"}},
   };
@@ -390,8 +393,8 @@ TEST(AssimpLoad, FbxWithANanPositionNamesTheNode) {
 
 TEST(AssimpLoad, LoadSceneStillReadsGltf) {
   if (lightlink::testing::sharedScenesDir().empty()) GTEST_SKIP() << "../shared/scenes is not available";
-  Expected<Scene> scene =
-      loadScene((lightlink::testing::sharedScenesDir() / "cornell_box_original_gltf/CornellBox-Original.gltf").string());
+  const auto gltf = lightlink::testing::sharedScenesDir() / "cornell_box_original_gltf/CornellBox-Original.gltf";
+  Expected<Scene> scene = loadScene(gltf.string());
   ASSERT_TRUE(scene.hasValue()) << scene.status().toString();
   EXPECT_EQ(scene->stats.triangles_in, 32u);
 }
