@@ -26,6 +26,10 @@ namespace fs = std::filesystem;
 
 // As in the glTF path: triangles below (1e-7 * scene scale)^2 carry no light.
 constexpr double kDegenerateEdgeFraction = 1e-7;
+// Polygons above kSmallPolygon corners count corners^2 towards kMaxPolygonWork, about 2 s of
+// assimp's triangulation on the 2-core VM (one face of 30,000 corners takes 1.7 s).
+constexpr unsigned kSmallPolygon = 16;
+constexpr std::uint64_t kMaxPolygonWork = std::uint64_t(1) << 30;
 
 std::string lowerExtension(const std::string& path) {
   std::string ext = fs::path(path).extension().string();
@@ -168,6 +172,33 @@ Status Loader::validateRaw(const std::vector<PlacedMesh>& placed) {
   if (options_.max_triangles != 0 && triangles > options_.max_triangles)
     return resourceExhausted("{}: the node graph instances {} triangles, above the limit of {} (max_triangles)", path_,
                              triangles, options_.max_triangles);
+  // assimp triangulates a polygon in time quadratic in its corners: one face of 300,000
+  // corners (a 1 MB file) would take half an hour. Big polygons are bounded together.
+  std::uint64_t polygon_work = 0;
+  const PlacedMesh* biggest_at = nullptr;
+  unsigned biggest = 0, biggest_face = 0;
+  for (unsigned i = 0; i < ai_->mNumMeshes; ++i) {
+    if (first_use[i] == nullptr) continue;
+    const aiMesh& mesh = *ai_->mMeshes[i];
+    for (unsigned f = 0; f < mesh.mNumFaces; ++f) {
+      const unsigned corners = mesh.mFaces[f].mNumIndices;
+      if (corners <= kSmallPolygon) continue;
+      polygon_work += std::uint64_t(corners) * corners;
+      if (corners > biggest) {
+        biggest = corners;
+        biggest_face = f;
+        biggest_at = first_use[i];
+      }
+    }
+  }
+  if (polygon_work > kMaxPolygonWork) {
+    const aiMesh& mesh = *ai_->mMeshes[biggest_at->mesh];
+    return {Code::kResourceExhausted,
+            fmt::format("{}: {}: face {} has {} corners; the polygons of more than {} corners add up to {} corners "
+                        "squared, above the {} lightlink triangulates (split the large polygons into smaller ones)",
+                        path_, describeObject(*biggest_at, mesh), biggest_face, biggest, kSmallPolygon, polygon_work,
+                        kMaxPolygonWork)};
+  }
   for (unsigned i = 0; i < ai_->mNumMeshes; ++i) {
     if (first_use[i] == nullptr) continue;
     const aiMesh& mesh = *ai_->mMeshes[i];
