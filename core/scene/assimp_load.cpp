@@ -173,7 +173,7 @@ Status Loader::validateRaw(const std::vector<PlacedMesh>& placed) {
     return resourceExhausted("{}: the node graph instances {} triangles, above the limit of {} (max_triangles)", path_,
                              triangles, options_.max_triangles);
   // assimp triangulates a polygon in time quadratic in its corners: one face of 300,000
-  // corners (a 1 MB file) would take half an hour. Big polygons are bounded together.
+  // corners (a 1 MB file) would take minutes. Big polygons are bounded together.
   std::uint64_t polygon_work = 0;
   const PlacedMesh* biggest_at = nullptr;
   unsigned biggest = 0, biggest_face = 0;
