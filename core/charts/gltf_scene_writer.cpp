@@ -84,7 +84,8 @@ class Builder {
 
   int addIndices(const std::vector<std::uint32_t>& indices) {
     tinygltf::Accessor a;
-    a.bufferView = addView(indices.data(), indices.size() * sizeof(std::uint32_t), TINYGLTF_TARGET_ELEMENT_ARRAY_BUFFER);
+    a.bufferView =
+        addView(indices.data(), indices.size() * sizeof(std::uint32_t), TINYGLTF_TARGET_ELEMENT_ARRAY_BUFFER);
     a.componentType = TINYGLTF_COMPONENT_TYPE_UNSIGNED_INT;
     a.type = TINYGLTF_TYPE_SCALAR;
     a.count = indices.size();
@@ -197,8 +198,9 @@ Status writeGltfFromScene(const std::string& in_path, const scene::Scene& scene,
   tinygltf::Scene root;
   for (const scene::MeshInstance& inst : scene.meshes) {
     if (inst.positions.empty() || inst.indices.empty()) continue;
-    if (inst.normals.size() != inst.positions.size() || (!inst.uv0.empty() && inst.uv0.size() != inst.positions.size()) ||
-        (!inst.uv1.empty() && inst.uv1.size() != inst.positions.size()))
+    const std::size_t n = inst.positions.size();
+    if (inst.normals.size() != n || (!inst.uv0.empty() && inst.uv0.size() != n) ||
+        (!inst.uv1.empty() && inst.uv1.size() != n))
       return internalError("glTF writer: mesh '{}' has {} positions, {} normals, {} uv0, {} uv1", inst.name,
                            inst.positions.size(), inst.normals.size(), inst.uv0.size(), inst.uv1.size());
     tinygltf::Primitive prim;

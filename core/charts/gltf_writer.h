@@ -32,8 +32,9 @@ namespace lightlink::charts {
 // `scene` and `atlas` are unwrap()'s output for the scene loaded from `in_path`. The output
 // is glTF JSON or binary .glb by the extension of `out_path`, which must differ from
 // `in_path`. An OBJ or FBX input (scene::isAssimpScenePath) is written as a fresh glTF
-// from `scene` instead (gltf_scene_writer.h). The input and the images it names are read under `access` (scene_files.h),
-// as the loader read them; a copied image never lands outside the output's folder.
+// from `scene` instead (gltf_scene_writer.h). The input and the images it names are read
+// under `access` (scene_files.h), as the loader read them; a copied image never lands
+// outside the output's folder.
 Status writeGltfWithLightmapUv(const std::string& in_path, const scene::Scene& scene, const LightmapAtlas& atlas,
                                const std::string& out_path, const scene::FileAccess& access = {});
 

@@ -32,7 +32,8 @@ bool ConfinedIOSystem::Exists(const char* file) const {
 Assimp::IOStream* ConfinedIOSystem::Open(const char* file, const char* mode) {
   if (file == nullptr) return nullptr;
   if (mode != nullptr && (std::strchr(mode, 'w') || std::strchr(mode, 'a') || std::strchr(mode, '+'))) {
-    if (refused_.empty()) refused_ = fmt::format("{}: scene loading never writes files ('{}')", files_.scenePath(), file);
+    if (refused_.empty())
+      refused_ = fmt::format("{}: scene loading never writes files ('{}')", files_.scenePath(), file);
     return nullptr;
   }
   const std::string name = normalise(file);

@@ -26,6 +26,10 @@ namespace fs = std::filesystem;
 
 // As in the glTF path: triangles below (1e-7 * scene scale)^2 carry no light.
 constexpr double kDegenerateEdgeFraction = 1e-7;
+// Polygons above kSmallPolygon corners count corners^2 towards kMaxPolygonWork, about 2 s of
+// assimp's triangulation on the 2-core VM (one face of 30,000 corners takes 1.7 s).
+constexpr unsigned kSmallPolygon = 16;
+constexpr std::uint64_t kMaxPolygonWork = std::uint64_t(1) << 30;
 
 std::string lowerExtension(const std::string& path) {
   std::string ext = fs::path(path).extension().string();
@@ -50,15 +54,17 @@ struct PlacedMesh {
   glm::dmat4 world{1.0};
 };
 
-// Every (node, mesh) pair in pre-order, with the world transform and the node's path.
-std::vector<PlacedMesh> placeMeshes(const aiScene& ai) {
+// Every (node, mesh) pair in pre-order, with the world transform (in metres) and the path.
+std::vector<PlacedMesh> placeMeshes(const aiScene& ai, double metres_per_unit) {
   std::vector<PlacedMesh> placed;
   struct Item {
     const aiNode* node;
     glm::dmat4 parent;
     std::string parent_path;
   };
-  std::vector<Item> stack{{ai.mRootNode, glm::dmat4(1.0), std::string()}};
+  const glm::dmat4 to_metres(glm::dvec4(metres_per_unit, 0, 0, 0), glm::dvec4(0, metres_per_unit, 0, 0),
+                             glm::dvec4(0, 0, metres_per_unit, 0), glm::dvec4(0, 0, 0, 1));
+  std::vector<Item> stack{{ai.mRootNode, to_metres, std::string()}};
   int ordinal = 0;
   while (!stack.empty()) {
     Item item = std::move(stack.back());
@@ -88,7 +94,8 @@ class Loader {
  private:
   std::string describeObject(const PlacedMesh& p, const aiMesh& mesh) const {
     const char* kind = obj_ ? "object" : "node";
-    std::string label = p.node_path.empty() ? fmt::format("{} (root)", kind) : fmt::format("{} '{}'", kind, p.node_path);
+    std::string label =
+        p.node_path.empty() ? fmt::format("{} (root)", kind) : fmt::format("{} '{}'", kind, p.node_path);
     const std::string mesh_name = mesh.mName.C_Str();
     const std::string leaf = p.node_path.substr(p.node_path.rfind('/') + 1);
     if (!mesh_name.empty() && mesh_name != leaf) label += fmt::format(" mesh '{}'", mesh_name);
@@ -117,6 +124,7 @@ class Loader {
   Assimp::Importer importer_;
   ConfinedIOSystem* io_ = nullptr;  // owned by importer_
   const aiScene* ai_ = nullptr;
+  double metres_per_unit_ = 1.0;    // FBX UnitScaleFactor / 100; OBJ: 1
   std::string text_;                // the OBJ text, for diagnoses
   ImageBudget budget_;
   std::map<std::string, int> textures_by_name_;
@@ -164,6 +172,33 @@ Status Loader::validateRaw(const std::vector<PlacedMesh>& placed) {
   if (options_.max_triangles != 0 && triangles > options_.max_triangles)
     return resourceExhausted("{}: the node graph instances {} triangles, above the limit of {} (max_triangles)", path_,
                              triangles, options_.max_triangles);
+  // assimp triangulates a polygon in time quadratic in its corners: one face of 300,000
+  // corners (a 1 MB file) would take minutes. Big polygons are bounded together.
+  std::uint64_t polygon_work = 0;
+  const PlacedMesh* biggest_at = nullptr;
+  unsigned biggest = 0, biggest_face = 0;
+  for (unsigned i = 0; i < ai_->mNumMeshes; ++i) {
+    if (first_use[i] == nullptr) continue;
+    const aiMesh& mesh = *ai_->mMeshes[i];
+    for (unsigned f = 0; f < mesh.mNumFaces; ++f) {
+      const unsigned corners = mesh.mFaces[f].mNumIndices;
+      if (corners <= kSmallPolygon) continue;
+      polygon_work += std::uint64_t(corners) * corners;
+      if (corners > biggest) {
+        biggest = corners;
+        biggest_face = f;
+        biggest_at = first_use[i];
+      }
+    }
+  }
+  if (polygon_work > kMaxPolygonWork) {
+    const aiMesh& mesh = *ai_->mMeshes[biggest_at->mesh];
+    return {Code::kResourceExhausted,
+            fmt::format("{}: {}: face {} has {} corners; the polygons of more than {} corners add up to {} corners "
+                        "squared, above the {} lightlink triangulates (split the large polygons into smaller ones)",
+                        path_, describeObject(*biggest_at, mesh), biggest_face, biggest, kSmallPolygon, polygon_work,
+                        kMaxPolygonWork)};
+  }
   for (unsigned i = 0; i < ai_->mNumMeshes; ++i) {
     if (first_use[i] == nullptr) continue;
     const aiMesh& mesh = *ai_->mMeshes[i];
@@ -352,7 +387,8 @@ Status Loader::buildGeometry(const std::vector<PlacedMesh>& placed) {
     }
     if (mesh.mTextureCoords[0] != nullptr) {
       out.uv0.resize(n);
-      for (std::size_t v = 0; v < n; ++v) out.uv0[v] = glm::vec2(mesh.mTextureCoords[0][v].x, mesh.mTextureCoords[0][v].y);
+      for (std::size_t v = 0; v < n; ++v)
+        out.uv0[v] = glm::vec2(mesh.mTextureCoords[0][v].x, mesh.mTextureCoords[0][v].y);
     }
     out.indices.reserve(std::size_t(mesh.mNumFaces) * 3);
     for (unsigned f = 0; f < mesh.mNumFaces; ++f) {
@@ -445,8 +481,8 @@ void Loader::dropUnusedDefaultMaterial() {
   for (std::size_t i = 0; i < scene_.materials.size(); ++i) {
     if (scene_.materials[i].name != AI_DEFAULT_MATERIAL_NAME) continue;
     const int index = static_cast<int>(i);
-    if (std::any_of(scene_.meshes.begin(), scene_.meshes.end(), [&](const MeshInstance& m) { return m.material == index; }))
-      return;
+    const auto uses = [&](const MeshInstance& m) { return m.material == index; };
+    if (std::any_of(scene_.meshes.begin(), scene_.meshes.end(), uses)) return;
     scene_.materials.erase(scene_.materials.begin() + index);
     for (MeshInstance& m : scene_.meshes)
       if (m.material > index) --m.material;
@@ -454,16 +490,30 @@ void Loader::dropUnusedDefaultMaterial() {
   }
 }
 
+// FBX states its unit as UnitScaleFactor, centimetres per unit (1 for Maya's cm, 100 for
+// Blender's metres); lightlink works in metres. assimp leaves coordinates in file units.
+double fbxMetresPerUnit(const aiScene& ai) {
+  if (ai.mMetaData == nullptr) return 1.0;
+  double cm = 0.0;
+  float cm_float = 0.0f;
+  if (!ai.mMetaData->Get("UnitScaleFactor", cm)) {
+    if (!ai.mMetaData->Get("UnitScaleFactor", cm_float)) return 1.0;
+    cm = cm_float;
+  }
+  return std::isfinite(cm) && cm > 0.0 ? cm / 100.0 : 1.0;
+}
+
 Status Loader::run(const std::string& bytes) {
   if (obj_) text_ = bytes;
   if (Status s = readFile(bytes); !s) return s;
   if (ai_->mRootNode == nullptr) return invalid("scene", "has no root node");
-  if (Status s = validateRaw(placeMeshes(*ai_)); !s) return s;
+  if (!obj_) metres_per_unit_ = fbxMetresPerUnit(*ai_);
+  if (Status s = validateRaw(placeMeshes(*ai_, metres_per_unit_)); !s) return s;
   ai_ = importer_.ApplyPostProcessing(aiProcess_Triangulate | aiProcess_JoinIdenticalVertices | aiProcess_SortByPType |
                                       aiProcess_FlipUVs);
   if (ai_ == nullptr) return invalidInput("{}: assimp post-processing failed: {}", path_, importer_.GetErrorString());
   if (Status s = loadMaterials(); !s) return s;
-  if (Status s = buildGeometry(placeMeshes(*ai_)); !s) return s;
+  if (Status s = buildGeometry(placeMeshes(*ai_, metres_per_unit_)); !s) return s;
   dropUnusedDefaultMaterial();
   if (ai_->mNumLights > 0)
     warn("scene", fmt::format("{} lights in the file are not read (give lights in a light set)", ai_->mNumLights));

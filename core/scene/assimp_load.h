@@ -4,8 +4,8 @@
 // hold, and bad data is an error naming the file, the object (OBJ object/group, FBX node)
 // and the field; degenerate triangles are dropped with a count and a warning.
 //
-// Conventions: OBJ has no unit, so 1 unit is read as 1 metre; FBX is taken in the units
-// assimp gives (the file's own units, no conversion). Axes are kept as stored. Materials
+// Conventions: OBJ has no unit, so 1 unit is read as 1 metre; FBX is converted to metres
+// by its UnitScaleFactor (centimetres per unit). Axes are kept as stored. Materials
 // map MTL keys (and FBX's equivalents, through assimp's common keys) onto glTF's model:
 // Kd -> baseColorFactor.rgb, d (or 1 - Tr) -> baseColorFactor.a, map_Kd -> base colour
 // texture, Ke -> emissive (split into factor <= 1 and strength), map_Ke -> emissive

@@ -57,7 +57,8 @@ Status append(const SceneFiles& files, const std::string& name, const char* what
 
 Expected<std::string> objDependencyBytes(const SceneFiles& files, std::string_view obj_text) {
   std::string ext = std::filesystem::path(files.scenePath()).extension().string();
-  std::transform(ext.begin(), ext.end(), ext.begin(), [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
+  std::transform(ext.begin(), ext.end(), ext.begin(),
+                 [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
   if (ext != ".obj") return std::string();
   std::vector<std::string> libraries;
   forEachStatement(obj_text, [&](std::string_view key, std::string_view rest) {

@@ -2,6 +2,8 @@
 // point loadScene: materials reach the Scene, bad data names the file, object and field,
 // files stay inside the scene's folder, and the shared game levels load.
 #include <cmath>
+#include <fstream>
+#include <sstream>
 #include <limits>
 #include <memory>
 
@@ -56,6 +58,13 @@ void writeRedPng(const std::filesystem::path& path) {
   std::filesystem::create_directories(path.parent_path());
   const std::uint8_t rgb[] = {255, 0, 0, 255, 0, 0, 255, 0, 0, 255, 0, 0};
   ASSERT_TRUE(writePngRgb8(path.string(), 2, 2, rgb, "test").isOk());
+}
+
+std::string readText(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  std::stringstream ss;
+  ss << in.rdbuf();
+  return ss.str();
 }
 
 const Material* materialNamed(const Scene& scene, const std::string& name) {
@@ -193,11 +202,14 @@ struct BadObj {
 
 TEST(AssimpLoad, BadObjDataIsAnErrorNamingTheFileObjectAndField) {
   const BadObj cases[] = {
-      {"nan.obj", "o Crate\nv 0 0 0\nv 1 0 0\nv nan 1 0\nf 1 2 3\n", {"nan.obj", "object 'Crate'", "position", "not finite", "line 4"}},
-      {"index.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\no Bad\nf 1 2 7\n", {"index.obj", "line 5", "object 'Bad'", "vertex 7", "has 3"}},
+      {"nan.obj", "o Crate\nv 0 0 0\nv 1 0 0\nv nan 1 0\nf 1 2 3\n",
+       {"nan.obj", "object 'Crate'", "position", "not finite", "line 4"}},
+      {"index.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\no Bad\nf 1 2 7\n",
+       {"index.obj", "line 5", "object 'Bad'", "vertex 7", "has 3"}},
       {"zero.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\no Zero\nf 1 2 0\n", {"zero.obj", "object 'Zero'", "vertex 0"}},
       {"relative.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\ng Rel\nf -1 -2 -9\n", {"relative.obj", "group 'Rel'", "vertex -9"}},
-      {"uv.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nvt 0 0\no Tex\nf 1/1 2/2 3/1\n", {"uv.obj", "object 'Tex'", "texture coordinate 2"}},
+      {"uv.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nvt 0 0\no Tex\nf 1/1 2/2 3/1\n",
+       {"uv.obj", "object 'Tex'", "texture coordinate 2"}},
       {"empty.obj", "", {"empty.obj", "empty"}},
       {"nofaces.obj", "o Lonely\nv 0 0 0\nv 1 0 0\n", {"nofaces.obj", "no triangles"}},
   };
@@ -231,6 +243,20 @@ TEST(AssimpLoad, MaxTrianglesIsHonoured) {
   ASSERT_FALSE(scene.hasValue());
   EXPECT_EQ(scene.status().code(), Code::kResourceExhausted);
   EXPECT_THAT(scene.status().message(), HasSubstr("max_triangles"));
+}
+
+// assimp's triangulation is quadratic in a polygon's corners: one face of 40,000 corners
+// (240 KB) takes 3 s, 300,000 some minutes. Refused before it runs, naming the object.
+TEST(AssimpLoad, AHugePolygonIsRefusedBeforeTriangulation) {
+  TempDir dir;
+  std::string text = "v 0 0 0\nv 1 0 0\nv 0 1 0\no Fan\nf";
+  for (int i = 0; i < 40000; ++i) text += i % 3 == 0 ? " 1" : i % 3 == 1 ? " 2" : " 3";
+  const std::string obj = writeFile(dir / "fan.obj", text + "\n");
+  Expected<Scene> scene = loadScene(obj);
+  ASSERT_FALSE(scene.hasValue());
+  EXPECT_EQ(scene.status().code(), Code::kResourceExhausted);
+  for (const char* part : {"fan.obj", "object 'Fan'", "40000 corners", "split the large polygons"})
+    EXPECT_THAT(scene.status().message(), HasSubstr(part));
 }
 
 TEST(AssimpLoad, MaxImagePixelsIsHonoured) {
@@ -343,11 +369,29 @@ TEST(AssimpLoad, FbxLoadsNodesTransformsAndMaterials) {
   EXPECT_EQ(scene->triangleCount(), 2u);
   ASSERT_EQ(scene->meshes.size(), 1u);
   EXPECT_THAT(scene->meshes[0].name, HasSubstr("Crate"));
-  EXPECT_NEAR(scene->bounds.min.x, 10.0f, 1e-4f);
-  EXPECT_NEAR(scene->bounds.max.x, 11.0f, 1e-4f);
+  // assimp's exporter writes UnitScaleFactor 1 (a centimetre per unit): x 10..11 cm.
+  EXPECT_NEAR(scene->bounds.min.x, 0.10f, 1e-6f);
+  EXPECT_NEAR(scene->bounds.max.x, 0.11f, 1e-6f);
   const Material& m = scene->materialOf(scene->meshes[0]);
   EXPECT_EQ(m.name, "Paint");
   EXPECT_NEAR(m.base_color_factor.y, 0.4f, 1e-6f);
+}
+
+// UnitScaleFactor is centimetres per unit (Blender writes 100 for metres): lengths come out in metres.
+TEST(AssimpLoad, FbxUnitsAreConvertedToMetres) {
+  TempDir dir;
+  const std::string fbx = exportFbx(*crateScene(0.0f), dir / "crate.fbx");
+  std::string text = readText(fbx);
+  const std::string cm = "\"UnitScaleFactor\", \"double\", \"Number\", \"\", 1\n";
+  const std::size_t at = text.find(cm);
+  ASSERT_NE(at, std::string::npos) << "assimp's ASCII FBX no longer states its unit this way";
+  text.replace(at, cm.size(), "\"UnitScaleFactor\", \"double\", \"Number\", \"\", 100\n");
+  const std::string metres = writeFile(dir / "metres.fbx", text);
+  Expected<Scene> scene = loadScene(metres);
+  ASSERT_TRUE(scene.hasValue()) << scene.status().toString();
+  EXPECT_NEAR(scene->bounds.min.x, 10.0f, 1e-4f);
+  EXPECT_NEAR(scene->bounds.max.x, 11.0f, 1e-4f);
+  EXPECT_NEAR(scene->bounds.max.y, 1.0f, 1e-5f);
 }
 
 TEST(AssimpLoad, FbxWithANanPositionNamesTheNode) {
@@ -363,8 +407,8 @@ TEST(AssimpLoad, FbxWithANanPositionNamesTheNode) {
 
 TEST(AssimpLoad, LoadSceneStillReadsGltf) {
   if (lightlink::testing::sharedScenesDir().empty()) GTEST_SKIP() << "../shared/scenes is not available";
-  Expected<Scene> scene =
-      loadScene((lightlink::testing::sharedScenesDir() / "cornell_box_original_gltf/CornellBox-Original.gltf").string());
+  const auto gltf = lightlink::testing::sharedScenesDir() / "cornell_box_original_gltf/CornellBox-Original.gltf";
+  Expected<Scene> scene = loadScene(gltf.string());
   ASSERT_TRUE(scene.hasValue()) << scene.status().toString();
   EXPECT_EQ(scene->stats.triangles_in, 32u);
 }
