@@ -158,13 +158,13 @@ Expected<PrecomputeOptions> preset(std::string_view name) {
     o.surfels = 32768;
     o.links = 128;
     o.rays = 1024;
-    o.texel_budget = 65536;
+    o.texel_budget = 32768;
   } else if (name == "high") {
     o.surfels = 16384;
     o.links = 256;
     o.bands = 3;
     o.rays = 2048;
-    o.texel_budget = 262144;
+    o.texel_budget = 131072;
   } else {
     return invalidInput("--preset '{}' must be draft, medium or high", name);
   }
