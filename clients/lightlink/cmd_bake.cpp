@@ -6,10 +6,12 @@
 
 #include <fmt/format.h>
 
+#include "clients/lightlink/bake_findings.h"
 #include "clients/lightlink/commands.h"
 #include "clients/lightlink/exit_codes.h"
 #include "clients/lightlink/scene_access.h"
 #include "clients/lightlink/progress_bar.h"
+#include "clients/lightlink/version.h"
 #include "core/charts/gltf_writer.h"
 #include "core/output/output.h"
 #include "core/precompute/resident.h"
@@ -43,6 +45,9 @@ int runBake(const BakeArgs& args) {
   relight_options.max_bounces = args.max_bounces;
   auto backend_choice = gpu::parseBackendChoice(args.backend, "--backend");
   if (!backend_choice) return reportError(kCmd, backend_choice.status());
+
+  auto fail_on = parseFailOn(args.fail_on);
+  if (!fail_on) return reportError(kCmd, fail_on.status());
 
   const fs::path out(args.output_dir);
   const fs::path cache_dir = args.cache_dir.empty() ? out / "cache" : fs::path(args.cache_dir);
@@ -78,6 +83,9 @@ int runBake(const BakeArgs& args) {
   const Status relit = (*backend)->relightInto(lights, relight_options, *result);
   bar.end();
   if (!relit) return reportError(kCmd, relit);
+  // After the progress bar's last line, so no redraw hides them; with -q too.
+  const BakeFindings findings = collectFindings(scene, resident->precomputeReport(), *result);
+  printWarnings(findings, stderr);
 
   output::ExrOptions exr;
   exr.half = !args.float_exr;
@@ -105,8 +113,13 @@ int runBake(const BakeArgs& args) {
   }
 
   nlohmann::ordered_json report;
+  report["lightlink"] = {{"version", lightlinkVersion()}, {"commit", lightlinkCommit()}};
   report["scene"] = args.scene_path;
   report["preset"] = args.preset;
+  report["warnings"] = findings.warnings;
+  report["notes"] = findings.notes;
+  report["lighting"] = {{"no_light", findings.no_light}, {"all_black", findings.all_black}};
+  report["load"] = resident->loadReport();
   report["artifact"] = artifact_note;
   report["cache_key"] = key_hex;
   report["backend"] = {{"requested", args.backend}, {"used", result->backend}, {"note", backend_note}};
@@ -139,7 +152,7 @@ int runBake(const BakeArgs& args) {
     text += "\n";
     std::fwrite(text.data(), 1, text.size(), stdout);
   }
-  return kExitOk;
+  return bakeExitCode(findings, *fail_on);
 }
 
 }  // namespace lightlink::cli

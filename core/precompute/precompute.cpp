@@ -19,6 +19,7 @@
 
 #include "core/links/surfel_locator.h"
 #include "core/rt/accel.h"
+#include "core/scene/lighting_images.h"
 
 namespace lightlink::precompute {
 namespace {
@@ -810,26 +811,30 @@ Expected<std::uint64_t> cacheKeyFor(const std::string& scene_path, const Precomp
   if (!files) return files.status();
   auto data = files->readScene();
   if (!data) return data.status();
-  // The key covers every file the scene reads, not just the .gltf: external buffers (.bin)
-  // hold the geometry and images the albedo, so editing either must not reuse a stale
-  // artifact. Each external file is appended as (uri, size, bytes), in the JSON's order.
+  // The key covers exactly what the result depends on: the scene file, its external buffers
+  // (geometry) and the images the loader decodes for lighting (albedo, emission;
+  // core/scene/lighting_images.h). A normal or metallic map is never read, so editing one
+  // keeps the artifact. Each external file is appended as (uri, size, bytes), in the JSON's order.
   std::string keyed = std::move(data).value();
   const nlohmann::json j = nlohmann::json::parse(gltfJson(keyed), nullptr, /*allow_exceptions=*/false);
   if (!j.is_discarded() && j.is_object()) {
+    const scene::LightingImages lighting = scene::lightingImages(j);
     std::string external;
     for (const char* list : {"buffers", "images"}) {
+      const bool images = std::string_view(list) == "images";
       const auto it = j.find(list);
       if (it == j.end() || !it->is_array()) continue;
       for (std::size_t i = 0; i < it->size(); ++i) {
+        if (images && !lighting.image(static_cast<int>(i))) continue;
         const nlohmann::json& entry = (*it)[i];
         if (!entry.is_object() || !entry.contains("uri") || !entry["uri"].is_string()) continue;
         const std::string uri = entry["uri"].get<std::string>();
         if (uri.rfind("data:", 0) == 0) continue;  // embedded: already in the bytes
         auto bytes = files->readUri(uri, fmt::format("{}[{}].uri", list, i));
-        // A missing image is a warning to the loader (the material falls back to its factor),
-        // so it is keyed as missing; restoring the file then changes the key.
-        if (!bytes && bytes.status().code() == Code::kNotFound && std::string_view(list) == "images") {
-          external += fmt::format("{}\nmissing\n", uri);
+        // A missing or unreadable image is a warning to the loader (the material falls back
+        // to its factor), so it is keyed as such; restoring the file then changes the key.
+        if (!bytes && images && (bytes.status().code() == Code::kNotFound || bytes.status().code() == Code::kIoError)) {
+          external += fmt::format("{}\nunreadable\n", uri);
           continue;
         }
         if (!bytes) return bytes.status();

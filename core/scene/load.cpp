@@ -10,6 +10,7 @@
 #include <sstream>
 #include <string_view>
 
+#include <nlohmann/json.hpp>
 #include <tiny_gltf.h>
 
 #include "core/scene/gltf_context.h"
@@ -19,6 +20,7 @@
 #include "core/scene/gltf_nodes.h"
 #include "core/scene/gltf_primitive.h"
 #include "core/scene/gltf_structure.h"
+#include "core/scene/lighting_images.h"
 #include "core/scene/mesh_ops.h"
 
 namespace lightlink::scene {
@@ -99,18 +101,14 @@ void addTinygltfWarnings(const std::string& path, const std::string& warn, Scene
   }
 }
 
-Status loadModel(const SceneFiles& files, const std::string& bytes, bool binary, const LoadOptions& options,
+Status loadModel(const SceneFiles& files, const std::string& bytes, bool binary, gltf::ImageDecodeState& images,
                  tinygltf::Model& model, Scene& scene) {
   const std::string& path = files.scenePath();
   if (bytes.size() > std::numeric_limits<unsigned int>::max())
     return invalidInput("{}: {} bytes is larger than tinygltf can parse", path, bytes.size());
   tinygltf::TinyGLTF loader;
   files.install(loader);
-  gltf::ImageDecodeState images;
   images.model = &model;
-  images.decode = options.load_textures;
-  images.max_image_pixels = options.max_image_pixels;
-  images.max_image_bytes = options.max_image_bytes;
   loader.SetImageLoader(&gltf::decodeImage, &images);
   std::string err, warn;
   // From memory with the canonical folder as base: relative URIs resolve there, and every
@@ -226,14 +224,25 @@ Expected<Scene> loadGltf(const std::string& path, const LoadOptions& options) {
   const std::string_view json = jsonText(*bytes, *binary);
   if (Status s = checkJsonNesting(path, json); !s) return s;
   // Before tinygltf touches any external file: name the entry whose URI leaves the folder.
-  if (Status s = files->checkUris(json); !s) return s;
+  const nlohmann::json parsed = nlohmann::json::parse(json, nullptr, /*allow_exceptions=*/false);
+  if (Status s = files->checkUris(parsed); !s) return s;
 
   Scene scene;
   scene.source_path = path;
   tinygltf::Model model;
-  if (Status s = loadModel(*files, *bytes, *binary, options, model, scene); !s) return s;
+  gltf::ImageDecodeState images;
+  images.decode = options.load_textures;
+  images.max_image_pixels = options.max_image_pixels;
+  images.max_image_bytes = options.max_image_bytes;
+  LightingImages lighting = lightingImages(parsed);
+  images.wanted = lighting.images;
+  if (Status s = loadModel(*files, *bytes, *binary, images, model, scene); !s) return s;
+  scene.stats.images_decoded = images.decoded;
+  scene.stats.image_bytes = images.decoded_bytes;
+  for (std::size_t i = 0; i < model.images.size(); ++i)
+    if (!options.load_textures || !lighting.image(static_cast<int>(i))) ++scene.stats.images_skipped;
 
-  const gltf::Context ctx{path, model, scene, options};
+  const gltf::Context ctx{path, model, scene, options, std::move(lighting)};
   if (Status s = gltf::validateExtensions(ctx); !s) return s;
   if (Status s = gltf::validateBufferViews(ctx); !s) return s;
   Expected<std::vector<gltf::PlacedNode>> nodes = gltf::placeNodes(ctx);
@@ -243,7 +252,7 @@ Expected<Scene> loadGltf(const std::string& path, const LoadOptions& options) {
       return resourceExhausted("{}: the node graph instances {} triangles, above the limit of {} (max_triangles)",
                                path, n, options.max_triangles);
   }
-  if (Status s = gltf::loadTextures(ctx); !s) return s;
+  if (Status s = gltf::loadTextures(ctx, images); !s) return s;
   if (Status s = gltf::loadMaterials(ctx); !s) return s;
   if (Status s = buildGeometry(ctx, *nodes); !s) return s;
   if (Status s = gltf::loadLights(ctx, *nodes); !s) return s;

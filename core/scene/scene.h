@@ -105,6 +105,12 @@ struct SceneStats {
   std::size_t vertices = 0;             // over all instances, as read
   std::size_t instances_without_triangles = 0;  // (node, primitive) pairs left empty and removed
   std::size_t normals_generated = 0;    // instances whose normals were generated
+  // Images: decoded for lighting (base colour, emissive), each once, and left undecoded
+  // because nothing lightlink computes reads them (normal, metallic-roughness, occlusion
+  // maps, unused images; core/scene/lighting_images.h).
+  std::size_t images_decoded = 0;
+  std::size_t images_skipped = 0;
+  std::uint64_t image_bytes = 0;        // RGBA8 bytes the decoded images take
 };
 
 struct Scene {

@@ -70,6 +70,12 @@ bool readWholeFile(std::vector<unsigned char>* out, std::string* err, const std:
     if (err) *err += bytes.status().message() + "\n";
     return false;
   }
+  // tinygltf fails the whole load on an empty image file; as a failed read it is the
+  // warning an undecodable image gets (and an empty buffer is still an error).
+  if (bytes->empty()) {
+    if (err) *err += "the file is empty\n";
+    return false;
+  }
   out->assign(bytes->begin(), bytes->end());
   return true;
 }
@@ -245,7 +251,10 @@ Expected<std::string> SceneFiles::readUri(const std::string& uri, std::string_vi
 }
 
 Status SceneFiles::checkUris(std::string_view json_text) const {
-  const nlohmann::json j = nlohmann::json::parse(json_text, nullptr, /*allow_exceptions=*/false);
+  return checkUris(nlohmann::json::parse(json_text, nullptr, /*allow_exceptions=*/false));
+}
+
+Status SceneFiles::checkUris(const nlohmann::json& j) const {
   if (j.is_discarded() || !j.is_object()) return Status::ok();
   for (const char* list : {"buffers", "images"}) {
     const auto it = j.find(list);
