@@ -825,12 +825,17 @@ Expected<std::uint64_t> cacheKeyFor(const std::string& scene_path, const Precomp
       const auto it = j.find(list);
       if (it == j.end() || !it->is_array()) continue;
       for (std::size_t i = 0; i < it->size(); ++i) {
-        if (images && !lighting.image(static_cast<int>(i))) continue;
         const nlohmann::json& entry = (*it)[i];
         if (!entry.is_object() || !entry.contains("uri") || !entry["uri"].is_string()) continue;
         const std::string uri = entry["uri"].get<std::string>();
         if (uri.rfind("data:", 0) == 0) continue;  // embedded: already in the bytes
-        auto bytes = files->readUri(uri, fmt::format("{}[{}].uri", list, i));
+        const std::string what = fmt::format("{}[{}].uri", list, i);
+        if (images && !lighting.image(static_cast<int>(i))) {
+          // Not read, but refused as the loader refuses it when it leaves the folder.
+          if (auto where = files->resolveUri(uri, what); !where) return where.status();
+          continue;
+        }
+        auto bytes = files->readUri(uri, what);
         // A missing or unreadable image is a warning to the loader (the material falls back
         // to its factor), so it is keyed as such; restoring the file then changes the key.
         if (!bytes && images && (bytes.status().code() == Code::kNotFound || bytes.status().code() == Code::kIoError)) {

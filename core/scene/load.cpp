@@ -21,6 +21,7 @@
 #include "core/scene/gltf_primitive.h"
 #include "core/scene/gltf_structure.h"
 #include "core/scene/lighting_images.h"
+#include "core/scene/scene_files_unread.h"
 #include "core/scene/mesh_ops.h"
 
 namespace lightlink::scene {
@@ -101,13 +102,42 @@ void addTinygltfWarnings(const std::string& path, const std::string& warn, Scene
   }
 }
 
-Status loadModel(const SceneFiles& files, const std::string& bytes, bool binary, gltf::ImageDecodeState& images,
-                 tinygltf::Model& model, Scene& scene) {
+// The external files of images that are not decoded (all of them without load_textures),
+// unless a decoded image or a buffer names the same file.
+std::vector<std::filesystem::path> unreadImageFiles(const SceneFiles& files, const nlohmann::json& gltf,
+                                                    const gltf::ImageDecodeState& images) {
+  std::vector<std::filesystem::path> unread, read;
+  for (const char* list : {"buffers", "images"}) {
+    const auto it = gltf.is_object() ? gltf.find(list) : gltf.end();
+    if (!gltf.is_object() || it == gltf.end() || !it->is_array()) continue;
+    for (std::size_t i = 0; i < it->size(); ++i) {
+      const nlohmann::json& entry = (*it)[i];
+      if (!entry.is_object() || !entry.contains("uri") || !entry["uri"].is_string()) continue;
+      const std::string& uri = entry["uri"].get_ref<const std::string&>();
+      if (uri.empty() || uri.rfind("data:", 0) == 0) continue;
+      Expected<std::filesystem::path> p = files.resolveUri(uri, list);
+      if (!p) continue;
+      const bool decoded = std::string_view(list) == "buffers" ||
+                           (images.decode && i < images.wanted.size() && images.wanted[i]);
+      (decoded ? read : unread).push_back(std::move(p).value());
+    }
+  }
+  unread.erase(std::remove_if(unread.begin(), unread.end(),
+                              [&](const std::filesystem::path& p) {
+                                return std::find(read.begin(), read.end(), p) != read.end();
+                              }),
+               unread.end());
+  return unread;
+}
+
+Status loadModel(const SceneFiles& files, const nlohmann::json& gltf, const std::string& bytes, bool binary,
+                 gltf::ImageDecodeState& images, tinygltf::Model& model, Scene& scene) {
   const std::string& path = files.scenePath();
   if (bytes.size() > std::numeric_limits<unsigned int>::max())
     return invalidInput("{}: {} bytes is larger than tinygltf can parse", path, bytes.size());
   tinygltf::TinyGLTF loader;
-  files.install(loader);
+  const UnreadFiles unread{&files, unreadImageFiles(files, gltf, images)};
+  installSkippingUnread(unread, loader);
   images.model = &model;
   loader.SetImageLoader(&gltf::decodeImage, &images);
   std::string err, warn;
@@ -236,7 +266,7 @@ Expected<Scene> loadGltf(const std::string& path, const LoadOptions& options) {
   images.max_image_bytes = options.max_image_bytes;
   LightingImages lighting = lightingImages(parsed);
   images.wanted = lighting.images;
-  if (Status s = loadModel(*files, *bytes, *binary, images, model, scene); !s) return s;
+  if (Status s = loadModel(*files, parsed, *bytes, *binary, images, model, scene); !s) return s;
   scene.stats.images_decoded = images.decoded;
   scene.stats.image_bytes = images.decoded_bytes;
   for (std::size_t i = 0; i < model.images.size(); ++i)

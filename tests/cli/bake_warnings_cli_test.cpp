@@ -19,13 +19,13 @@
 namespace lightlink {
 namespace {
 
-struct Run {
+struct ProcessRun {
   int exit_code = -1;
   std::string output;  // stdout and stderr together
 };
 
-Run run(const std::string& command) {
-  Run result;
+ProcessRun runProcess(const std::string& command) {
+  ProcessRun result;
   FILE* pipe = ::popen((command + " 2>&1").c_str(), "r");
   if (pipe == nullptr) return result;
   std::array<char, 4096> buffer{};
@@ -71,7 +71,7 @@ TEST(BakeWarnings, MissingAndUndecodableTexturesBakeWithTheWarningsListed) {
   testing::writeFile(dir / "garbage.png", "\x89PNG\r\n\x1a\n this is not an image");
   const std::string scene = testing::writeFile(dir / "box.gltf", j.dump());
 
-  const Run r = run(bake(scene, dir / "out"));
+  const ProcessRun r = runProcess(bake(scene, dir / "out"));
   ASSERT_EQ(r.exit_code, cli::kExitOk) << r.output;
   const nlohmann::json report = readJson(dir / "out" / "report.json");
   const std::string warnings = joined(report["warnings"]);
@@ -86,10 +86,10 @@ TEST(BakeWarnings, MissingAndUndecodableTexturesBakeWithTheWarningsListed) {
   EXPECT_FALSE(report["lightlink"]["version"].get<std::string>().empty());
   EXPECT_FALSE(report["lightlink"]["commit"].get<std::string>().empty());
   // --fail-on warning makes CI fail it, with every output still written.
-  const Run strict = run(bake(scene, dir / "out", "--fail-on warning"));
+  const ProcessRun strict = runProcess(bake(scene, dir / "out", "--fail-on warning"));
   EXPECT_EQ(strict.exit_code, cli::kExitWarnings) << strict.output;
   EXPECT_TRUE(std::filesystem::exists(dir / "out" / "lightmap.exr"));
-  EXPECT_EQ(run(bake(scene, dir / "out", "--fail-on dark")).exit_code, cli::kExitOk);
+  EXPECT_EQ(runProcess(bake(scene, dir / "out", "--fail-on dark")).exit_code, cli::kExitOk);
 }
 
 TEST(BakeWarnings, ABakeWithNoLightSaysSoAndFailsOnlyWhenAsked) {
@@ -101,21 +101,21 @@ TEST(BakeWarnings, ABakeWithNoLightSaysSoAndFailsOnlyWhenAsked) {
   for (auto& m : j["materials"]) m.erase("emissiveFactor");
   const std::string scene = testing::writeFile(dir / "dark.gltf", j.dump());
 
-  const Run r = run(bake(scene, dir / "out"));
+  const ProcessRun r = runProcess(bake(scene, dir / "out"));
   ASSERT_EQ(r.exit_code, cli::kExitOk) << r.output;
   const nlohmann::json report = readJson(dir / "out" / "report.json");
   EXPECT_EQ(report["lighting"]["no_light"], true);
   EXPECT_NE(joined(report["warnings"]).find("no light"), std::string::npos) << report["warnings"];
   EXPECT_NE(r.output.find("warning: " + scene + ": scene: no light"), std::string::npos) << r.output;
-  EXPECT_EQ(run(bake(scene, dir / "out", "--fail-on dark")).exit_code, cli::kExitDark);
-  EXPECT_EQ(run(bake(scene, dir / "out", "--fail-on warning")).exit_code, cli::kExitDark);
-  const Run bad = run(bake(scene, dir / "out", "--fail-on sometimes"));
+  EXPECT_EQ(runProcess(bake(scene, dir / "out", "--fail-on dark")).exit_code, cli::kExitDark);
+  EXPECT_EQ(runProcess(bake(scene, dir / "out", "--fail-on warning")).exit_code, cli::kExitDark);
+  const ProcessRun bad = runProcess(bake(scene, dir / "out", "--fail-on sometimes"));
   EXPECT_EQ(bad.exit_code, cli::kExitBadInput) << bad.output;
   EXPECT_NE(bad.output.find("--fail-on"), std::string::npos) << bad.output;
 }
 
 TEST(BakeWarnings, VersionNamesTheCommit) {
-  const Run r = run(kCli + " --version");
+  const ProcessRun r = runProcess(kCli + " --version");
   EXPECT_EQ(r.exit_code, 0) << r.output;
   EXPECT_NE(r.output.find("lightlink 0."), std::string::npos) << r.output;
   EXPECT_NE(r.output.find("(commit "), std::string::npos) << r.output;

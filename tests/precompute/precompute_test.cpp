@@ -224,8 +224,13 @@ TEST(Precompute, CacheKeyKeysAMissingImageAsMissing) {
   lightlink::testing::TempDir dir;
   lightlink::testing::writeFile(dir / "geo.bin", lightlink::testing::triangleBin());
   auto withImage = [](const std::string& uri) {
+    // The image is the triangle's base colour: what the loader decodes and the key hashes.
     std::string gltf = lightlink::testing::triangleGltf("geo.bin");
-    gltf.insert(1, fmt::format(R"("images": [{{"uri": "{}"}}], )", uri));
+    gltf.insert(1, fmt::format(R"("images": [{{"uri": "{}"}}], "textures": [{{"source": 0}}],
+                                  "materials": [{{"pbrMetallicRoughness": {{"baseColorTexture": {{"index": 0}}}}}}], )",
+                               uri));
+    const std::string attributes = R"("attributes": {"POSITION": 0},)";
+    gltf.insert(gltf.find(attributes) + attributes.size(), R"( "material": 0,)");
     return gltf;
   };
   const std::string scene = lightlink::testing::writeFile(dir / "scene.gltf", withImage("albedo.png"));

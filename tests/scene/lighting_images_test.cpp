@@ -2,6 +2,7 @@
 // a missing, empty or undecodable one is a warning naming it, and the material's factor is
 // used (issue 45, robust ingest).
 #include <algorithm>
+#include <filesystem>
 #include <string>
 
 #include <gtest/gtest.h>
@@ -53,6 +54,13 @@ TEST(LightingImages, NormalMapsAndUnusedImagesAreNeitherDecodedNorWarnedAbout) {
   EXPECT_EQ(s->textures[0].width, 4);
   EXPECT_EQ(s->textures[0].rgba8.size(), 4u * 2 * 4);
   EXPECT_TRUE(s->textures[1].rgba8.empty());
+  // They are not even read: missing, they are no warning either.
+  std::filesystem::remove(dir / "normal.png");
+  std::filesystem::remove(dir / "unused.png");
+  auto again = scene::loadGltf(path);
+  ASSERT_TRUE(again) << again.status().toString();
+  EXPECT_TRUE(again->warnings.empty()) << allWarnings(*again);
+  EXPECT_EQ(again->stats.images_decoded, 1u);
 }
 
 TEST(LightingImages, UndecodableMissingOrEmptyBaseColourIsAWarningAndTheFactorIsUsed) {
