@@ -136,6 +136,7 @@ int runBake(const BakeArgs& args) {
 
   if (!args.quiet) {
     std::string text = result->plan.toText();
+    for (const std::string& note : findings.notes) text += fmt::format("note         {}\n", note);
     text += fmt::format("artifact     {}\n", artifact_note);
     text += fmt::format("backend      {}\n", backend_note);
     text += fmt::format("relight      {:.2f} ms ({} backend, {} kernel), bounces {} ({})\n",

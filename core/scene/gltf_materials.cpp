@@ -8,8 +8,8 @@
 
 namespace lightlink::scene::gltf {
 
-bool decodeImage(tinygltf::Image* image, int image_index, std::string* err, std::string* warn,
-                 int req_width, int req_height, const unsigned char* bytes, int size,
+bool decodeImage(tinygltf::Image* image, int image_index, std::string* err, std::string* /*warn*/,
+                 int /*req_width*/, int /*req_height*/, const unsigned char* bytes, int size,
                  void* user_data) {
   auto* state = static_cast<ImageDecodeState*>(user_data);
   const std::string object = describe("image", image_index, image->name);
@@ -52,9 +52,6 @@ bool decodeImage(tinygltf::Image* image, int image_index, std::string* err, std:
       return false;
     }
   }
-  (void)warn;
-  (void)req_width;
-  (void)req_height;
   int got_w = 0, got_h = 0, got_channels = 0;
   stbi_uc* data = size > 0 ? stbi_load_from_memory(bytes, size, &got_w, &got_h, &got_channels, 4) : nullptr;
   if (data == nullptr || got_w < 1 || got_h < 1) {
