@@ -72,12 +72,6 @@ bool readWholeFile(std::vector<unsigned char>* out, std::string* err, const std:
     if (err) *err += bytes.status().message() + "\n";
     return false;
   }
-  // tinygltf fails the whole load on an empty image file; as a failed read it is the
-  // warning an undecodable image gets (and an empty buffer is still an error).
-  if (bytes->empty()) {
-    if (err) *err += "the file is empty\n";
-    return false;
-  }
   out->assign(bytes->begin(), bytes->end());
   return true;
 }
