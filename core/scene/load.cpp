@@ -130,13 +130,13 @@ std::vector<std::filesystem::path> unreadImageFiles(const SceneFiles& files, con
   return unread;
 }
 
-Status loadModel(const SceneFiles& files, const nlohmann::json& gltf, const std::string& bytes, bool binary,
-                 gltf::ImageDecodeState& images, tinygltf::Model& model, Scene& scene) {
+Status loadModel(const SceneFiles& files, std::vector<std::filesystem::path> unread_files, const std::string& bytes,
+                 bool binary, gltf::ImageDecodeState& images, tinygltf::Model& model, Scene& scene) {
   const std::string& path = files.scenePath();
   if (bytes.size() > std::numeric_limits<unsigned int>::max())
     return invalidInput("{}: {} bytes is larger than tinygltf can parse", path, bytes.size());
   tinygltf::TinyGLTF loader;
-  const UnreadFiles unread{&files, unreadImageFiles(files, gltf, images)};
+  const UnreadFiles unread{&files, std::move(unread_files)};
   installSkippingUnread(unread, loader);
   images.model = &model;
   loader.SetImageLoader(&gltf::decodeImage, &images);
@@ -254,19 +254,26 @@ Expected<Scene> loadGltf(const std::string& path, const LoadOptions& options) {
   const std::string_view json = jsonText(*bytes, *binary);
   if (Status s = checkJsonNesting(path, json); !s) return s;
   // Before tinygltf touches any external file: name the entry whose URI leaves the folder.
-  const nlohmann::json parsed = nlohmann::json::parse(json, nullptr, /*allow_exceptions=*/false);
-  if (Status s = files->checkUris(parsed); !s) return s;
-
-  Scene scene;
-  scene.source_path = path;
-  tinygltf::Model model;
+  // Then which images lighting reads: only those are read and decoded. The parsed JSON is
+  // released before tinygltf builds its own model.
   gltf::ImageDecodeState images;
   images.decode = options.load_textures;
   images.max_image_pixels = options.max_image_pixels;
   images.max_image_bytes = options.max_image_bytes;
-  LightingImages lighting = lightingImages(parsed);
-  images.wanted = lighting.images;
-  if (Status s = loadModel(*files, parsed, *bytes, *binary, images, model, scene); !s) return s;
+  LightingImages lighting;
+  std::vector<std::filesystem::path> unread;
+  {
+    const nlohmann::json parsed = nlohmann::json::parse(json, nullptr, /*allow_exceptions=*/false);
+    if (Status s = files->checkUris(parsed); !s) return s;
+    lighting = lightingImages(parsed);
+    images.wanted = lighting.images;
+    unread = unreadImageFiles(*files, parsed, images);
+  }
+
+  Scene scene;
+  scene.source_path = path;
+  tinygltf::Model model;
+  if (Status s = loadModel(*files, std::move(unread), *bytes, *binary, images, model, scene); !s) return s;
   scene.stats.images_decoded = images.decoded;
   scene.stats.image_bytes = images.decoded_bytes;
   for (std::size_t i = 0; i < model.images.size(); ++i)

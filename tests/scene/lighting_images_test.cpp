@@ -54,6 +54,20 @@ TEST(LightingImages, NormalMapsAndUnusedImagesAreNeitherDecodedNorWarnedAbout) {
   EXPECT_EQ(s->textures[0].width, 4);
   EXPECT_EQ(s->textures[0].rgba8.size(), 4u * 2 * 4);
   EXPECT_TRUE(s->textures[1].rgba8.empty());
+  // The budgets bound what is decoded: a 64x64 normal map is over a limit of 8 pixels per
+  // image, but it is never decoded; the 4x2 base colour is at the limit.
+  writeFile(dir / "normal.png", zeroPng(64, 64));
+  scene::LoadOptions tight;
+  tight.max_image_pixels = 8;
+  tight.max_image_bytes = 4 * 2 * 4;
+  auto budgeted = scene::loadGltf(path, tight);
+  ASSERT_TRUE(budgeted) << budgeted.status().toString();
+  EXPECT_EQ(budgeted->stats.images_decoded, 1u);
+  tight.max_image_pixels = 7;
+  auto over = scene::loadGltf(path, tight);
+  ASSERT_FALSE(over);
+  EXPECT_EQ(over.status().code(), Code::kResourceExhausted);
+  EXPECT_NE(over.status().message().find("image 0"), std::string::npos) << over.status().message();
   // They are not even read: missing, they are no warning either.
   std::filesystem::remove(dir / "normal.png");
   std::filesystem::remove(dir / "unused.png");
