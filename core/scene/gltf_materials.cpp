@@ -33,12 +33,15 @@ bool decodeImage(tinygltf::Image* image, int image_index, std::string* err, std:
   if (!state->decode || static_cast<std::size_t>(image_index) >= state->wanted.size() ||
       !state->wanted[static_cast<std::size_t>(image_index)])
     return true;
-  // The size from the header, before a byte is inflated: what is kept is RGBA8 (16-bit
+  // RGB where nothing reads alpha: a quarter less memory for most textures.
+  const auto index = static_cast<std::size_t>(image_index);
+  const int keep = index < state->alpha.size() && state->alpha[index] ? 4 : 3;
+  // The size from the header, before a byte is inflated: what is kept is RGB(A)8 (16-bit
   // images are reduced by stb while decoding).
   int w = 0, h = 0, channels = 0;
   if (size > 0 && stbi_info_from_memory(bytes, size, &w, &h, &channels) && w > 0 && h > 0) {
     const std::uint64_t pixels = std::uint64_t(w) * std::uint64_t(h);
-    const std::uint64_t cost = pixels * 4;
+    const std::uint64_t cost = pixels * static_cast<std::uint64_t>(keep);
     if (state->max_image_pixels != 0 && pixels > state->max_image_pixels) {
       state->over_budget = fmt::format("{}: {}x{} = {} pixels is above the limit of {} pixels per image "
                                        "(max_image_pixels)", object, w, h, pixels, state->max_image_pixels);
@@ -53,7 +56,7 @@ bool decodeImage(tinygltf::Image* image, int image_index, std::string* err, std:
     }
   }
   int got_w = 0, got_h = 0, got_channels = 0;
-  stbi_uc* data = size > 0 ? stbi_load_from_memory(bytes, size, &got_w, &got_h, &got_channels, 4) : nullptr;
+  stbi_uc* data = size > 0 ? stbi_load_from_memory(bytes, size, &got_w, &got_h, &got_channels, keep) : nullptr;
   if (data == nullptr || got_w < 1 || got_h < 1) {
     const char* why = size > 0 ? stbi_failure_reason() : nullptr;
     state->problems.push_back(fmt::format("{}: cannot be decoded ({}); the material's factor is used",
@@ -62,16 +65,19 @@ bool decodeImage(tinygltf::Image* image, int image_index, std::string* err, std:
     image->width = image->height = -1;
     return true;
   }
-  const std::size_t n = std::size_t(got_w) * std::size_t(got_h) * 4;
-  if (state->pixels.size() <= static_cast<std::size_t>(image_index))
-    state->pixels.resize(static_cast<std::size_t>(image_index) + 1);
-  state->pixels[static_cast<std::size_t>(image_index)].assign(data, data + n);
+  const std::size_t n = std::size_t(got_w) * std::size_t(got_h) * static_cast<std::size_t>(keep);
+  if (state->pixels.size() <= index) {
+    state->pixels.resize(index + 1);
+    state->channels.resize(index + 1, 4);
+  }
+  state->pixels[index].assign(data, data + n);
+  state->channels[index] = keep;
   stbi_image_free(data);
   state->decoded_bytes += n;
   ++state->decoded;
   image->width = got_w;
   image->height = got_h;
-  image->component = 4;
+  image->component = keep;
   image->bits = 8;
   return true;
 }
@@ -164,14 +170,16 @@ Status loadTextures(const Context& ctx, ImageDecodeState& images) {
     t.name = !gt.name.empty() ? gt.name : !image.name.empty() ? image.name : image.uri;
     if (!wanted || !ctx.lighting.texture(static_cast<int>(i))) continue;  // not sampled for lighting
     std::vector<std::uint8_t>* pixels = source < images.pixels.size() ? &images.pixels[source] : nullptr;
+    const int channels = source < images.channels.size() ? images.channels[source] : 4;
     if (pixels == nullptr || pixels->empty() || image.width < 1 || image.height < 1 ||
-        pixels->size() != std::size_t(image.width) * std::size_t(image.height) * 4) {
+        pixels->size() != std::size_t(image.width) * std::size_t(image.height) * std::size_t(channels)) {
       ctx.warn(object, fmt::format("image {}{} was not decoded; the material's factor is used", gt.source,
                                    image.uri.empty() ? "" : " '" + image.uri + "'"));
       continue;
     }
     t.width = image.width;
     t.height = image.height;
+    t.channels = channels;
     if (last_user[source] == static_cast<int>(i)) t.rgba8 = std::move(*pixels);
     else t.rgba8 = *pixels;
   }

@@ -1,6 +1,7 @@
 // Internal to core/scene: glTF materials and textures into Scene::materials/textures.
 //
-// Images are decoded (stb, straight to RGBA8) through `decodeImage`, installed as tinygltf's
+// Images are decoded (stb, straight to RGB8, or RGBA8 where the alpha mode reads alpha)
+// through `decodeImage`, installed as tinygltf's
 // image loader so that (a) an image stored in a bufferView is range-checked before a byte of
 // it is read, (b) only the images that feed lighting (lighting_images.h) are decoded, each
 // once however many textures share it, and none with LoadOptions::load_textures=false, and
@@ -20,9 +21,11 @@ struct ImageDecodeState {
   const tinygltf::Model* model = nullptr;  // the model tinygltf is filling
   bool decode = true;
   std::vector<bool> wanted;                // per image: feeds lighting (lighting_images.h)
-  // Per image: RGBA8 pixels, row 0 = top, kept here (not in tinygltf::Image) so that
-  // loadTextures can move them into the Scene without a second copy.
+  std::vector<bool> alpha;                 // per image: keep alpha (RGBA8), else RGB8
+  // Per image: RGBA8 or RGB8 pixels (channels[i] bytes each), row 0 = top, kept here (not
+  // in tinygltf::Image) so that loadTextures can move them into the Scene without a copy.
   std::vector<std::vector<std::uint8_t>> pixels;
+  std::vector<int> channels;
   std::size_t decoded = 0;                 // images decoded
   std::vector<std::string> problems;       // "image N: ..." per image not decoded
   std::string fatal;                       // set when a bufferView image is out of range

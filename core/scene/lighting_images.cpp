@@ -61,6 +61,7 @@ LightingImages lightingImages(const nlohmann::json& gltf) {
   const nlohmann::json* materials = arrayOf(gltf, "materials");
   const nlohmann::json* meshes = arrayOf(gltf, "meshes");
   out.images.assign(images ? images->size() : 0, false);
+  out.alpha.assign(out.images.size(), false);
   out.textures.assign(textures ? textures->size() : 0, false);
   if (materials == nullptr || meshes == nullptr || textures == nullptr) return out;
 
@@ -78,7 +79,7 @@ LightingImages lightingImages(const nlohmann::json& gltf) {
       if (i >= 0 && static_cast<std::size_t>(i) < used.size()) used[static_cast<std::size_t>(i)] = true;
     }
   }
-  auto take = [&](int texture) {
+  auto take = [&](int texture, bool alpha) {
     if (texture < 0 || static_cast<std::size_t>(texture) >= textures->size()) return;
     out.textures[static_cast<std::size_t>(texture)] = true;
     const nlohmann::json& t = (*textures)[static_cast<std::size_t>(texture)];
@@ -86,14 +87,19 @@ LightingImages lightingImages(const nlohmann::json& gltf) {
     const auto source = t.find("source");
     if (source == t.end() || !source->is_number_integer()) return;
     const long long image = source->get<long long>();
-    if (image >= 0 && static_cast<std::size_t>(image) < out.images.size())
+    if (image >= 0 && static_cast<std::size_t>(image) < out.images.size()) {
       out.images[static_cast<std::size_t>(image)] = true;
+      if (alpha) out.alpha[static_cast<std::size_t>(image)] = true;
+    }
   };
   for (std::size_t m = 0; m < materials->size(); ++m) {
     const nlohmann::json& material = (*materials)[m];
     if (!used[m] || !material.is_object()) continue;
-    take(textureIndex(material, "pbrMetallicRoughness", "baseColorTexture"));
-    if (emits(material)) take(textureIndex(material, nullptr, "emissiveTexture"));
+    const auto mode = material.find("alphaMode");
+    const bool coverage = mode != material.end() && mode->is_string() &&
+                          (mode->get_ref<const std::string&>() == "MASK" || mode->get_ref<const std::string&>() == "BLEND");
+    take(textureIndex(material, "pbrMetallicRoughness", "baseColorTexture"), coverage);
+    if (emits(material)) take(textureIndex(material, nullptr, "emissiveTexture"), false);
   }
   return out;
 }

@@ -17,6 +17,9 @@ namespace lightlink::scene {
 
 struct LightingImages {
   std::vector<bool> images;    // per images[i]: decoded for lighting
+  // Per images[i]: its alpha is kept too, as the base colour of an alphaMode MASK or BLEND
+  // material (where alpha means coverage); every other image is decoded as RGB.
+  std::vector<bool> alpha;
   std::vector<bool> textures;  // per textures[i]: sampled for lighting
 
   bool image(int i) const { return i >= 0 && static_cast<std::size_t>(i) < images.size() && images[i]; }

@@ -267,6 +267,7 @@ Expected<Scene> loadGltf(const std::string& path, const LoadOptions& options) {
     if (Status s = files->checkUris(parsed); !s) return s;
     lighting = lightingImages(parsed);
     images.wanted = lighting.images;
+    images.alpha = lighting.alpha;
     unread = unreadImageFiles(*files, parsed, images);
   }
 

@@ -48,18 +48,19 @@ TEST(LightingImages, NormalMapsAndUnusedImagesAreNeitherDecodedNorWarnedAbout) {
   ASSERT_TRUE(s) << s.status().toString();
   EXPECT_EQ(s->stats.images_decoded, 1u);
   EXPECT_EQ(s->stats.images_skipped, 2u);
-  EXPECT_EQ(s->stats.image_bytes, 4u * 2 * 4);
+  EXPECT_EQ(s->stats.image_bytes, 4u * 2 * 3);  // RGB: the material is opaque
   EXPECT_TRUE(s->warnings.empty()) << allWarnings(*s);
   ASSERT_EQ(s->textures.size(), 2u);
   EXPECT_EQ(s->textures[0].width, 4);
-  EXPECT_EQ(s->textures[0].rgba8.size(), 4u * 2 * 4);
+  EXPECT_EQ(s->textures[0].rgba8.size(), 4u * 2 * 3);
+  EXPECT_EQ(s->textures[0].channels, 3);
   EXPECT_TRUE(s->textures[1].rgba8.empty());
   // The budgets bound what is decoded: a 64x64 normal map is over a limit of 8 pixels per
   // image, but it is never decoded; the 4x2 base colour is at the limit.
   writeFile(dir / "normal.png", zeroPng(64, 64));
   scene::LoadOptions tight;
   tight.max_image_pixels = 8;
-  tight.max_image_bytes = 4 * 2 * 4;
+  tight.max_image_bytes = 4 * 2 * 3;
   auto budgeted = scene::loadGltf(path, tight);
   ASSERT_TRUE(budgeted) << budgeted.status().toString();
   EXPECT_EQ(budgeted->stats.images_decoded, 1u);
@@ -113,9 +114,26 @@ TEST(LightingImages, AnImageSharedByTexturesIsDecodedOnce) {
   ASSERT_TRUE(s) << s.status().toString();
   EXPECT_EQ(s->stats.images_decoded, 1u);
   ASSERT_EQ(s->textures.size(), 2u);
-  EXPECT_EQ(s->textures[0].rgba8.size(), 32u);
-  EXPECT_EQ(s->textures[1].rgba8.size(), 32u);
+  EXPECT_EQ(s->textures[0].rgba8.size(), 24u);
+  EXPECT_EQ(s->textures[1].rgba8.size(), 24u);
   EXPECT_TRUE(s->textures[1].nearest);
+}
+
+TEST(LightingImages, AlphaIsKeptOnlyWhereTheAlphaModeReadsIt) {
+  TempDir dir;
+  writeFile(dir / "albedo.png", zeroPng(4, 2));
+  nlohmann::json j = quadWithNormalMap();
+  writeFile(dir / "normal.png", zeroPng(2, 2));
+  for (const char* mode : {"OPAQUE", "MASK", "BLEND"}) {
+    SCOPED_TRACE(mode);
+    j["materials"][0]["alphaMode"] = mode;
+    auto s = scene::loadGltf(writeFile(dir / "scene.gltf", j.dump()));
+    ASSERT_TRUE(s) << s.status().toString();
+    const int channels = std::string(mode) == "OPAQUE" ? 3 : 4;
+    EXPECT_EQ(s->textures[0].channels, channels);
+    EXPECT_EQ(s->textures[0].rgba8.size(), 4u * 2 * static_cast<std::size_t>(channels));
+    EXPECT_EQ(s->stats.image_bytes, 4u * 2 * static_cast<std::size_t>(channels));
+  }
 }
 
 TEST(LightingImages, TheRuleFollowsWhatLightingReads) {
