@@ -5,11 +5,10 @@
 #include <limits>
 
 #include <stb/stb_image.h>
-#include <tbb/parallel_for.h>
 
 namespace lightlink::scene::gltf {
 
-bool queueImage(tinygltf::Image* image, int image_index, std::string* err, std::string* /*warn*/,
+bool decodeImage(tinygltf::Image* image, int image_index, std::string* err, std::string* /*warn*/,
                  int /*req_width*/, int /*req_height*/, const unsigned char* bytes, int size,
                  void* user_data) {
   auto* state = static_cast<ImageDecodeState*>(user_data);
@@ -31,9 +30,11 @@ bool queueImage(tinygltf::Image* image, int image_index, std::string* err, std::
     }
   }
   // Normal, metallic-roughness and occlusion maps, and unused images: never decoded.
-  const auto index = static_cast<std::size_t>(image_index);
-  if (!state->decode || index >= state->wanted.size() || !state->wanted[index]) return true;
+  if (!state->decode || static_cast<std::size_t>(image_index) >= state->wanted.size() ||
+      !state->wanted[static_cast<std::size_t>(image_index)])
+    return true;
   // RGB where nothing reads alpha: a quarter less memory for most textures.
+  const auto index = static_cast<std::size_t>(image_index);
   const int keep = index < state->alpha.size() && state->alpha[index] ? 4 : 3;
   // The size from the header, before a byte is inflated: what is kept is RGB(A)8 (16-bit
   // images are reduced by stb while decoding).
@@ -44,57 +45,41 @@ bool queueImage(tinygltf::Image* image, int image_index, std::string* err, std::
     if (state->max_image_pixels != 0 && pixels > state->max_image_pixels) {
       state->over_budget = fmt::format("{}: {}x{} = {} pixels is above the limit of {} pixels per image "
                                        "(max_image_pixels)", object, w, h, pixels, state->max_image_pixels);
-    } else if (state->max_image_bytes != 0 && state->budgeted_bytes + cost > state->max_image_bytes) {
+    } else if (state->max_image_bytes != 0 && state->decoded_bytes + cost > state->max_image_bytes) {
       state->over_budget = fmt::format("{}: decoding it ({}x{}) brings the decoded images to {} MiB, above the "
                                        "limit of {} MiB (max_image_bytes)", object, w, h,
-                                       (state->budgeted_bytes + cost) >> 20, state->max_image_bytes >> 20);
+                                       (state->decoded_bytes + cost) >> 20, state->max_image_bytes >> 20);
     }
     if (!state->over_budget.empty()) {
       if (err) *err += state->over_budget + "\n";
       return false;
     }
-    state->budgeted_bytes += cost;
   }
-  if (state->queue.size() <= index) state->queue.resize(index + 1);
-  QueuedImage& queued = state->queue[index];
-  queued.object = object;
-  queued.keep_channels = keep;
-  queued.encoded.assign(bytes, bytes + (size > 0 ? size : 0));
+  int got_w = 0, got_h = 0, got_channels = 0;
+  stbi_uc* data = size > 0 ? stbi_load_from_memory(bytes, size, &got_w, &got_h, &got_channels, keep) : nullptr;
+  if (data == nullptr || got_w < 1 || got_h < 1) {
+    const char* why = size > 0 ? stbi_failure_reason() : nullptr;
+    state->problems.push_back(fmt::format("{}: cannot be decoded ({}); the material's factor is used",
+                                          object, why != nullptr ? why : "no data"));
+    if (data != nullptr) stbi_image_free(data);
+    image->width = image->height = -1;
+    return true;
+  }
+  const std::size_t n = std::size_t(got_w) * std::size_t(got_h) * static_cast<std::size_t>(keep);
+  if (state->pixels.size() <= index) {
+    state->pixels.resize(index + 1);
+    state->channels.resize(index + 1, 4);
+  }
+  state->pixels[index].assign(data, data + n);
+  state->channels[index] = keep;
+  stbi_image_free(data);
+  state->decoded_bytes += n;
+  ++state->decoded;
+  image->width = got_w;
+  image->height = got_h;
+  image->component = keep;
+  image->bits = 8;
   return true;
-}
-
-void QueuedImage::freePixels(void* p) { stbi_image_free(p); }
-
-void decodeQueuedImages(ImageDecodeState& state) {
-  std::vector<std::string> problems(state.queue.size());
-  tbb::parallel_for(std::size_t(0), state.queue.size(), [&](std::size_t i) {
-    QueuedImage& q = state.queue[i];
-    if (q.object.empty()) return;  // not queued
-    int w = 0, h = 0, channels_in_file = 0;
-    stbi_uc* data = q.encoded.empty()
-                        ? nullptr
-                        : stbi_load_from_memory(q.encoded.data(), static_cast<int>(q.encoded.size()), &w, &h,
-                                                &channels_in_file, q.keep_channels);
-    std::vector<unsigned char>().swap(q.encoded);
-    q.pixels.reset(data);
-    if (data == nullptr || w < 1 || h < 1) {
-      const char* why = data == nullptr ? stbi_failure_reason() : nullptr;  // thread-local in stb
-      problems[i] = fmt::format("{}: cannot be decoded ({}); the material's factor is used", q.object,
-                                why != nullptr ? why : "no data");
-      q.pixels.reset();
-      return;
-    }
-    q.width = w;
-    q.height = h;
-    q.channels = q.keep_channels;
-  });
-  for (std::size_t i = 0; i < state.queue.size(); ++i) {
-    if (!problems[i].empty()) state.problems.push_back(std::move(problems[i]));
-    if (state.queue[i].pixels) {
-      ++state.decoded;
-      state.decoded_bytes += state.queue[i].bytes();
-    }
-  }
 }
 
 namespace {
@@ -147,7 +132,7 @@ Expected<TextureRef> textureRef(const Context& ctx, const std::string& object, c
 Status loadTextures(const Context& ctx, ImageDecodeState& images) {
   const tinygltf::Model& model = ctx.model;
   ctx.scene.textures.resize(model.textures.size());
-  // The last texture to use an image frees its decoded pixels.
+  // The last texture to use an image takes its pixels; earlier ones copy them.
   std::vector<int> last_user(model.images.size(), -1);
   for (std::size_t i = 0; i < model.textures.size(); ++i) {
     const int source = model.textures[i].source;
@@ -184,17 +169,19 @@ Status loadTextures(const Context& ctx, ImageDecodeState& images) {
     const tinygltf::Image& image = model.images[source];
     t.name = !gt.name.empty() ? gt.name : !image.name.empty() ? image.name : image.uri;
     if (!wanted || !ctx.lighting.texture(static_cast<int>(i))) continue;  // not sampled for lighting
-    QueuedImage* decoded = source < images.queue.size() ? &images.queue[source] : nullptr;
-    if (decoded == nullptr || !decoded->pixels) {
+    std::vector<std::uint8_t>* pixels = source < images.pixels.size() ? &images.pixels[source] : nullptr;
+    const int channels = source < images.channels.size() ? images.channels[source] : 4;
+    if (pixels == nullptr || pixels->empty() || image.width < 1 || image.height < 1 ||
+        pixels->size() != std::size_t(image.width) * std::size_t(image.height) * std::size_t(channels)) {
       ctx.warn(object, fmt::format("image {}{} was not decoded; the material's factor is used", gt.source,
                                    image.uri.empty() ? "" : " '" + image.uri + "'"));
       continue;
     }
-    t.width = decoded->width;
-    t.height = decoded->height;
-    t.channels = decoded->channels;
-    t.rgba8.assign(decoded->pixels.get(), decoded->pixels.get() + decoded->bytes());
-    if (last_user[source] == static_cast<int>(i)) decoded->pixels.reset();  // no texture needs it any more
+    t.width = image.width;
+    t.height = image.height;
+    t.channels = channels;
+    if (last_user[source] == static_cast<int>(i)) t.rgba8 = std::move(*pixels);
+    else t.rgba8 = *pixels;
   }
   return Status::ok();
 }

@@ -139,7 +139,7 @@ Status loadModel(const SceneFiles& files, std::vector<std::filesystem::path> unr
   const UnreadFiles unread{&files, std::move(unread_files)};
   installSkippingUnread(unread, loader);
   images.model = &model;
-  loader.SetImageLoader(&gltf::queueImage, &images);
+  loader.SetImageLoader(&gltf::decodeImage, &images);
   std::string err, warn;
   // From memory with the canonical folder as base: relative URIs resolve there, and every
   // file read goes through `files` (tinygltf's own file callbacks are never used).
@@ -159,7 +159,6 @@ Status loadModel(const SceneFiles& files, std::vector<std::filesystem::path> unr
                         gltf::shortenTinygltfMessage(err.empty() ? "tinygltf failed without a message" : err));
   }
   addTinygltfWarnings(path, warn, scene);
-  gltf::decodeQueuedImages(images);
   for (const std::string& problem : images.problems) {
     scene.warnings.push_back(fmt::format("{}: {}", path, gltf::shortenTinygltfMessage(problem)));
   }
