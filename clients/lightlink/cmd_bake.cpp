@@ -83,9 +83,7 @@ int runBake(const BakeArgs& args) {
   const Status relit = (*backend)->relightInto(lights, relight_options, *result);
   bar.end();
   if (!relit) return reportError(kCmd, relit);
-  // After the progress bar's last line, so no redraw hides them; with -q too.
-  const BakeFindings findings = collectFindings(scene, resident->precomputeReport(), *result);
-  printWarnings(findings, stderr);
+  BakeFindings findings = collectFindings(scene, resident->precomputeReport(), *result);
 
   output::ExrOptions exr;
   exr.half = !args.float_exr;
@@ -103,6 +101,15 @@ int runBake(const BakeArgs& args) {
     if (Status s = output::writeGridJson(*result, p.grid, (out / "grid.json").string()); !s) return reportError(kCmd, s);
     if (Status s = output::writeGridRaw(*result, p.grid, (out / "grid.raw").string()); !s) return reportError(kCmd, s);
   }
+  if (lm_stats->clamped + grid_clamped > 0)
+    findings.warnings.push_back(fmt::format("lightmap.exr, grid.exr: {} values beyond the half range were clamped "
+                                            "(use --float)", lm_stats->clamped + grid_clamped));
+  if (lm_stats->underflowed + grid_underflowed > 0)
+    findings.warnings.push_back(fmt::format("lightmap.exr, grid.exr: {} non-zero values below the smallest normal "
+                                            "half lost precision (use --float)",
+                                            lm_stats->underflowed + grid_underflowed));
+  // After the progress bar's last line, so no redraw hides them; with -q too.
+  printWarnings(findings, stderr);
   const std::string gltf_name = fs::path(args.scene_path).stem().string() + "_lm" +
                                 (fs::path(args.scene_path).extension() == ".glb" ? ".glb" : ".gltf");
   if (atlas.generated) {
@@ -142,12 +149,6 @@ int runBake(const BakeArgs& args) {
     text += fmt::format("relight      {:.2f} ms ({} backend, {} kernel), bounces {} ({})\n",
                         result->totalSeconds() * 1e3, result->backend, result->kernel, result->bounce_log.size(),
                         result->bounce_stop);
-    if (lm_stats->clamped + grid_clamped > 0)
-      text += fmt::format("warning      {} values beyond the half range were clamped (use --float)\n",
-                          lm_stats->clamped + grid_clamped);
-    if (lm_stats->underflowed + grid_underflowed > 0)
-      text += fmt::format("warning      {} non-zero values below the smallest normal half lost precision (use --float)\n",
-                          lm_stats->underflowed + grid_underflowed);
     text += fmt::format("wrote        {}: ", out.string());
     for (std::size_t i = 0; i < outputs.size(); ++i) text += (i ? ", " : "") + outputs[i];
     text += "\n";
