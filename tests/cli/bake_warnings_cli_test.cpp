@@ -13,6 +13,7 @@
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
 
+#include "clients/lightlink/bake_findings.h"
 #include "clients/lightlink/exit_codes.h"
 #include "tests/common/testing.h"
 
@@ -112,6 +113,39 @@ TEST(BakeWarnings, ABakeWithNoLightSaysSoAndFailsOnlyWhenAsked) {
   const ProcessRun bad = runProcess(bake(scene, dir / "out", "--fail-on sometimes"));
   EXPECT_EQ(bad.exit_code, cli::kExitBadInput) << bad.output;
   EXPECT_NE(bad.output.find("--fail-on"), std::string::npos) << bad.output;
+}
+
+// The dark-bake rule on a relight result made by hand: a lit scene whose lightmap has no
+// positive direct value and no positive DC term in any channel is "all black".
+TEST(BakeWarnings, AnAllBlackLightmapIsNamedAndMapsToTheDarkExitCode) {
+  scene::Scene scene;
+  scene.source_path = "lit.gltf";
+  relight::RelightResult r;
+  r.bands = 2;  // 4 coefficients a channel: DC at 0, 4, 8 of a texel's 12
+  r.lightmap_sh.assign(2 * 12, 0.0f);
+  r.lightmap_sh[1] = 0.5f;  // a positive higher-order coefficient carries no light alone
+  r.direct.assign(2, glm::vec3(0.0f));
+  r.plan.punctual = true;
+  cli::BakeFindings f = cli::collectFindings(scene, nlohmann::ordered_json::object(), r);
+  EXPECT_FALSE(f.no_light);
+  EXPECT_TRUE(f.all_black);
+  ASSERT_EQ(f.warnings.size(), 1u);
+  EXPECT_NE(f.warnings[0].find("lit.gltf: lightmap: every texel is black"), std::string::npos) << f.warnings[0];
+  EXPECT_EQ(cli::bakeExitCode(f, cli::FailOn::kNever), cli::kExitOk);
+  EXPECT_EQ(cli::bakeExitCode(f, cli::FailOn::kDark), cli::kExitDark);
+  EXPECT_EQ(cli::bakeExitCode(f, cli::FailOn::kWarning), cli::kExitDark);
+
+  r.lightmap_sh[12 + 4] = 1e-3f;  // texel 1, green DC
+  EXPECT_FALSE(cli::lightmapAllBlack(r));
+  r.lightmap_sh[12 + 4] = 0.0f;
+  r.direct[0].z = 1e-3f;
+  EXPECT_FALSE(cli::lightmapAllBlack(r));
+  f = cli::collectFindings(scene, nlohmann::ordered_json{{"notes", {"a note"}}, {"warnings", {"w: x"}}}, r);
+  EXPECT_FALSE(f.dark());
+  EXPECT_EQ(f.notes, std::vector<std::string>{"a note"});
+  EXPECT_EQ(f.warnings, std::vector<std::string>{"w: x"});
+  EXPECT_EQ(cli::bakeExitCode(f, cli::FailOn::kDark), cli::kExitOk);
+  EXPECT_EQ(cli::bakeExitCode(f, cli::FailOn::kWarning), cli::kExitWarnings);
 }
 
 TEST(BakeWarnings, VersionNamesTheCommit) {
