@@ -438,6 +438,21 @@ Expected<UnwrapResult> unwrap(scene::Scene& scene, const UnwrapOptions& options)
         if (mesh_probe_lit[i]) atlas.probe_lit.push_back(statics[i]);
       std::sort(atlas.probe_lit.begin(), atlas.probe_lit.end());
     }
+    // The charts alone need area / texel^2 texels: a tiny texel size is refused here, before
+    // any packing or scaling down, rather than searched for pages that cannot exist.
+    double needed = 0.0;
+    for (std::size_t c = 0; c < charts.size(); ++c)
+      needed += charts[c].area_m2 * chart_density[c] * chart_density[c] / (texel_m * texel_m);
+    const double limit = options.max_texels ? double(options.max_texels)
+                                            : double(kMaxAtlasResolution) * double(kMaxAtlasResolution);
+    if (!(needed <= limit))
+      return (options.max_texels ? resourceExhausted("lightmap: a texel size of {} m needs at least {:.3g} texels for "
+                                                     "{:.4g} m^2 of charts, above the limit of {} texels (max_texels); "
+                                                     "raise the texel size",
+                                                     texel_m, needed, area_m2, options.max_texels)
+                                 : invalidInput("unwrap: {} charts at {} m/texel need at least {:.3g} texels, more than "
+                                                "the {} texels the largest atlas holds; raise the texel size",
+                                                charts.size(), texel_m, needed, limit));
     const int page = options.resolution.value_or(options.max_atlas);
     // A chart larger than a page is scaled down to fit one: its texels are coarser, never
     // "cannot fit". Named per mesh so a user can split the mesh or raise --max-atlas.
@@ -462,21 +477,6 @@ Expected<UnwrapResult> unwrap(scene::Scene& scene, const UnwrapOptions& options)
             "mesh '{}': {} chart(s) larger than a {}x{} page at {:.4g} m/texel were scaled down to fit (texels up to "
             "{:.4g} m there); raise --max-atlas or split the mesh",
             scene.meshes[statics[i]].name, shrunk[i], page, page, texel_m, coarsest[i]));
-    // The charts alone need area / texel^2 texels: a tiny texel size is refused here, before
-    // any packing, rather than searched for pages that cannot exist.
-    double needed = 0.0;
-    for (std::size_t c = 0; c < charts.size(); ++c)
-      needed += charts[c].area_m2 * chart_density[c] * chart_density[c] / (texel_m * texel_m);
-    const double limit = options.max_texels ? double(options.max_texels)
-                                            : double(kMaxAtlasResolution) * double(kMaxAtlasResolution);
-    if (!(needed <= limit))
-      return (options.max_texels ? resourceExhausted("lightmap: a texel size of {} m needs at least {:.3g} texels for "
-                                                     "{:.4g} m^2 of charts, above the limit of {} texels (max_texels); "
-                                                     "raise the texel size",
-                                                     texel_m, needed, area_m2, options.max_texels)
-                                 : invalidInput("unwrap: {} charts at {} m/texel need at least {:.3g} texels, more than "
-                                                "the {} texels the largest atlas holds; raise the texel size",
-                                                charts.size(), texel_m, needed, limit));
     // One page when one fits: the smallest power of two (or the given resolution) that
     // holds every chart; else as many pages of the page size as needed.
     if (!options.resolution) {
