@@ -8,32 +8,13 @@
 #include "clients/lightlink/exit_codes.h"
 #include "clients/lightlink/scene_access.h"
 #include "clients/lightlink/progress_bar.h"
+#include "core/bake/bake_options.h"
 #include "core/precompute/precompute.h"
 #include "core/scene/load.h"
 #include "core/scene/subdivide.h"
 
 namespace lightlink::cli {
 namespace {
-
-Expected<precompute::PrecomputeOptions> toOptions(const PrecomputeArgs& a) {
-  precompute::PrecomputeOptions o;
-  o.surfels = a.surfels;
-  o.links = a.links;
-  o.bands = a.bands;
-  o.rays = a.rays;
-  if (a.hierarchy == "hac") o.builder = hierarchy::Builder::kAgglomerative;
-  else if (a.hierarchy == "fast") o.builder = hierarchy::Builder::kKdMedian;
-  else return invalidInput("--hierarchy '{}' must be 'fast' or 'hac'", a.hierarchy);
-  if (a.grid == "auto") o.grid = precompute::GridMode::kAuto;
-  else if (a.grid == "on") o.grid = precompute::GridMode::kOn;
-  else if (a.grid == "off") o.grid = precompute::GridMode::kOff;
-  else return invalidInput("--grid '{}' must be 'auto', 'on' or 'off'", a.grid);
-  o.grid_spacing_m = a.grid_spacing_m;
-  o.texel_size_m = a.texel_size_m;
-  o.lightmap_resolution = a.resolution;
-  if (Status s = o.validate(); !s) return s;
-  return o;
-}
 
 std::string humanBytes(double b) {
   const char* units[] = {"B", "KiB", "MiB", "GiB"};
@@ -76,8 +57,13 @@ std::string formatReport(const nlohmann::ordered_json& r) {
 }  // namespace
 
 int runPrecompute(const PrecomputeArgs& args) {
-  auto options = toOptions(args);
-  if (!options) return reportError("precompute", options.status());
+  // No preset unless one is given: precompute's defaults are PrecomputeOptions'.
+  auto bake_options = bake::buildBakeOptions(args.options, "");
+  if (!bake_options) return reportError("precompute", bake_options.status());
+  for (const auto& [name, value] : args.options)
+    if (name == "bounces" || name == "link-form")
+      return reportError("precompute", invalidInput("--{}: a relight option; precompute does not relight (use bake)", name));
+  const precompute::PrecomputeOptions* options = &bake_options->precompute;
   if (args.subdivide < 0 || args.subdivide > 4)
     return reportError("precompute", invalidInput("--subdivide {} is out of range (0..4)", args.subdivide));
   scene::LoadOptions load;
