@@ -124,6 +124,7 @@ int runCompare(const CompareArgs& args) {
   nlohmann::ordered_json report;
   report["scene"] = args.scene_path;
   report["preset"] = bake_options->preset;
+  report["options"] = bake_options->precompute.canonical();  // what bake's report calls precompute.options
   report["points"] = pos.size();
   report["reference"] = {{"target_rel_error", args.target_error},
                          {"mean_rel_std_error_total", ref_rel_err},
