@@ -57,13 +57,13 @@ std::string formatReport(const nlohmann::ordered_json& r) {
 }  // namespace
 
 int runPrecompute(const PrecomputeArgs& args) {
-  // No preset unless one is given: precompute's defaults are PrecomputeOptions'.
-  auto bake_options = bake::buildBakeOptions(args.options, "");
-  if (!bake_options) return reportError("precompute", bake_options.status());
   for (const auto& [name, value] : args.options)
     if (name == "bounces" || name == "link-form")
       return reportError("precompute", invalidInput("--{}: a relight option; precompute does not relight (use bake)", name));
-  const precompute::PrecomputeOptions* options = &bake_options->precompute;
+  // No preset unless one is given: precompute's defaults are PrecomputeOptions'.
+  auto bake_options = bake::buildBakeOptions(args.options, "");
+  if (!bake_options) return reportError("precompute", bake_options.status());
+  const precompute::PrecomputeOptions& options = bake_options->precompute;
   if (args.subdivide < 0 || args.subdivide > 4)
     return reportError("precompute", invalidInput("--subdivide {} is out of range (0..4)", args.subdivide));
   scene::LoadOptions load;
@@ -71,10 +71,10 @@ int runPrecompute(const PrecomputeArgs& args) {
   auto scene = scene::loadScene(args.scene_path, load);
   if (!scene) return reportError("precompute", scene.status());
   if (args.subdivide > 0) scene::subdivide(*scene, args.subdivide);
-  auto key = precompute::cacheKeyFor(args.scene_path, *options, load.files);
+  auto key = precompute::cacheKeyFor(args.scene_path, options, load.files);
   if (!key) return reportError("precompute", key.status());
   ProgressBar bar(!args.quiet);
-  auto p = precompute::run(*scene, *options, &bar);
+  auto p = precompute::run(*scene, options, &bar);
   if (!p) return reportError("precompute", p.status());
   if (Status s = precompute::save(*p, args.output_path, *key); !s) return reportError("precompute", s);
   auto report = p->report();
