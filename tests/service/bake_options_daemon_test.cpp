@@ -72,6 +72,11 @@ TEST(BakeOptionsEverywhere, SameOptionsGiveTheSameArtifactFromBakeAndFromOpenSce
   ASSERT_TRUE(openScene(*rpc, legacy, &again).ok()) << d.log();
   EXPECT_EQ(again.cache_key(), bake_key);
   EXPECT_TRUE(again.artifact_reused());
+  // `lightlink open` sends its flags as the options map.
+  const CliRun open = runCli("open --target " + d.target() + " --preset draft --texel-size 0.02 --bands 2 " +
+                             demo().string());
+  ASSERT_EQ(open.exit_code, 0) << open.output;
+  EXPECT_NE(open.output.find(bake_key), std::string::npos) << open.output;
 }
 
 TEST(BakeOptionsEverywhere, OpenSceneRejectsUnknownAndBadOptionsNamingThem) {
