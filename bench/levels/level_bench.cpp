@@ -131,6 +131,7 @@ int main(int argc, char** argv) {
     warm.push_back(bench::secondsSince(t1) * 1e3);
   }
   out["relight_one_bounce_ms"] = bench::median(warm);
+  out["relight_one_bounce_stages"] = result.report()["seconds"];
   relight::RelightOptions full;
   full.incremental = false;
   relighter->invalidate(relight::Relighter::Forget::kEverything);

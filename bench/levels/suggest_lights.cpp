@@ -124,9 +124,11 @@ int main(int argc, char** argv) {
     for (std::size_t i = 0; i < covered.size(); ++i) {
       float d = std::numeric_limits<float>::max();
       for (const glm::vec3& q : chosen) d = std::min(d, glm::length(covered[i].p - q));
+      if (d < step) continue;  // a chosen spot, or next to one
       const float score = covered[i].clearance * (chosen.empty() ? 1.0f : std::min(d, 8.0f * covered[i].clearance));
       if (score > best_score) best_score = score, best = i;
     }
+    if (best_score < 0.0f) break;  // no covered spot left away from the chosen ones
     chosen.push_back(covered[best].p);
     chosen_clearance.push_back(covered[best].clearance);
   }

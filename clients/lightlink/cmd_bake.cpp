@@ -6,10 +6,12 @@
 
 #include <fmt/format.h>
 
+#include "clients/lightlink/bake_findings.h"
 #include "clients/lightlink/commands.h"
 #include "clients/lightlink/exit_codes.h"
 #include "clients/lightlink/scene_access.h"
 #include "clients/lightlink/progress_bar.h"
+#include "clients/lightlink/version.h"
 #include "core/bake/bake_options.h"
 #include "core/charts/gltf_writer.h"
 #include "core/output/output.h"
@@ -38,6 +40,9 @@ int runBake(const BakeArgs& args) {
   const relight::RelightOptions relight_options = bake_options->relight;
   auto backend_choice = gpu::parseBackendChoice(args.backend, "--backend");
   if (!backend_choice) return reportError(kCmd, backend_choice.status());
+
+  auto fail_on = parseFailOn(args.fail_on);
+  if (!fail_on) return reportError(kCmd, fail_on.status());
 
   const fs::path out(args.output_dir);
   const fs::path cache_dir = args.cache_dir.empty() ? out / "cache" : fs::path(args.cache_dir);
@@ -73,6 +78,7 @@ int runBake(const BakeArgs& args) {
   const Status relit = (*backend)->relightInto(lights, relight_options, *result);
   bar.end();
   if (!relit) return reportError(kCmd, relit);
+  BakeFindings findings = collectFindings(scene, resident->precomputeReport(), *result);
 
   output::ExrOptions exr;
   exr.half = !args.float_exr;
@@ -90,6 +96,15 @@ int runBake(const BakeArgs& args) {
     if (Status s = output::writeGridJson(*result, p.grid, (out / "grid.json").string()); !s) return reportError(kCmd, s);
     if (Status s = output::writeGridRaw(*result, p.grid, (out / "grid.raw").string()); !s) return reportError(kCmd, s);
   }
+  if (lm_stats->clamped + grid_clamped > 0)
+    findings.warnings.push_back(fmt::format("lightmap.exr, grid.exr: {} values beyond the half range were clamped "
+                                            "(use --float)", lm_stats->clamped + grid_clamped));
+  if (lm_stats->underflowed + grid_underflowed > 0)
+    findings.warnings.push_back(fmt::format("lightmap.exr, grid.exr: {} non-zero values below the smallest normal "
+                                            "half lost precision (use --float)",
+                                            lm_stats->underflowed + grid_underflowed));
+  // After the progress bar's last line, so no redraw hides them; with -q too.
+  printWarnings(findings, stderr);
   const std::string gltf_name = fs::path(args.scene_path).stem().string() + "_lm" +
                                 (fs::path(args.scene_path).extension() == ".glb" ? ".glb" : ".gltf");
   if (atlas.generated) {
@@ -100,8 +115,13 @@ int runBake(const BakeArgs& args) {
   }
 
   nlohmann::ordered_json report;
+  report["lightlink"] = {{"version", lightlinkVersion()}, {"commit", lightlinkCommit()}};
   report["scene"] = args.scene_path;
   report["preset"] = bake_options->preset;
+  report["warnings"] = findings.warnings;
+  report["notes"] = findings.notes;
+  report["lighting"] = {{"no_light", findings.no_light}, {"all_black", findings.all_black}};
+  report["load"] = resident->loadReport();
   report["artifact"] = artifact_note;
   report["cache_key"] = key_hex;
   report["backend"] = {{"requested", args.backend}, {"used", result->backend}, {"note", backend_note}};
@@ -118,23 +138,18 @@ int runBake(const BakeArgs& args) {
 
   if (!args.quiet) {
     std::string text = result->plan.toText();
+    for (const std::string& note : findings.notes) text += fmt::format("note         {}\n", note);
     text += fmt::format("artifact     {}\n", artifact_note);
     text += fmt::format("backend      {}\n", backend_note);
     text += fmt::format("relight      {:.2f} ms ({} backend, {} kernel), bounces {} ({})\n",
                         result->totalSeconds() * 1e3, result->backend, result->kernel, result->bounce_log.size(),
                         result->bounce_stop);
-    if (lm_stats->clamped + grid_clamped > 0)
-      text += fmt::format("warning      {} values beyond the half range were clamped (use --float)\n",
-                          lm_stats->clamped + grid_clamped);
-    if (lm_stats->underflowed + grid_underflowed > 0)
-      text += fmt::format("warning      {} non-zero values below the smallest normal half lost precision (use --float)\n",
-                          lm_stats->underflowed + grid_underflowed);
     text += fmt::format("wrote        {}: ", out.string());
     for (std::size_t i = 0; i < outputs.size(); ++i) text += (i ? ", " : "") + outputs[i];
     text += "\n";
     std::fwrite(text.data(), 1, text.size(), stdout);
   }
-  return kExitOk;
+  return bakeExitCode(findings, *fail_on);
 }
 
 }  // namespace lightlink::cli

@@ -1,4 +1,5 @@
 // `lightlink precompute`: scene -> surfels, tree, caches, links -> one artifact (.llk).
+#include <chrono>
 #include <cstdio>
 #include <fstream>
 
@@ -9,6 +10,7 @@
 #include "clients/lightlink/scene_access.h"
 #include "clients/lightlink/progress_bar.h"
 #include "core/bake/bake_options.h"
+#include "core/common/process_memory.h"
 #include "core/precompute/precompute.h"
 #include "core/scene/load.h"
 #include "core/scene/subdivide.h"
@@ -68,8 +70,14 @@ int runPrecompute(const PrecomputeArgs& args) {
     return reportError("precompute", invalidInput("--subdivide {} is out of range (0..4)", args.subdivide));
   scene::LoadOptions load;
   load.files = sceneFileAccess(args.allow_outside_scene);
+  const auto load_start = std::chrono::steady_clock::now();
+  const std::uint64_t rss_before_load = residentBytes();
   auto scene = scene::loadScene(args.scene_path, load);
   if (!scene) return reportError("precompute", scene.status());
+  const double load_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - load_start).count();
+  const std::uint64_t peak_after_load = peakResidentBytes();
+  // Warnings are not errors (a missing texture: the factor is used), but the user hears them.
+  for (const std::string& w : scene->warnings) std::fprintf(stderr, "lightlink precompute: warning: %s\n", w.c_str());
   if (args.subdivide > 0) scene::subdivide(*scene, args.subdivide);
   auto key = precompute::cacheKeyFor(args.scene_path, options, load.files);
   if (!key) return reportError("precompute", key.status());
@@ -82,6 +90,13 @@ int runPrecompute(const PrecomputeArgs& args) {
   report["cache_key"] = artifact::cacheKeyHex(*key);
   report["scene"] = args.scene_path;
   report["triangles"] = scene->triangleCount();
+  report["warnings"] = scene->warnings;
+  report["load"] = {{"seconds", load_seconds},
+                    {"rss_before_bytes", rss_before_load},
+                    {"peak_rss_after_bytes", peak_after_load},
+                    {"images_decoded", scene->stats.images_decoded},
+                    {"images_skipped", scene->stats.images_skipped},
+                    {"image_bytes", scene->stats.image_bytes}};
   if (!args.report_json.empty()) {
     std::ofstream out(args.report_json, std::ios::binary | std::ios::trunc);
     out << report.dump(2) << "\n";

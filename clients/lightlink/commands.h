@@ -58,6 +58,7 @@ struct BakeArgs {
   bool no_cache = false;           // recompute even when a matching artifact exists
   bool quiet = false;
   bool allow_outside_scene = false;  // read files the scene names outside its folder
+  std::string fail_on = "never";   // never | dark | warning (docs/cli.md "Exit codes")
 };
 int runBake(const BakeArgs& args);
 

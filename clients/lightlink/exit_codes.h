@@ -15,6 +15,10 @@ enum ExitCode : int {
   kExitIoError = 3,      // could not read or write a file for OS reasons
   kExitInternal = 4,     // a bug in lightlink
   kExitResources = 5,    // over a limit (docs/cli.md "Limits") or out of memory
+  // `bake --fail-on`: every output was written, but the bake has warnings (--fail-on
+  // warning) or is dark: no light at all, or an all-black lightmap (--fail-on dark|warning).
+  kExitWarnings = 6,
+  kExitDark = 7,
 };
 
 int exitCodeFor(const Status& status);

@@ -4,6 +4,7 @@
 
 #include "clients/lightlink/commands.h"
 #include "clients/lightlink/exit_codes.h"
+#include "clients/lightlink/version.h"
 #include "core/bake/bake_options.h"
 
 namespace {
@@ -44,7 +45,7 @@ int main(int argc, char** argv) {
   using namespace lightlink::cli;
   CLI::App app{"lightlink: lightmap and irradiance-volume baking (precomputed illuminance composition)"};
   app.require_subcommand(1);
-  app.set_version_flag("--version", "lightlink 0.1.0");
+  app.set_version_flag("--version", std::string("lightlink ") + lightlinkVersion() + " (commit " + lightlinkCommit() + ")");
 
   InspectArgs inspect;
   auto* inspect_cmd = app.add_subcommand("inspect", "Load and validate a glTF scene and print a summary");
@@ -87,6 +88,7 @@ int main(int argc, char** argv) {
   bake_cmd->add_flag("--no-cache", bake.no_cache, "Recompute even when a matching artifact exists");
   bake_cmd->add_flag("-q,--quiet", bake.quiet, "No progress bar, no summary");
   bake_cmd->add_flag("--allow-outside-scene", bake.allow_outside_scene, "Read files the scene names outside its own folder (only for scenes you trust)");
+  bake_cmd->add_option("--fail-on", bake.fail_on, "Exit non-zero after writing the outputs: never, dark (no light or an all-black lightmap: exit 7) or warning (any warning: exit 6)")->capture_default_str();
 
   RenderArgs render;
   auto* render_cmd = app.add_subcommand("render", "Render a camera view lit by a bake's lightmap and grid, to PNG");

@@ -51,6 +51,9 @@ nlohmann::ordered_json summarizeScene(const scene::Scene& s) {
                       {"static_instances_with_uv1", static_with_uv1},
                       {"static_instances", static_meshes},
                       {"unwrap_needed", static_with_uv1 < static_meshes}};
+  j["images"] = {{"decoded", s.stats.images_decoded},
+                 {"skipped", s.stats.images_skipped},
+                 {"decoded_bytes", s.stats.image_bytes}};
   j["warnings"] = s.warnings;
   return j;
 }
@@ -86,6 +89,10 @@ std::string formatSummary(const nlohmann::ordered_json& j) {
                                   uv["static_instances_with_uv1"].get<std::size_t>(),
                                   uv["static_instances"].get<std::size_t>(),
                                   uv["unwrap_needed"].get<bool>() ? " (unwrap needed)" : ""));
+  const auto& im = j["images"];
+  line("images", fmt::format("{} decoded for lighting ({:.1f} MiB), {} not needed (normal, metallic, occlusion, unused)",
+                             im["decoded"].get<std::size_t>(), im["decoded_bytes"].get<double>() / (1 << 20),
+                             im["skipped"].get<std::size_t>()));
   const auto& w = j["warnings"];
   if (w.empty()) {
     line("warnings", "none");

@@ -21,6 +21,7 @@
 #include "core/rt/accel.h"
 #include "core/scene/load.h"
 #include "core/scene/obj_files.h"
+#include "core/scene/lighting_images.h"
 
 namespace lightlink::precompute {
 namespace {
@@ -158,13 +159,13 @@ Expected<PrecomputeOptions> preset(std::string_view name) {
     o.surfels = 32768;
     o.links = 128;
     o.rays = 1024;
-    o.texel_budget = 65536;
+    o.texel_budget = 32768;
   } else if (name == "high") {
     o.surfels = 16384;
     o.links = 256;
     o.bands = 3;
     o.rays = 2048;
-    o.texel_budget = 262144;
+    o.texel_budget = 131072;
   } else {
     return invalidInput("--preset '{}' must be draft, medium or high", name);
   }
@@ -243,6 +244,7 @@ Expected<Precomputation> run(scene::Scene& scene, const PrecomputeOptions& optio
     auto r = unwrapFor(scene, options, &sink);
     if (!r) return r.status();
     p.atlas = std::move(r->atlas);
+    p.warnings = r->report.warnings;
     p.notes.push_back(p.atlas.generated
                           ? fmt::format("lightmap UVs generated: {} charts on {} page{} of {}x{} at {:.4g} m/texel",
                                         p.atlas.chart_count, p.atlas.pages, p.atlas.pages == 1 ? "" : "s",
@@ -426,6 +428,7 @@ nlohmann::ordered_json Precomputation::report() const {
       {"sky_visibility", bytesOf(lightmap_links.sky) + bytesOf(grid_links.sky)}};
   j["links"] = {{"lightmap", linkStatsJson(lightmap_links)}, {"grid", linkStatsJson(grid_links)}};
   j["notes"] = notes;
+  j["warnings"] = warnings;
   return j;
 }
 
@@ -452,6 +455,7 @@ Status save(const Precomputation& p, const std::string& path, std::uint64_t cach
   meta["unreachable_fills"] = {{"lightmap", p.lightmap_fill.unreachable}, {"grid", p.grid_fill.unreachable}};
   // No timings in here: the same scene and options must give a bit-identical file.
   meta["notes"] = p.notes;
+  meta["warnings"] = p.warnings;
   const std::string meta_text = meta.dump();
   if (status) status = w.addString("meta", meta_text);
   if (!status) return status;
@@ -850,9 +854,10 @@ Expected<std::uint64_t> cacheKeyFor(const std::string& scene_path, const Precomp
   if (!files) return files.status();
   auto data = files->readScene();
   if (!data) return data.status();
-  // The key covers every file the scene reads, not just the .gltf: external buffers (.bin)
-  // hold the geometry and images the albedo, so editing either must not reuse a stale
-  // artifact. Each external file is appended as (uri, size, bytes), in the JSON's order.
+  // The key covers exactly what the result depends on: the scene file, its external buffers
+  // (geometry) and the images the loader decodes for lighting (albedo, emission;
+  // core/scene/lighting_images.h). A normal or metallic map is never read, so editing one
+  // keeps the artifact. Each external file is appended as (uri, size, bytes), in the JSON's order.
   std::string keyed = std::move(data).value();
   if (scene::isAssimpScenePath(scene_path)) {  // OBJ: its .mtl files and textures (obj_files.h)
     auto deps = scene::objDependencyBytes(*files, keyed);
@@ -862,8 +867,10 @@ Expected<std::uint64_t> cacheKeyFor(const std::string& scene_path, const Precomp
   }
   const nlohmann::json j = nlohmann::json::parse(gltfJson(keyed), nullptr, /*allow_exceptions=*/false);
   if (!j.is_discarded() && j.is_object()) {
+    const scene::LightingImages lighting = scene::lightingImages(j);
     std::string external;
     for (const char* list : {"buffers", "images"}) {
+      const bool images = std::string_view(list) == "images";
       const auto it = j.find(list);
       if (it == j.end() || !it->is_array()) continue;
       for (std::size_t i = 0; i < it->size(); ++i) {
@@ -871,11 +878,17 @@ Expected<std::uint64_t> cacheKeyFor(const std::string& scene_path, const Precomp
         if (!entry.is_object() || !entry.contains("uri") || !entry["uri"].is_string()) continue;
         const std::string uri = entry["uri"].get<std::string>();
         if (uri.rfind("data:", 0) == 0) continue;  // embedded: already in the bytes
-        auto bytes = files->readUri(uri, fmt::format("{}[{}].uri", list, i));
-        // A missing image is a warning to the loader (the material falls back to its factor),
-        // so it is keyed as missing; restoring the file then changes the key.
-        if (!bytes && bytes.status().code() == Code::kNotFound && std::string_view(list) == "images") {
-          external += fmt::format("{}\nmissing\n", uri);
+        const std::string what = fmt::format("{}[{}].uri", list, i);
+        if (images && !lighting.image(static_cast<int>(i))) {
+          // Not read, but refused as the loader refuses it when it leaves the folder.
+          if (auto where = files->resolveUri(uri, what); !where) return where.status();
+          continue;
+        }
+        auto bytes = files->readUri(uri, what);
+        // A missing or unreadable image is a warning to the loader (the material falls back
+        // to its factor), so it is keyed as such; restoring the file then changes the key.
+        if (!bytes && images && (bytes.status().code() == Code::kNotFound || bytes.status().code() == Code::kIoError)) {
+          external += fmt::format("{}\nunreadable\n", uri);
           continue;
         }
         if (!bytes) return bytes.status();

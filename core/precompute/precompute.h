@@ -120,6 +120,7 @@ struct Precomputation {
   caches::FillPlan lightmap_fill, grid_fill, dilation;
   std::vector<StageTime> timings;
   std::vector<std::string> notes;  // decisions taken (what was skipped and why)
+  std::vector<std::string> warnings;  // findings a user should act on (the unwrap's: uv1 replaced, charts scaled down)
 
   // Report: counts, time per stage, memory per structure, rays and rays/s.
   nlohmann::ordered_json report() const;

@@ -9,6 +9,7 @@
 
 #include "core/artifact/artifact.h"
 #include "core/common/private_files.h"
+#include "core/common/process_memory.h"
 #include "core/scene/load.h"
 
 namespace lightlink::precompute {
@@ -27,6 +28,8 @@ struct ResidentScene::State {
   std::uint64_t artifact_bytes = 0;
   std::string note;
   double open_seconds = 0.0;
+  double load_seconds = 0.0;
+  std::uint64_t rss_before_load = 0, peak_rss_after_load = 0;
 };
 
 namespace {
@@ -71,12 +74,16 @@ Expected<ResidentScene> ResidentScene::openUnguarded(const ResidentRequest& requ
 
   {
     Stage stage(progress, "load");
+    const auto load_start = std::chrono::steady_clock::now();
+    state->rss_before_load = residentBytes();
     auto scene = scene::loadScene(request.scene_path, request.load);
     if (!scene) return scene.status();
     state->scene = std::move(scene).value();
     auto key = cacheKeyFor(request.scene_path, request.options, request.load.files);
     if (!key) return key.status();
     state->key = *key;
+    state->peak_rss_after_load = peakResidentBytes();
+    state->load_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - load_start).count();
   }
   if (stopRequested(progress)) return cancelled("open cancelled after loading {}", request.scene_path);
   const std::uint64_t key = state->key;
@@ -144,6 +151,20 @@ std::uint64_t ResidentScene::artifactBytes() const { return state_->artifact_byt
 bool ResidentScene::reused() const { return state_->loaded.has_value(); }
 const std::string& ResidentScene::note() const { return state_->note; }
 double ResidentScene::openSeconds() const { return state_->open_seconds; }
+
+nlohmann::ordered_json ResidentScene::loadReport() const {
+  const scene::SceneStats& st = state_->scene.stats;
+  nlohmann::ordered_json j;
+  j["seconds"] = state_->load_seconds;
+  j["rss_before_bytes"] = state_->rss_before_load;
+  j["peak_rss_after_bytes"] = state_->peak_rss_after_load;
+  j["triangles"] = st.triangles_in;
+  j["images_decoded"] = st.images_decoded;
+  j["images_skipped"] = st.images_skipped;
+  j["image_bytes"] = st.image_bytes;
+  j["warnings"] = state_->scene.warnings.size();
+  return j;
+}
 
 nlohmann::ordered_json ResidentScene::precomputeReport() const {
   return state_->computed ? state_->computed->report() : nlohmann::ordered_json(state_->loaded->meta);

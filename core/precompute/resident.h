@@ -69,6 +69,10 @@ class ResidentScene {
   const std::string& note() const;
   // The precompute report (computed) or the artifact's metadata (reused).
   nlohmann::ordered_json precomputeReport() const;
+  // The load stage (scene ingest and cache key): seconds, resident memory before it and the
+  // process's peak after it (the peak is the load's own when nothing earlier in the process
+  // used more, as in `lightlink bake`), and what was decoded (Scene::stats).
+  nlohmann::ordered_json loadReport() const;
   double openSeconds() const;
 
  private:

@@ -10,6 +10,7 @@
 #include <tiny_gltf.h>
 
 #include "core/common/status.h"
+#include "core/scene/lighting_images.h"
 #include "core/scene/load.h"
 #include "core/scene/scene.h"
 
@@ -20,6 +21,7 @@ struct Context {
   const tinygltf::Model& model;
   Scene& scene;
   const LoadOptions& options;
+  LightingImages lighting = {};  // which textures and images feed lighting
 
   Status invalid(std::string_view object, std::string_view what) const {
     return {Code::kInvalidInput, fmt::format("{}: {}: {}", file, object, what)};

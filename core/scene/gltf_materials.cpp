@@ -8,8 +8,8 @@
 
 namespace lightlink::scene::gltf {
 
-bool decodeImage(tinygltf::Image* image, int image_index, std::string* err, std::string* warn,
-                 int req_width, int req_height, const unsigned char* bytes, int size,
+bool decodeImage(tinygltf::Image* image, int image_index, std::string* err, std::string* /*warn*/,
+                 int /*req_width*/, int /*req_height*/, const unsigned char* bytes, int size,
                  void* user_data) {
   auto* state = static_cast<ImageDecodeState*>(user_data);
   const std::string object = describe("image", image_index, image->name);
@@ -29,14 +29,19 @@ bool decodeImage(tinygltf::Image* image, int image_index, std::string* err, std:
       return false;
     }
   }
-  if (!state->decode) return true;
-  // The size from the header, before a byte is inflated: stb decodes to RGBA (16-bit
-  // images at 2 bytes a channel) and loadTextures keeps an RGBA8 copy.
+  // Normal, metallic-roughness and occlusion maps, and unused images: never decoded.
+  if (!state->decode || static_cast<std::size_t>(image_index) >= state->wanted.size() ||
+      !state->wanted[static_cast<std::size_t>(image_index)])
+    return true;
+  // RGB where nothing reads alpha: a quarter less memory for most textures.
+  const auto index = static_cast<std::size_t>(image_index);
+  const int keep = index < state->alpha.size() && state->alpha[index] ? 4 : 3;
+  // The size from the header, before a byte is inflated: what is kept is RGB(A)8 (16-bit
+  // images are reduced by stb while decoding).
   int w = 0, h = 0, channels = 0;
   if (size > 0 && stbi_info_from_memory(bytes, size, &w, &h, &channels) && w > 0 && h > 0) {
     const std::uint64_t pixels = std::uint64_t(w) * std::uint64_t(h);
-    const std::uint64_t depth = stbi_is_16_bit_from_memory(bytes, size) ? 2 : 1;
-    const std::uint64_t cost = pixels * 4 * depth + pixels * 4;
+    const std::uint64_t cost = pixels * static_cast<std::uint64_t>(keep);
     if (state->max_image_pixels != 0 && pixels > state->max_image_pixels) {
       state->over_budget = fmt::format("{}: {}x{} = {} pixels is above the limit of {} pixels per image "
                                        "(max_image_pixels)", object, w, h, pixels, state->max_image_pixels);
@@ -49,15 +54,31 @@ bool decodeImage(tinygltf::Image* image, int image_index, std::string* err, std:
       if (err) *err += state->over_budget + "\n";
       return false;
     }
-    state->decoded_bytes += cost;
   }
-  std::string decode_err;
-  if (!tinygltf::LoadImageData(image, image_index, &decode_err, warn, req_width, req_height,
-                               bytes, size, nullptr)) {
-    state->problems.push_back(fmt::format("{}: cannot be decoded ({})", object, decode_err));
-    image->image.clear();
+  int got_w = 0, got_h = 0, got_channels = 0;
+  stbi_uc* data = size > 0 ? stbi_load_from_memory(bytes, size, &got_w, &got_h, &got_channels, keep) : nullptr;
+  if (data == nullptr || got_w < 1 || got_h < 1) {
+    const char* why = size > 0 ? stbi_failure_reason() : nullptr;
+    state->problems.push_back(fmt::format("{}: cannot be decoded ({}); the material's factor is used",
+                                          object, why != nullptr ? why : "no data"));
+    if (data != nullptr) stbi_image_free(data);
     image->width = image->height = -1;
+    return true;
   }
+  const std::size_t n = std::size_t(got_w) * std::size_t(got_h) * static_cast<std::size_t>(keep);
+  if (state->pixels.size() <= index) {
+    state->pixels.resize(index + 1);
+    state->channels.resize(index + 1, 4);
+  }
+  state->pixels[index].assign(data, data + n);
+  state->channels[index] = keep;
+  stbi_image_free(data);
+  state->decoded_bytes += n;
+  ++state->decoded;
+  image->width = got_w;
+  image->height = got_h;
+  image->component = keep;
+  image->bits = 8;
   return true;
 }
 
@@ -108,13 +129,22 @@ Expected<TextureRef> textureRef(const Context& ctx, const std::string& object, c
 
 }  // namespace
 
-Status loadTextures(const Context& ctx) {
+Status loadTextures(const Context& ctx, ImageDecodeState& images) {
   const tinygltf::Model& model = ctx.model;
   ctx.scene.textures.resize(model.textures.size());
+  // The last texture to use an image takes its pixels; earlier ones copy them.
+  std::vector<int> last_user(model.images.size(), -1);
+  for (std::size_t i = 0; i < model.textures.size(); ++i) {
+    const int source = model.textures[i].source;
+    if (!ctx.lighting.texture(static_cast<int>(i))) continue;
+    if (source >= 0 && static_cast<std::size_t>(source) < model.images.size())
+      last_user[static_cast<std::size_t>(source)] = static_cast<int>(i);
+  }
   for (std::size_t i = 0; i < model.textures.size(); ++i) {
     const tinygltf::Texture& gt = model.textures[i];
     Texture& t = ctx.scene.textures[i];
     const std::string object = describe("texture", static_cast<int>(i), gt.name);
+    const bool wanted = ctx.options.load_textures && images.decode;
     if (gt.sampler >= 0) {
       if (static_cast<std::size_t>(gt.sampler) >= model.samplers.size()) {
         return ctx.invalid(object, fmt::format("refers to sampler {}, but the file has {}",
@@ -126,7 +156,8 @@ Status loadTextures(const Context& ctx) {
       t.nearest = s.magFilter == TINYGLTF_TEXTURE_FILTER_NEAREST;
     }
     if (gt.source < 0) {
-      ctx.warn(object, "has no image source (an extension image format?); samples as white");
+      if (wanted && ctx.lighting.texture(static_cast<int>(i)))
+        ctx.warn(object, "has no image source (an extension image format?); the material's factor is used");
       t.name = gt.name;
       continue;
     }
@@ -134,40 +165,23 @@ Status loadTextures(const Context& ctx) {
       return ctx.invalid(object, fmt::format("refers to image {}, but the file has {}", gt.source,
                                              model.images.size()));
     }
-    const tinygltf::Image& image = model.images[static_cast<std::size_t>(gt.source)];
+    const auto source = static_cast<std::size_t>(gt.source);
+    const tinygltf::Image& image = model.images[source];
     t.name = !gt.name.empty() ? gt.name : !image.name.empty() ? image.name : image.uri;
-    if (!ctx.options.load_textures) continue;
-    if (image.image.empty() || image.width < 1 || image.height < 1) {
-      ctx.warn(object, fmt::format("image {} was not decoded; the texture samples as white",
-                                   gt.source));
-      continue;
-    }
-    const auto w = static_cast<std::size_t>(image.width);
-    const auto h = static_cast<std::size_t>(image.height);
-    const auto comps = static_cast<std::size_t>(image.component);
-    const std::size_t bytes_per = image.bits == 16 ? 2 : 1;
-    if (comps < 1 || comps > 4 || image.image.size() < w * h * comps * bytes_per) {
-      ctx.warn(object, fmt::format("image {} has an unexpected layout ({} channels, {} bits); "
-                                   "the texture samples as white", gt.source, comps, image.bits));
+    if (!wanted || !ctx.lighting.texture(static_cast<int>(i))) continue;  // not sampled for lighting
+    std::vector<std::uint8_t>* pixels = source < images.pixels.size() ? &images.pixels[source] : nullptr;
+    const int channels = source < images.channels.size() ? images.channels[source] : 4;
+    if (pixels == nullptr || pixels->empty() || image.width < 1 || image.height < 1 ||
+        pixels->size() != std::size_t(image.width) * std::size_t(image.height) * std::size_t(channels)) {
+      ctx.warn(object, fmt::format("image {}{} was not decoded; the material's factor is used", gt.source,
+                                   image.uri.empty() ? "" : " '" + image.uri + "'"));
       continue;
     }
     t.width = image.width;
     t.height = image.height;
-    t.rgba8.assign(w * h * 4, 255);
-    for (std::size_t p = 0; p < w * h; ++p) {
-      for (std::size_t c = 0; c < comps; ++c) {
-        const std::size_t src = (p * comps + c) * bytes_per;
-        // 16-bit: most significant byte (little-endian from stb); rounding is below 8 bits.
-        const std::uint8_t v = bytes_per == 2 ? image.image[src + 1] : image.image[src];
-        if (comps <= 2 && c == 0) {
-          t.rgba8[p * 4 + 0] = t.rgba8[p * 4 + 1] = t.rgba8[p * 4 + 2] = v;  // grey
-        } else if (comps == 2) {
-          t.rgba8[p * 4 + 3] = v;  // grey + alpha
-        } else {
-          t.rgba8[p * 4 + c] = v;
-        }
-      }
-    }
+    t.channels = channels;
+    if (last_user[source] == static_cast<int>(i)) t.rgba8 = std::move(*pixels);
+    else t.rgba8 = *pixels;
   }
   return Status::ok();
 }

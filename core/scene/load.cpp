@@ -10,6 +10,7 @@
 #include <sstream>
 #include <string_view>
 
+#include <nlohmann/json.hpp>
 #include <tiny_gltf.h>
 
 #include "core/scene/gltf_context.h"
@@ -19,6 +20,8 @@
 #include "core/scene/gltf_nodes.h"
 #include "core/scene/gltf_primitive.h"
 #include "core/scene/gltf_structure.h"
+#include "core/scene/lighting_images.h"
+#include "core/scene/scene_files_unread.h"
 #include "core/scene/mesh_ops.h"
 
 namespace lightlink::scene {
@@ -99,18 +102,43 @@ void addTinygltfWarnings(const std::string& path, const std::string& warn, Scene
   }
 }
 
-Status loadModel(const SceneFiles& files, const std::string& bytes, bool binary, const LoadOptions& options,
-                 tinygltf::Model& model, Scene& scene) {
+// The external files of images that are not decoded (all of them without load_textures),
+// unless a decoded image or a buffer names the same file.
+std::vector<std::filesystem::path> unreadImageFiles(const SceneFiles& files, const nlohmann::json& gltf,
+                                                    const gltf::ImageDecodeState& images) {
+  std::vector<std::filesystem::path> unread, read;
+  for (const char* list : {"buffers", "images"}) {
+    const auto it = gltf.is_object() ? gltf.find(list) : gltf.end();
+    if (!gltf.is_object() || it == gltf.end() || !it->is_array()) continue;
+    for (std::size_t i = 0; i < it->size(); ++i) {
+      const nlohmann::json& entry = (*it)[i];
+      if (!entry.is_object() || !entry.contains("uri") || !entry["uri"].is_string()) continue;
+      const std::string& uri = entry["uri"].get_ref<const std::string&>();
+      if (uri.empty() || uri.rfind("data:", 0) == 0) continue;
+      Expected<std::filesystem::path> p = files.resolveUri(uri, list);
+      if (!p) continue;
+      const bool decoded = std::string_view(list) == "buffers" ||
+                           (images.decode && i < images.wanted.size() && images.wanted[i]);
+      (decoded ? read : unread).push_back(std::move(p).value());
+    }
+  }
+  unread.erase(std::remove_if(unread.begin(), unread.end(),
+                              [&](const std::filesystem::path& p) {
+                                return std::find(read.begin(), read.end(), p) != read.end();
+                              }),
+               unread.end());
+  return unread;
+}
+
+Status loadModel(const SceneFiles& files, std::vector<std::filesystem::path> unread_files, const std::string& bytes,
+                 bool binary, gltf::ImageDecodeState& images, tinygltf::Model& model, Scene& scene) {
   const std::string& path = files.scenePath();
   if (bytes.size() > std::numeric_limits<unsigned int>::max())
     return invalidInput("{}: {} bytes is larger than tinygltf can parse", path, bytes.size());
   tinygltf::TinyGLTF loader;
-  files.install(loader);
-  gltf::ImageDecodeState images;
+  const UnreadFiles unread{&files, std::move(unread_files)};
+  installSkippingUnread(unread, loader);
   images.model = &model;
-  images.decode = options.load_textures;
-  images.max_image_pixels = options.max_image_pixels;
-  images.max_image_bytes = options.max_image_bytes;
   loader.SetImageLoader(&gltf::decodeImage, &images);
   std::string err, warn;
   // From memory with the canonical folder as base: relative URIs resolve there, and every
@@ -226,14 +254,33 @@ Expected<Scene> loadGltf(const std::string& path, const LoadOptions& options) {
   const std::string_view json = jsonText(*bytes, *binary);
   if (Status s = checkJsonNesting(path, json); !s) return s;
   // Before tinygltf touches any external file: name the entry whose URI leaves the folder.
-  if (Status s = files->checkUris(json); !s) return s;
+  // Then which images lighting reads: only those are read and decoded. The parsed JSON is
+  // released before tinygltf builds its own model.
+  gltf::ImageDecodeState images;
+  images.decode = options.load_textures;
+  images.max_image_pixels = options.max_image_pixels;
+  images.max_image_bytes = options.max_image_bytes;
+  LightingImages lighting;
+  std::vector<std::filesystem::path> unread;
+  {
+    const nlohmann::json parsed = nlohmann::json::parse(json, nullptr, /*allow_exceptions=*/false);
+    if (Status s = files->checkUris(parsed); !s) return s;
+    lighting = lightingImages(parsed);
+    images.wanted = lighting.images;
+    images.alpha = lighting.alpha;
+    unread = unreadImageFiles(*files, parsed, images);
+  }
 
   Scene scene;
   scene.source_path = path;
   tinygltf::Model model;
-  if (Status s = loadModel(*files, *bytes, *binary, options, model, scene); !s) return s;
+  if (Status s = loadModel(*files, std::move(unread), *bytes, *binary, images, model, scene); !s) return s;
+  scene.stats.images_decoded = images.decoded;
+  scene.stats.image_bytes = images.decoded_bytes;
+  for (std::size_t i = 0; i < model.images.size(); ++i)
+    if (!options.load_textures || !lighting.image(static_cast<int>(i))) ++scene.stats.images_skipped;
 
-  const gltf::Context ctx{path, model, scene, options};
+  const gltf::Context ctx{path, model, scene, options, std::move(lighting)};
   if (Status s = gltf::validateExtensions(ctx); !s) return s;
   if (Status s = gltf::validateBufferViews(ctx); !s) return s;
   Expected<std::vector<gltf::PlacedNode>> nodes = gltf::placeNodes(ctx);
@@ -243,7 +290,7 @@ Expected<Scene> loadGltf(const std::string& path, const LoadOptions& options) {
       return resourceExhausted("{}: the node graph instances {} triangles, above the limit of {} (max_triangles)",
                                path, n, options.max_triangles);
   }
-  if (Status s = gltf::loadTextures(ctx); !s) return s;
+  if (Status s = gltf::loadTextures(ctx, images); !s) return s;
   if (Status s = gltf::loadMaterials(ctx); !s) return s;
   if (Status s = buildGeometry(ctx, *nodes); !s) return s;
   if (Status s = gltf::loadLights(ctx, *nodes); !s) return s;

@@ -16,14 +16,15 @@
 namespace lightlink::scene {
 
 struct LoadOptions {
-  bool load_textures = true;  // decode base colour / emissive images for CPU sampling
+  bool load_textures = true;  // decode base colour / emissive images for CPU sampling (false: read no image)
   FileAccess files;           // buffer and image URIs stay inside the scene's folder by default
   // Budgets, each checked before the work it bounds; over one, loadGltf fails with
   // Code::kResourceExhausted naming the limit and the value (docs/cli.md "Limits"). 0 = none.
   // Pixels of one image, read from its header before it is decoded (a decompression bomb
   // of a few KB can claim 30000 x 30000).
   std::uint64_t max_image_pixels = std::uint64_t(8192) * 8192;
-  // Bytes all decoded images take (RGBA as decoded, plus the RGBA8 copy a texture keeps).
+  // Bytes all decoded images take (RGB8, or RGBA8 where alpha matters; only the images
+  // lighting reads are decoded, core/scene/lighting_images.h).
   std::uint64_t max_image_bytes = std::uint64_t(2) << 30;
   // Triangles after instancing, counted from the node graph before any mesh is flattened.
   std::uint64_t max_triangles = 20'000'000;

@@ -19,19 +19,23 @@
 
 namespace lightlink::scene {
 
-// A decoded texture, RGBA8 as stored; colour textures are sRGB-encoded and converted to
+// A decoded texture, RGB(A)8 as stored; colour textures are sRGB-encoded and converted to
 // linear at sample time (glTF: baseColor and emissive are sRGB).
 struct Texture {
   std::string name;
   int width = 0;
   int height = 0;
-  std::vector<std::uint8_t> rgba8;  // width*height*4, row 0 = top (glTF v = 0)
+  // width*height*channels bytes, row 0 = top (glTF v = 0): RGBA8, or RGB8 (channels = 3)
+  // where nothing reads the alpha (an opaque material's base colour, an emissive texture).
+  std::vector<std::uint8_t> rgba8;
+  int channels = 4;
   // Sampler state from glTF (wrap modes as GL enums; 10497 = REPEAT).
   int wrap_s = 10497;
   int wrap_t = 10497;
   bool nearest = false;  // magFilter NEAREST
 
-  // Bilinear, wrap-aware sample at glTF UV, decoded from sRGB to linear RGB (alpha linear).
+  // Bilinear, wrap-aware sample at glTF UV, decoded from sRGB to linear RGB (alpha linear;
+  // 1 for an RGB8 texture).
   glm::vec4 sampleSrgb(glm::vec2 uv) const;
 };
 
@@ -112,6 +116,12 @@ struct SceneStats {
   std::size_t vertices = 0;             // over all instances, as read
   std::size_t instances_without_triangles = 0;  // (node, primitive) pairs left empty and removed
   std::size_t normals_generated = 0;    // instances whose normals were generated
+  // Images: decoded for lighting (base colour, emissive), each once, and left undecoded
+  // because nothing lightlink computes reads them (normal, metallic-roughness, occlusion
+  // maps, unused images; core/scene/lighting_images.h).
+  std::size_t images_decoded = 0;
+  std::size_t images_skipped = 0;
+  std::uint64_t image_bytes = 0;        // bytes the decoded images take (RGB8 / RGBA8)
 };
 
 struct Scene {

@@ -1,4 +1,5 @@
 #include "core/scene/scene_files.h"
+#include "core/scene/scene_files_unread.h"
 
 #include <fcntl.h>
 #include <sys/stat.h>
@@ -6,6 +7,7 @@
 #include <unistd.h>
 #include <linux/openat2.h>
 
+#include <algorithm>
 #include <cerrno>
 #include <cstring>
 #include <deque>
@@ -260,7 +262,10 @@ Expected<std::string> SceneFiles::readName(const std::string& name, std::string_
 }
 
 Status SceneFiles::checkUris(std::string_view json_text) const {
-  const nlohmann::json j = nlohmann::json::parse(json_text, nullptr, /*allow_exceptions=*/false);
+  return checkUris(nlohmann::json::parse(json_text, nullptr, /*allow_exceptions=*/false));
+}
+
+Status SceneFiles::checkUris(const nlohmann::json& j) const {
   if (j.is_discarded() || !j.is_object()) return Status::ok();
   for (const char* list : {"buffers", "images"}) {
     const auto it = j.find(list);
@@ -283,6 +288,41 @@ Status SceneFiles::checkUris(std::string_view json_text) const {
     }
   }
   return Status::ok();
+}
+
+namespace {
+
+bool isUnread(const UnreadFiles& access, const std::string& path) {
+  if (access.unread.empty()) return false;
+  fs::path canonical;
+  if (!acceptedPath(*access.files, path, &canonical)) return false;
+  return std::find(access.unread.begin(), access.unread.end(), canonical) != access.unread.end();
+}
+
+bool fileExistsSkipping(const std::string& path, void* user) {
+  const auto& access = *static_cast<const UnreadFiles*>(user);
+  return isUnread(access, path) || fileExists(path, const_cast<SceneFiles*>(access.files));
+}
+
+bool readWholeFileSkipping(std::vector<unsigned char>* out, std::string* err, const std::string& path, void* user) {
+  const auto& access = *static_cast<const UnreadFiles*>(user);
+  if (isUnread(access, path)) {
+    out->assign(1, 0);  // tinygltf refuses an empty image; the image loader skips this one
+    return true;
+  }
+  return readWholeFile(out, err, path, const_cast<SceneFiles*>(access.files));
+}
+
+}  // namespace
+
+void installSkippingUnread(const UnreadFiles& access, tinygltf::TinyGLTF& loader) {
+  tinygltf::FsCallbacks callbacks{};
+  callbacks.FileExists = &fileExistsSkipping;
+  callbacks.ExpandFilePath = &expandFilePath;
+  callbacks.ReadWholeFile = &readWholeFileSkipping;
+  callbacks.WriteWholeFile = &writeWholeFile;
+  callbacks.user_data = const_cast<UnreadFiles*>(&access);  // the callbacks only read it
+  loader.SetFsCallbacks(callbacks);
 }
 
 void SceneFiles::install(tinygltf::TinyGLTF& loader) const {

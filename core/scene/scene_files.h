@@ -15,6 +15,8 @@
 #include <string>
 #include <string_view>
 
+#include <nlohmann/json_fwd.hpp>
+
 #include "core/common/status.h"
 
 namespace tinygltf {
@@ -58,6 +60,8 @@ class SceneFiles {
   // the first entry that fails. Data URIs are skipped; malformed JSON passes (the loader
   // names that problem).
   Status checkUris(std::string_view json_text) const;
+  // The same on JSON already parsed (a discarded or non-object value passes).
+  Status checkUris(const nlohmann::json& gltf) const;
 
   // Points `loader`'s file callbacks at this object (which must outlive the loads): reads
   // only what resolveUri accepts, never searches the working directory, never writes.

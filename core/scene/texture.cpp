@@ -47,14 +47,17 @@ int wrapTexel(int i, int n, int wrap) {
 glm::vec4 Texture::sampleSrgb(glm::vec2 uv) const {
   // Not decoded (LoadOptions::load_textures = false, or an undecodable image): neutral
   // white, so the material's factors apply alone.
-  if (width <= 0 || height <= 0 || rgba8.size() < static_cast<std::size_t>(width) * height * 4) {
+  if (width <= 0 || height <= 0 || (channels != 3 && channels != 4) ||
+      rgba8.size() < static_cast<std::size_t>(width) * height * static_cast<std::size_t>(channels)) {
     return glm::vec4(1.0f);
   }
   const auto& lut = srgbToLinearTable();
+  const auto stride = static_cast<std::size_t>(channels);
   const auto texel = [&](int x, int y) {
     const std::size_t at = (static_cast<std::size_t>(y) * static_cast<std::size_t>(width) +
-                            static_cast<std::size_t>(x)) * 4;
-    return glm::vec4(lut[rgba8[at]], lut[rgba8[at + 1]], lut[rgba8[at + 2]], rgba8[at + 3] / 255.0f);
+                            static_cast<std::size_t>(x)) * stride;
+    return glm::vec4(lut[rgba8[at]], lut[rgba8[at + 1]], lut[rgba8[at + 2]],
+                     stride == 4 ? rgba8[at + 3] / 255.0f : 1.0f);
   };
   // Texel centres sit at (i + 0.5) / size, as in GL.
   const float x = foldCoordinate(uv.x, wrap_s) * static_cast<float>(width) - 0.5f;

@@ -166,8 +166,14 @@ TEST(Precompute, CacheKeyCoversExternalBuffersAndImages) {
   auto write = [&](const std::string& name, const std::string& text) {
     std::ofstream(dir / name, std::ios::binary) << text;
   };
+  // albedo.png is a base colour (decoded for lighting); normal.png a normal map (never read).
   write("scene.gltf", R"({"asset": {"version": "2.0"}, "buffers": [{"uri": "geo%20a.bin", "byteLength": 4}],
-                          "images": [{"uri": "albedo.png"}, {"uri": "data:image/png;base64,AAAA"}]})");
+                          "images": [{"uri": "albedo.png"}, {"uri": "data:image/png;base64,AAAA"}, {"uri": "normal.png"}],
+                          "textures": [{"source": 0}, {"source": 2}],
+                          "materials": [{"pbrMetallicRoughness": {"baseColorTexture": {"index": 0}},
+                                         "normalTexture": {"index": 1}}],
+                          "meshes": [{"primitives": [{"attributes": {"POSITION": 0}, "material": 0}]}]})");
+  write("normal.png", "normal1");
   write("geo a.bin", "abcd");
   write("albedo.png", "png1");
   const std::string scene = (dir / "scene.gltf").string();
@@ -181,6 +187,11 @@ TEST(Precompute, CacheKeyCoversExternalBuffersAndImages) {
   auto c = cacheKeyFor(scene, smallOptions());
   ASSERT_TRUE(c);
   EXPECT_NE(*b, *c) << "an edited texture must not reuse the artifact";
+  EXPECT_EQ(*c, *cacheKeyFor(scene, smallOptions()));
+  // The normal map changes nothing lightlink computes: same key, edited or even missing.
+  write("normal.png", "normal2");
+  EXPECT_EQ(*c, *cacheKeyFor(scene, smallOptions())) << "a normal map's bytes must not change the key";
+  std::filesystem::remove(dir / "normal.png");
   EXPECT_EQ(*c, *cacheKeyFor(scene, smallOptions()));
   // A missing texture is keyed as missing (the loader only warns); a missing buffer fails.
   std::filesystem::remove(dir / "albedo.png");
@@ -249,8 +260,13 @@ TEST(Precompute, CacheKeyKeysAMissingImageAsMissing) {
   lightlink::testing::TempDir dir;
   lightlink::testing::writeFile(dir / "geo.bin", lightlink::testing::triangleBin());
   auto withImage = [](const std::string& uri) {
+    // The image is the triangle's base colour: what the loader decodes and the key hashes.
     std::string gltf = lightlink::testing::triangleGltf("geo.bin");
-    gltf.insert(1, fmt::format(R"("images": [{{"uri": "{}"}}], )", uri));
+    gltf.insert(1, fmt::format(R"("images": [{{"uri": "{}"}}], "textures": [{{"source": 0}}],
+                                  "materials": [{{"pbrMetallicRoughness": {{"baseColorTexture": {{"index": 0}}}}}}], )",
+                               uri));
+    const std::string attributes = R"("attributes": {"POSITION": 0},)";
+    gltf.insert(gltf.find(attributes) + attributes.size(), R"( "material": 0,)");
     return gltf;
   };
   const std::string scene = lightlink::testing::writeFile(dir / "scene.gltf", withImage("albedo.png"));

@@ -89,7 +89,9 @@ TEST(Materials, TexturesDecodeAndSampleAtTheirTexcoordSet) {
   EXPECT_EQ(t.name, "Checker");
   ASSERT_EQ(t.width, 2);
   ASSERT_EQ(t.height, 2);
-  EXPECT_EQ(t.rgba8, (std::vector<std::uint8_t>{128, 128, 128, 255, 255, 0, 0, 255, 64, 64, 64, 255, 255, 255, 255, 255}));
+  // Opaque: RGB, the alpha nothing reads is not kept.
+  EXPECT_EQ(t.channels, 3);
+  EXPECT_EQ(t.rgba8, (std::vector<std::uint8_t>{128, 128, 128, 255, 0, 0, 64, 64, 64, 255, 255, 255}));
   EXPECT_TRUE(t.nearest);
   EXPECT_EQ(t.wrap_s, 33071);
   const Material& m = scene->materials[0];

@@ -41,6 +41,19 @@ TEST(TextureSample, TexelCentresDecodeSrgbExactly) {
   expectRgba(t.sampleSrgb({0.75f, 0.75f}), {kLin200, kLin64, kLin10, 1.0f});
 }
 
+// An RGB8 texture (an opaque material's: no alpha kept) samples the same colours, alpha 1.
+TEST(TextureSample, RgbTexturesSampleAsOpaque) {
+  Texture t = twoByTwo();
+  t.channels = 3;
+  t.rgba8 = {128, 128, 128, 255, 255, 255, 0, 0, 0, 200, 64, 10};
+  expectRgba(t.sampleSrgb({0.25f, 0.25f}), {kLin128, kLin128, kLin128, 1.0f});
+  expectRgba(t.sampleSrgb({0.75f, 0.25f}), {kLin255, kLin255, kLin255, 1.0f});
+  expectRgba(t.sampleSrgb({0.25f, 0.75f}), {kLin0, kLin0, kLin0, 1.0f});
+  expectRgba(t.sampleSrgb({0.75f, 0.75f}), {kLin200, kLin64, kLin10, 1.0f});
+  t.rgba8.pop_back();  // too short for 2x2 RGB: treated as not decoded, white
+  expectRgba(t.sampleSrgb({0.25f, 0.25f}), glm::vec4(1.0f));
+}
+
 TEST(TextureSample, BilinearAveragesLinearValues) {
   const Texture t = twoByTwo(33071);  // clamp, so only the four texels contribute
   const float mid = (kLin128 + kLin255) / 2.0f;

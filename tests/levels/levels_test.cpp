@@ -1,0 +1,105 @@
+// The acceptance set of issue 45: every scene under ../shared/scenes that lightlink accepts
+// bakes with `lightlink bake` at draft, medium and high and exits 0, as a user runs it; the
+// five game levels and zdm2 (no lights of their own) with the light sets in lights/, made
+// by bench/levels/suggest_lights. Skips, visibly, when ../shared/scenes is absent.
+#include <sys/wait.h>
+
+#include <array>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <string>
+
+#include <gtest/gtest.h>
+#include <nlohmann/json.hpp>
+
+#include "tests/common/testing.h"
+
+namespace lightlink {
+namespace {
+
+namespace fs = std::filesystem;
+
+struct Process {
+  int exit_code = -1;
+  std::string output;
+};
+
+Process run(const std::string& command) {
+  Process r;
+  FILE* pipe = ::popen((command + " 2>&1").c_str(), "r");
+  if (pipe == nullptr) return r;
+  std::array<char, 4096> buffer{};
+  std::size_t n = 0;
+  while ((n = std::fread(buffer.data(), 1, buffer.size(), pipe)) > 0) r.output.append(buffer.data(), n);
+  const int status = ::pclose(pipe);
+  r.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+  return r;
+}
+
+// Scene files as the shared README names them (folder/file), one per folder except the
+// McGuire boxes, which are eight scenes.
+const char* const kScenes[] = {
+    "cornell_box_mcguire_obj/CornellBox-Original.obj",
+    "cornell_box_mcguire_obj/CornellBox-Sphere.obj",
+    "cornell_box_mcguire_obj/CornellBox-Water.obj",
+    "cornell_box_mcguire_obj/CornellBox-Glossy.obj",
+    "cornell_box_mcguire_obj/CornellBox-Mirror.obj",
+    "cornell_box_mcguire_obj/CornellBox-Empty-CO.obj",
+    "cornell_box_mcguire_obj/CornellBox-Empty-RG.obj",
+    "cornell_box_mcguire_obj/CornellBox-Empty-Squashed.obj",
+    "cornell_box_mcguire_obj/CornellBox-Empty-White.obj",
+    "cornell_box_original_gltf/CornellBox-Original.gltf",
+    "cornell_box_vinc3r_lightmapuv/cornellBox-2.80-Eevee-gltf.gltf",
+    "khronos_EmissiveStrengthTest/EmissiveStrengthTest.gltf",
+    "khronos_LightsPunctualLamp/LightsPunctualLamp.gltf",
+    "khronos_MultiUVTest/MultiUVTest.gltf",
+    "revelry_ShadowsDirectional/shadows-directional.gltf",
+    "revelry_ShadowsSpot/shadows-spot.gltf",
+    "redeclipse_cyanide_obj/cyanide.obj",
+    "redeclipse_institute_obj/institute.obj",
+    "tesseract_steelribs_obj/steelribs.obj",
+    "sauerbraten_memento_obj/memento.obj",
+    "sauerbraten_forge_obj/forge.obj",
+    "sauerbraten_zdm2_level_gltf/zdm2.glb",
+};
+const char* const kPresets[] = {"draft", "medium", "high"};
+
+using Case = std::tuple<const char*, const char*>;
+
+class SharedSceneBake : public ::testing::TestWithParam<Case> {};
+
+TEST_P(SharedSceneBake, ExitsZeroWithAReport) {
+  const auto [scene_name, preset] = GetParam();
+  const fs::path shared = testing::sharedScenesDir();
+  if (shared.empty()) GTEST_SKIP() << "../shared/scenes not found: the shared scenes' bakes are not run";
+  const fs::path scene = shared / scene_name;
+  ASSERT_TRUE(fs::exists(scene)) << scene;
+  const fs::path lights = testing::sourceDir() / "tests/levels/lights" / (scene.stem().string() + ".json");
+  testing::TempDir out;
+  std::string command = std::string(LIGHTLINK_CLI_PATH) + " bake '" + scene.string() + "' -o '" +
+                        out.path().string() + "' --preset " + preset + " -q";
+  if (fs::exists(lights)) command += " --lights '" + lights.string() + "'";
+  const Process r = run(command);
+  ASSERT_EQ(r.exit_code, 0) << command << "\n" << r.output;
+  std::ifstream in(out / "report.json");
+  ASSERT_TRUE(in) << "no report.json";
+  const nlohmann::json report = nlohmann::json::parse(in);
+  const auto& counts = report["precompute"]["counts"];
+  EXPECT_GT(counts["lightmap_caches"].get<std::size_t>(), 0u);
+  EXPECT_GT(counts["texel_size_m"].get<double>(), 0.0);
+  EXPECT_TRUE(fs::exists(out / "lightmap.exr"));
+}
+
+std::string caseName(const ::testing::TestParamInfo<Case>& info) {
+  std::string name = fs::path(std::get<0>(info.param)).filename().string() + "_" + std::get<1>(info.param);
+  for (char& c : name)
+    if (!std::isalnum(static_cast<unsigned char>(c))) c = '_';
+  return name;
+}
+
+INSTANTIATE_TEST_SUITE_P(All, SharedSceneBake, ::testing::Combine(::testing::ValuesIn(kScenes), ::testing::ValuesIn(kPresets)),
+                         caseName);
+
+}  // namespace
+}  // namespace lightlink
