@@ -269,8 +269,11 @@ Expected<std::shared_ptr<SceneSession>> SceneRegistry::openResident(SessionIdent
                                                                    const std::string& lightset_json,
                                                                    Progress* progress,
                                                                    const std::string& staged_upload) {
-  auto options = precomputeOptionsFrom(request);
-  if (!options) return options.status();
+  // The daemon's --bounces is the scene's bounce cap unless the request's options set one.
+  relight::RelightOptions relight_defaults;
+  relight_defaults.max_bounces = config_.relight_bounces;
+  auto bake_options = bakeOptionsFrom(request, relight_defaults);
+  if (!bake_options) return bake_options.status();
   if (!v1::Backend_IsValid(request.backend()))
     return invalidInput("backend: {} is not a Backend", static_cast<int>(request.backend()));
   // Parse the light-set JSON before the (long) precompute so a typo fails fast.
@@ -288,7 +291,7 @@ Expected<std::shared_ptr<SceneSession>> SceneRegistry::openResident(SessionIdent
 
   precompute::ResidentRequest rr;
   rr.scene_path = staged_upload.empty() ? identity.source_path : staged_upload;
-  rr.options = *options;
+  rr.options = bake_options->precompute;
   rr.cache_dir = config_.cache_dir;
   rr.options.limits.max_texels = config_.max_texels;
   rr.options.limits.max_link_bytes = config_.max_link_bytes;
@@ -296,7 +299,7 @@ Expected<std::shared_ptr<SceneSession>> SceneRegistry::openResident(SessionIdent
   rr.load.max_triangles = config_.max_triangles;
   rr.load.max_lights = kMaxLightsPerScene;
   // Two opens of the same scene and parameters precompute once: the second waits and reuses.
-  auto mutex = openMutexFor(identity.source_path + "|" + options->canonical());
+  auto mutex = openMutexFor(identity.source_path + "|" + bake_options->precompute.canonical());
   std::unique_lock open_lock(*mutex);
   auto resident = precompute::ResidentScene::open(rr, progress);
   open_lock.unlock();
@@ -326,7 +329,8 @@ Expected<std::shared_ptr<SceneSession>> SceneRegistry::openResident(SessionIdent
 
   SessionOptions so;
   so.backend = backendChoiceName(request.backend(), config_.backend);
-  so.relight.max_bounces = config_.relight_bounces;
+  so.relight.max_bounces = bake_options->relight.max_bounces;
+  so.relight.link_form = bake_options->relight.link_form;
   so.progressive = config_.progressive;
   so.journal = journal_;
   const bool reused = resident->reused();

@@ -1,6 +1,7 @@
 #include "service/validation.h"
 
 #include <cmath>
+#include <map>
 
 #include <fmt/format.h>
 
@@ -71,50 +72,36 @@ Status checkId(const std::string& id, const std::string& path) {
 
 }  // namespace
 
-Expected<precompute::PrecomputeOptions> precomputeOptionsFrom(const v1::OpenSceneRequest& r) {
-  const std::string preset_name = r.preset().empty() ? "medium" : r.preset();
-  if (preset_name != "draft" && preset_name != "medium" && preset_name != "high")
-    return invalidInput("preset: '{}' must be draft, medium or high", r.preset().substr(0, 64));
-  auto o = precompute::preset(preset_name);
-  if (!o) return o.status();
-  if (r.surfels() != 0) {
-    if (r.surfels() < 64 || r.surfels() > 4000000)
-      return invalidInput("surfels: {} is out of range (64..4000000)", r.surfels());
-    o->surfels = r.surfels();
-  }
-  if (r.links() != 0) {
-    if (r.links() < 1 || r.links() > 4096) return invalidInput("links: {} is out of range (1..4096)", r.links());
-    o->links = r.links();
-  }
-  if (r.bands() != 0) {
-    if (r.bands() < 1 || r.bands() > 4) return invalidInput("bands: {} is out of range (1..4)", r.bands());
-    o->bands = r.bands();
-  }
-  if (r.rays() != 0) {
-    if (r.rays() < 16 || r.rays() > 65536) return invalidInput("rays: {} is out of range (16..65536)", r.rays());
-    o->rays = r.rays();
-  }
-  if (r.grid_spacing() != 0.0f) {
-    if (!std::isfinite(r.grid_spacing()) || r.grid_spacing() <= 0.0f)
-      return invalidInput("grid_spacing: {} must be a finite number > 0 (metres)", r.grid_spacing());
-    // Asking for a spacing is asking for a grid, even in a scene without dynamic meshes.
-    o->grid_spacing_m = r.grid_spacing();
-    o->grid = precompute::GridMode::kOn;
-  }
-  if (r.texel_size() != 0.0f) {
-    if (!std::isfinite(r.texel_size()) || r.texel_size() <= 0.0f)
-      return invalidInput("texel_size: {} must be a finite number > 0 (metres)", r.texel_size());
-    o->texel_size_m = r.texel_size();
-  }
-  if (!r.hierarchy().empty()) {
-    if (r.hierarchy() == "fast") o->builder = hierarchy::Builder::kKdMedian;
-    else if (r.hierarchy() == "hac") o->builder = hierarchy::Builder::kAgglomerative;
-    else return invalidInput("hierarchy: '{}' must be \"fast\" or \"hac\"", r.hierarchy().substr(0, 64));
-  }
+Expected<bake::BakeOptions> bakeOptionsFrom(const v1::OpenSceneRequest& r, const relight::RelightOptions& relight_defaults) {
   if (r.name().size() > kMaxNameBytes) return invalidInput("name: longer than {} bytes", kMaxNameBytes);
   if (r.path().size() > kMaxPathBytes) return invalidInput("path: longer than {} bytes", kMaxPathBytes);
-  if (Status s = o->validate(); !s) return s;
-  return o;
+  bake::BakeOptionsBuilder builder("medium", relight_defaults, "options.");
+  // The deprecated typed fields first, each under its own name in messages (0/empty = unset).
+  const auto legacy = [&](bool given, std::string_view option, const std::string& value, std::string_view field) {
+    return given ? builder.set(option, value, field) : Status{};
+  };
+  if (Status s = legacy(!r.preset().empty(), "preset", r.preset(), "preset"); !s) return s;
+  if (Status s = legacy(r.surfels() != 0, "surfels", std::to_string(r.surfels()), "surfels"); !s) return s;
+  if (Status s = legacy(r.links() != 0, "links", std::to_string(r.links()), "links"); !s) return s;
+  if (Status s = legacy(r.bands() != 0, "bands", std::to_string(r.bands()), "bands"); !s) return s;
+  if (Status s = legacy(r.rays() != 0, "rays", std::to_string(r.rays()), "rays"); !s) return s;
+  if (Status s = legacy(r.grid_spacing() != 0.0f, "grid-spacing", fmt::format("{}", r.grid_spacing()), "grid_spacing");
+      !s)
+    return s;
+  if (Status s = legacy(r.texel_size() != 0.0f, "texel-size", fmt::format("{}", r.texel_size()), "texel_size"); !s)
+    return s;
+  if (Status s = legacy(!r.hierarchy().empty(), "hierarchy", r.hierarchy(), "hierarchy"); !s) return s;
+  // Then the map, in key order so that the first error reported does not depend on hashing.
+  const std::map<std::string, std::string> options(r.options().begin(), r.options().end());
+  for (const auto& [name, value] : options)
+    if (Status s = builder.set(name, value); !s) return s;
+  return builder.build();
+}
+
+Expected<precompute::PrecomputeOptions> precomputeOptionsFrom(const v1::OpenSceneRequest& r) {
+  auto o = bakeOptionsFrom(r);
+  if (!o) return o.status();
+  return o->precompute;
 }
 
 Status applyUpdate(const v1::UpdateLightsRequest& r, std::size_t material_count, relight::LightSet& lights) {

@@ -11,6 +11,7 @@
 #include <cstddef>
 #include <string>
 
+#include "core/bake/bake_options.h"
 #include "core/common/status.h"
 #include "core/precompute/precompute.h"
 #include "core/relight/light_set.h"
@@ -25,7 +26,12 @@ inline constexpr std::size_t kMaxNameBytes = 1024;
 inline constexpr std::size_t kMaxPathBytes = 4096;
 inline constexpr std::uint32_t kMaxWaitMs = 60000;
 
-// OpenScene parameters -> precompute options (preset, then the overrides that are set).
+// OpenScene parameters -> bake options, through the one builder every front end uses
+// (core/bake/bake_options.h): the deprecated typed fields that are set, then `options`.
+// `relight_defaults` are the daemon's (--bounces) before any setting.
+Expected<bake::BakeOptions> bakeOptionsFrom(const v1::OpenSceneRequest& request,
+                                            const relight::RelightOptions& relight_defaults = {});
+// The precompute part of bakeOptionsFrom.
 Expected<precompute::PrecomputeOptions> precomputeOptionsFrom(const v1::OpenSceneRequest& request);
 
 // Applies an UpdateLights request to `lights` (a copy the caller swaps in on success):

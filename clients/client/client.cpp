@@ -241,6 +241,7 @@ Expected<SceneHandle> Client::openScene(const OpenOptions& o, const ProgressCall
   req.set_grid_spacing(o.grid_spacing_m);
   req.set_texel_size(o.texel_size_m);
   req.set_hierarchy(o.hierarchy);
+  for (const auto& [name, value] : o.options) (*req.mutable_options())[name] = value;
   req.set_backend(o.backend);
   req.set_lightset_json(o.lightset_json);
   req.set_name(o.name);

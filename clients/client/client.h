@@ -22,6 +22,7 @@
 #include <memory>
 #include <optional>
 #include <set>
+#include <map>
 #include <string>
 #include <string_view>
 #include <vector>
@@ -64,6 +65,10 @@ struct ConnectOptions {
 struct OpenOptions {
   std::string path;          // glTF/GLB on the daemon's machine, or
   std::string gltf_bytes;    // a self-contained .glb/.gltf sent inline (<= 64 MiB)
+  // Bake options as `lightlink bake` takes them, keyed by flag name without "--"
+  // (docs/cli.md "Bake options"): sent as OpenSceneRequest.options.
+  std::map<std::string, std::string> options;
+  // Deprecated typed aliases of some of those options (0 or empty = not given).
   std::string preset;        // draft | medium | high (daemon default medium)
   std::uint32_t surfels = 0;
   int links = 0, bands = 0, rays = 0;

@@ -12,6 +12,7 @@
 #include "clients/lightlink/scene_access.h"
 #include "clients/lightlink/progress_bar.h"
 #include "clients/lightlink/version.h"
+#include "core/bake/bake_options.h"
 #include "core/charts/gltf_writer.h"
 #include "core/output/output.h"
 #include "core/precompute/resident.h"
@@ -34,15 +35,9 @@ Status makeDirectory(const fs::path& dir) {
 
 int runBake(const BakeArgs& args) {
   constexpr const char* kCmd = "bake";
-  auto options = precompute::preset(args.preset);
-  if (!options) return reportError(kCmd, options.status());
-  relight::RelightOptions relight_options;
-  if (args.link_form == "projected") relight_options.link_form = relight::LinkForm::kProjected;
-  else if (args.link_form == "runtime") relight_options.link_form = relight::LinkForm::kRuntime;
-  else return reportError(kCmd, invalidInput("--link-form '{}' must be 'projected' or 'runtime'", args.link_form));
-  if (args.max_bounces < 0 || args.max_bounces > 64)
-    return reportError(kCmd, invalidInput("--bounces {} is out of range (0..64)", args.max_bounces));
-  relight_options.max_bounces = args.max_bounces;
+  auto bake_options = bake::buildBakeOptions(args.options, "medium");
+  if (!bake_options) return reportError(kCmd, bake_options.status());
+  const relight::RelightOptions relight_options = bake_options->relight;
   auto backend_choice = gpu::parseBackendChoice(args.backend, "--backend");
   if (!backend_choice) return reportError(kCmd, backend_choice.status());
 
@@ -58,7 +53,7 @@ int runBake(const BakeArgs& args) {
   precompute::ResidentRequest request;
   request.scene_path = args.scene_path;
   request.load.files = sceneFileAccess(args.allow_outside_scene);
-  request.options = *options;
+  request.options = bake_options->precompute;
   request.cache_dir = cache_dir.string();
   request.use_cache = !args.no_cache;
   auto resident = precompute::ResidentScene::open(request, &bar);
@@ -122,7 +117,7 @@ int runBake(const BakeArgs& args) {
   nlohmann::ordered_json report;
   report["lightlink"] = {{"version", lightlinkVersion()}, {"commit", lightlinkCommit()}};
   report["scene"] = args.scene_path;
-  report["preset"] = args.preset;
+  report["preset"] = bake_options->preset;
   report["warnings"] = findings.warnings;
   report["notes"] = findings.notes;
   report["lighting"] = {{"no_light", findings.no_light}, {"all_black", findings.all_black}};

@@ -13,6 +13,7 @@
 #include "clients/lightlink/exit_codes.h"
 #include "clients/lightlink/scene_access.h"
 #include "clients/lightlink/progress_bar.h"
+#include "core/bake/bake_options.h"
 #include "core/common/png.h"
 #include "core/output/output.h"
 #include "core/precompute/precompute.h"
@@ -46,10 +47,13 @@ int runCompare(const CompareArgs& args) {
     return reportError(kCmd, invalidInput("--against '{}': only 'reference' is known", args.against));
   if (args.max_points < 1 || args.max_points > (1 << 22))
     return reportError(kCmd, invalidInput("--max-points {} is out of range (1..4194304)", args.max_points));
-  if (args.max_bounces < 0 || args.max_bounces > 256)
-    return reportError(kCmd, invalidInput("--bounces {} is out of range (0..256)", args.max_bounces));
-  auto options = precompute::preset(args.preset);
-  if (!options) return reportError(kCmd, options.status());
+  // compare's own choice: the baker runs to convergence (64 bounces, threshold 1e-4) unless
+  // --bounces says otherwise, so that the error measured is the method's, not the cap's.
+  relight::RelightOptions to_convergence;
+  to_convergence.max_bounces = 64;
+  to_convergence.bounce_threshold = 1e-4f;
+  auto bake_options = bake::buildBakeOptions(args.options, "medium", to_convergence);
+  if (!bake_options) return reportError(kCmd, bake_options.status());
   scene::LoadOptions load;
   load.files = sceneFileAccess(args.allow_outside_scene);
   auto scene = scene::loadScene(args.scene_path, load);
@@ -63,15 +67,13 @@ int runCompare(const CompareArgs& args) {
   if (Status s = reference::ReferenceRenderer::validate(ref_options); !s) return reportError(kCmd, s);
 
   ProgressBar bar(!args.quiet);
-  auto p = precompute::run(*scene, *options, &bar);
+  auto p = precompute::run(*scene, bake_options->precompute, &bar);
   if (!p) return reportError(kCmd, p.status());
   auto accel = rt::Accel::build(*scene);  // static geometry only: what the baker sees
   if (!accel) return reportError(kCmd, accel.status());
   auto relighter = relight::Relighter::create(*scene, *accel, *p);
   if (!relighter) return reportError(kCmd, relighter.status());
-  relight::RelightOptions ro;
-  ro.max_bounces = args.max_bounces;
-  ro.bounce_threshold = 1e-4f;
+  const relight::RelightOptions ro = bake_options->relight;
   bar.begin("relight", 0);
   auto baked = relighter->relight(lights, ro);
   bar.end();
@@ -121,7 +123,8 @@ int runCompare(const CompareArgs& args) {
 
   nlohmann::ordered_json report;
   report["scene"] = args.scene_path;
-  report["preset"] = args.preset;
+  report["preset"] = bake_options->preset;
+  report["options"] = bake_options->precompute.canonical();  // what bake's report calls precompute.options
   report["points"] = pos.size();
   report["reference"] = {{"target_rel_error", args.target_error},
                          {"mean_rel_std_error_total", ref_rel_err},

@@ -9,6 +9,7 @@
 #include "clients/lightlink/exit_codes.h"
 #include "clients/lightlink/scene_access.h"
 #include "clients/lightlink/progress_bar.h"
+#include "core/bake/bake_options.h"
 #include "core/common/process_memory.h"
 #include "core/precompute/precompute.h"
 #include "core/scene/load.h"
@@ -16,26 +17,6 @@
 
 namespace lightlink::cli {
 namespace {
-
-Expected<precompute::PrecomputeOptions> toOptions(const PrecomputeArgs& a) {
-  precompute::PrecomputeOptions o;
-  o.surfels = a.surfels;
-  o.links = a.links;
-  o.bands = a.bands;
-  o.rays = a.rays;
-  if (a.hierarchy == "hac") o.builder = hierarchy::Builder::kAgglomerative;
-  else if (a.hierarchy == "fast") o.builder = hierarchy::Builder::kKdMedian;
-  else return invalidInput("--hierarchy '{}' must be 'fast' or 'hac'", a.hierarchy);
-  if (a.grid == "auto") o.grid = precompute::GridMode::kAuto;
-  else if (a.grid == "on") o.grid = precompute::GridMode::kOn;
-  else if (a.grid == "off") o.grid = precompute::GridMode::kOff;
-  else return invalidInput("--grid '{}' must be 'auto', 'on' or 'off'", a.grid);
-  o.grid_spacing_m = a.grid_spacing_m;
-  o.texel_size_m = a.texel_size_m;
-  o.lightmap_resolution = a.resolution;
-  if (Status s = o.validate(); !s) return s;
-  return o;
-}
 
 std::string humanBytes(double b) {
   const char* units[] = {"B", "KiB", "MiB", "GiB"};
@@ -78,8 +59,13 @@ std::string formatReport(const nlohmann::ordered_json& r) {
 }  // namespace
 
 int runPrecompute(const PrecomputeArgs& args) {
-  auto options = toOptions(args);
-  if (!options) return reportError("precompute", options.status());
+  for (const auto& [name, value] : args.options)
+    if (name == "bounces" || name == "link-form")
+      return reportError("precompute", invalidInput("--{}: a relight option; precompute does not relight (use bake)", name));
+  // No preset unless one is given: precompute's defaults are PrecomputeOptions'.
+  auto bake_options = bake::buildBakeOptions(args.options, "");
+  if (!bake_options) return reportError("precompute", bake_options.status());
+  const precompute::PrecomputeOptions& options = bake_options->precompute;
   if (args.subdivide < 0 || args.subdivide > 4)
     return reportError("precompute", invalidInput("--subdivide {} is out of range (0..4)", args.subdivide));
   scene::LoadOptions load;
@@ -93,10 +79,10 @@ int runPrecompute(const PrecomputeArgs& args) {
   // Warnings are not errors (a missing texture: the factor is used), but the user hears them.
   for (const std::string& w : scene->warnings) std::fprintf(stderr, "lightlink precompute: warning: %s\n", w.c_str());
   if (args.subdivide > 0) scene::subdivide(*scene, args.subdivide);
-  auto key = precompute::cacheKeyFor(args.scene_path, *options, load.files);
+  auto key = precompute::cacheKeyFor(args.scene_path, options, load.files);
   if (!key) return reportError("precompute", key.status());
   ProgressBar bar(!args.quiet);
-  auto p = precompute::run(*scene, *options, &bar);
+  auto p = precompute::run(*scene, options, &bar);
   if (!p) return reportError("precompute", p.status());
   if (Status s = precompute::save(*p, args.output_path, *key); !s) return reportError("precompute", s);
   auto report = p->report();

@@ -1,6 +1,7 @@
 // The `lightlink` commands that talk to a daemon through lightlink_client: open, set-light,
 // watch, pull (docs/cli.md "Daemon commands", docs/clients.md).
 #include <algorithm>
+#include <cctype>
 #include <chrono>
 #include <cstdio>
 #include <cstdlib>
@@ -14,6 +15,7 @@
 #include "clients/client/session.h"
 #include "clients/lightlink/commands.h"
 #include "clients/lightlink/exit_codes.h"
+#include "core/bake/bake_options.h"
 #include "core/output/output.h"
 
 namespace lightlink::cli {
@@ -77,9 +79,23 @@ Expected<Remote> connect(const RemoteArgs& a, bool need_scene) {
 
 int runOpen(const OpenArgs& args) {
   constexpr const char* kCmd = "open";
+  // The daemon checks the options again; checking them here fails before connecting.
+  if (auto checked = bake::buildBakeOptions(args.options, "medium"); !checked)
+    return reportError(kCmd, checked.status());
+  if (args.upload) {
+    // An upload is one file: only a self-contained glTF can travel that way (OBJ's MTL and
+    // textures, FBX's external files, would stay behind).
+    std::string ext = fs::path(args.scene_path).extension().string();
+    for (char& c : ext) c = char(std::tolower(static_cast<unsigned char>(c)));
+    if (ext != ".gltf" && ext != ".glb")
+      return reportError(kCmd, invalidInput("{}: --upload sends one self-contained .gltf or .glb file; open this "
+                                            "scene by path (without --upload) on a daemon that can read it",
+                                            args.scene_path));
+  }
   auto remote = connect(args.remote, false);
   if (!remote) return reportError(kCmd, remote.status());
   client::OpenOptions o;
+  for (const auto& [name, value] : args.options) o.options[name] = value;  // the last one given wins
   if (args.upload) {
     std::FILE* f = std::fopen(args.scene_path.c_str(), "rb");
     if (!f) return reportError(kCmd, notFound("{}: cannot open scene", args.scene_path));
@@ -91,7 +107,6 @@ int runOpen(const OpenArgs& args) {
     const fs::path abs = fs::absolute(args.scene_path, ec);
     o.path = ec ? args.scene_path : abs.string();
   }
-  o.preset = args.preset;
   o.name = args.name.empty() ? fs::path(args.scene_path).stem().string() : args.name;
   if (args.backend == "cpu") o.backend = v1::BACKEND_CPU;
   else if (args.backend == "gpu") o.backend = v1::BACKEND_GPU;

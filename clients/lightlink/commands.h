@@ -6,9 +6,15 @@
 #include <cstdint>
 #include <optional>
 #include <string>
+#include <utility>
 #include <vector>
 
 namespace lightlink::cli {
+
+// Bake options as given on the command line, (name without "--", value) in order: every
+// command that bakes builds them through bake::BakeOptionsBuilder (core/bake/bake_options.h),
+// so bake, compare, precompute and open accept the same options with the same ranges.
+using BakeSettings = std::vector<std::pair<std::string, std::string>>;
 
 struct InspectArgs {
   std::string scene_path;
@@ -34,15 +40,7 @@ struct PrecomputeArgs {
   std::string scene_path;
   std::string output_path;   // .llk artifact
   std::string report_json;
-  std::uint32_t surfels = 32768;
-  int links = 128;
-  int bands = 3;
-  int rays = 1024;
-  std::string hierarchy = "hac";  // fast | hac
-  std::string grid = "auto";      // auto | on | off
-  float grid_spacing_m = 0.0f;
-  std::optional<float> texel_size_m;
-  std::optional<int> resolution;
+  BakeSettings options;           // over PrecomputeOptions' defaults (no preset unless given)
   int subdivide = 0;              // split every triangle into 4^N first (scale tests)
   bool quiet = false;
   bool allow_outside_scene = false;  // read files the scene names outside its folder
@@ -52,11 +50,9 @@ int runPrecompute(const PrecomputeArgs& args);
 struct BakeArgs {
   std::string scene_path;
   std::string output_dir;
-  std::string preset = "medium";   // draft | medium | high
+  BakeSettings options;            // over the medium preset
   std::string lights_path;         // light-set JSON adding to / overriding the scene's lights
   std::string cache_dir;           // artifacts by cache key; empty = <output_dir>/cache
-  std::string link_form = "projected";  // projected | runtime
-  int max_bounces = 8;
   std::string backend = "cpu";     // cpu | gpu | auto (service/gpu/backend_factory.h)
   bool float_exr = false;
   bool no_cache = false;           // recompute even when a matching artifact exists
@@ -83,13 +79,12 @@ int runRender(const RenderArgs& args);
 struct CompareArgs {
   std::string scene_path;
   std::string against = "reference";
-  std::string preset = "medium";
+  BakeSettings options;           // over the medium preset; the baker's bounce cap defaults to 64
   std::string lights_path;
   std::string output_dir;         // compare.json and error heat maps
   int max_points = 4096;          // valid lightmap caches compared (evenly strided)
   float target_error = 0.01f;     // the reference's relative standard error per point
   double time_budget_s = 0.0;     // for the reference; 0 = none
-  int max_bounces = 64;           // the baker's bounce cap (threshold 1e-4)
   bool quiet = false;
   bool allow_outside_scene = false;  // read files the scene names outside its folder
 };
@@ -116,7 +111,7 @@ struct OpenArgs {
   RemoteArgs remote;         // remote.session: where to write the session file
   std::string scene_path;
   bool upload = false;       // send the file's bytes instead of its path
-  std::string preset;        // draft | medium | high (daemon default: medium)
+  BakeSettings options;      // sent as OpenScene `options` (daemon default preset: medium)
   std::string lights_path;   // light-set JSON applied over the scene's lights
   std::string name;
   std::string backend = "auto";  // auto | cpu | gpu

@@ -5,8 +5,24 @@
 #include "clients/lightlink/commands.h"
 #include "clients/lightlink/exit_codes.h"
 #include "clients/lightlink/version.h"
+#include "core/bake/bake_options.h"
 
 namespace {
+
+// Registers every bake option of the one table (core/bake/bake_options.h) as --name, in the
+// same group with the same help on every command that bakes; values are recorded in
+// command-line order and parsed, range-checked and validated by the run* function's builder.
+void addBakeOptions(CLI::App* cmd, lightlink::cli::BakeSettings& settings) {
+  for (const lightlink::bake::OptionInfo& o : lightlink::bake::optionTable()) {
+    const std::string name(o.name);
+    cmd->add_option_function<std::string>(
+           "--" + name, [&settings, name](const std::string& v) { settings.emplace_back(name, v); },
+           std::string(o.help))
+        ->type_name(std::string(o.value))
+        ->group("Bake options")
+        ->trigger_on_parse();
+  }
+}
 
 #ifdef LIGHTLINK_WITH_SERVICE
 // Options every daemon command shares (docs/cli.md "Daemon commands").
@@ -54,16 +70,7 @@ int main(int argc, char** argv) {
   pre_cmd->add_option("scene", pre.scene_path, "Scene file (.gltf, .glb, .obj or .fbx)")->required();
   pre_cmd->add_option("-o,--output", pre.output_path, "Artifact to write (.llk)")->required();
   pre_cmd->add_option("--report", pre.report_json, "Write the report (counts, times, memory) as JSON");
-  pre_cmd->add_option("--surfels", pre.surfels, "nS: number of surfels")->capture_default_str();
-  pre_cmd->add_option("--links", pre.links, "nL: most links per cache")->capture_default_str();
-  pre_cmd->add_option("--bands", pre.bands, "SH bands of the links (1..4)")->capture_default_str();
-  pre_cmd->add_option("--rays", pre.rays, "Link rays per cache")->capture_default_str();
-  pre_cmd->add_option("--hierarchy", pre.hierarchy, "Tree builder: fast (kd median) or hac")->capture_default_str();
-  pre_cmd->add_option("--grid", pre.grid, "Grid caches: auto (when dynamic meshes exist), on, off")
-      ->capture_default_str();
-  pre_cmd->add_option("--grid-spacing", pre.grid_spacing_m, "Grid spacing in metres (0 = 16 along the longest axis)");
-  pre_cmd->add_option("--texel-size", pre.texel_size_m, "Lightmap texel size in metres");
-  pre_cmd->add_option("--resolution", pre.resolution, "Lightmap resolution in texels");
+  addBakeOptions(pre_cmd, pre.options);
   pre_cmd->add_option("--subdivide", pre.subdivide, "Split every triangle into 4^N first (0..4)");
   pre_cmd->add_flag("-q,--quiet", pre.quiet, "No progress bar, no summary");
   pre_cmd->add_flag("--allow-outside-scene", pre.allow_outside_scene, "Read files the scene names outside its own folder (only for scenes you trust)");
@@ -72,11 +79,9 @@ int main(int argc, char** argv) {
   auto* bake_cmd = app.add_subcommand("bake", "Unwrap, precompute (or reuse), relight and write lightmaps, grid, report");
   bake_cmd->add_option("scene", bake.scene_path, "Scene file (.gltf, .glb, .obj or .fbx)")->required();
   bake_cmd->add_option("-o,--output", bake.output_dir, "Output directory")->required();
-  bake_cmd->add_option("--preset", bake.preset, "Quality: draft, medium or high")->capture_default_str();
+  addBakeOptions(bake_cmd, bake.options);
   bake_cmd->add_option("--lights", bake.lights_path, "Light-set JSON adding to or overriding the scene's lights");
   bake_cmd->add_option("--cache-dir", bake.cache_dir, "Artifact cache directory (default OUTPUT/cache)");
-  bake_cmd->add_option("--link-form", bake.link_form, "projected or runtime")->capture_default_str();
-  bake_cmd->add_option("--bounces", bake.max_bounces, "Most indirect bounces")->capture_default_str();
   bake_cmd->add_option("--backend", bake.backend, "Relight backend: cpu, gpu, or auto (GPU when a headless EGL context works)")
       ->capture_default_str();
   bake_cmd->add_flag("--float", bake.float_exr, "32-bit float EXR instead of half");
@@ -104,14 +109,13 @@ int main(int argc, char** argv) {
   auto* cmp_cmd = app.add_subcommand("compare", "Bake a scene and measure its lightmap against the path-traced reference");
   cmp_cmd->add_option("scene", cmp.scene_path, "Scene file (.gltf, .glb, .obj or .fbx)")->required();
   cmp_cmd->add_option("--against", cmp.against, "What to compare with: reference")->capture_default_str();
-  cmp_cmd->add_option("--preset", cmp.preset, "Bake quality: draft, medium or high")->capture_default_str();
+  addBakeOptions(cmp_cmd, cmp.options);
   cmp_cmd->add_option("--lights", cmp.lights_path, "Light-set JSON adding to or overriding the scene's lights");
   cmp_cmd->add_option("-o,--output", cmp.output_dir, "Directory for compare.json and error heat maps");
   cmp_cmd->add_option("--max-points", cmp.max_points, "Most lightmap caches compared")->capture_default_str();
   cmp_cmd->add_option("--target-error", cmp.target_error, "Reference relative standard error per point")
       ->capture_default_str();
   cmp_cmd->add_option("--time-budget", cmp.time_budget_s, "Seconds for the reference (0 = none)");
-  cmp_cmd->add_option("--bounces", cmp.max_bounces, "Baker's bounce cap")->capture_default_str();
   cmp_cmd->add_flag("-q,--quiet", cmp.quiet, "No progress bar, no summary");
   cmp_cmd->add_flag("--allow-outside-scene", cmp.allow_outside_scene, "Read files the scene names outside its own folder (only for scenes you trust)");
 
@@ -125,7 +129,7 @@ int main(int argc, char** argv) {
   open_cmd->add_option("scene", open.scene_path, "Scene file (.gltf, .glb, .obj or .fbx)")->required();
   addRemoteOptions(open_cmd, open.remote);
   open_cmd->add_flag("--upload", open.upload, "Send the file's bytes instead of its path");
-  open_cmd->add_option("--preset", open.preset, "Quality: draft, medium or high (daemon default medium)");
+  addBakeOptions(open_cmd, open.options);
   open_cmd->add_option("--lights", open.lights_path, "Light-set JSON applied over the scene's lights");
   open_cmd->add_option("--name", open.name, "Name shown by ListScenes (default: the file's stem)");
   open_cmd->add_option("--backend", open.backend, "Relight backend: auto, cpu or gpu")->capture_default_str();

@@ -175,12 +175,13 @@ Expected<PrecomputeOptions> preset(std::string_view name) {
 std::string PrecomputeOptions::canonical() const {
   return fmt::format(
       "surfels={};links={};bands={};rays={};builder={};grid={};grid_spacing={:a};grid_resolution={};"
-      "texel_size={};texel_budget={};max_atlas={};max_pages={};lightmap_resolution={};target_resolution={};validity_rays={};"
-      "seed={};generator={}",
+      "texel_size={};texel_budget={};max_atlas={};max_pages={};lightmap_resolution={};target_resolution={};uv={};"
+      "validity_rays={};seed={};generator={}",
       surfels, links, bands, rays, builder == hierarchy::Builder::kAgglomerative ? "hac" : "kd",
       static_cast<int>(grid), grid_spacing_m, grid_resolution,
       texel_size_m ? fmt::format("{:a}", *texel_size_m) : "auto", texel_budget, max_atlas, max_pages,
-      lightmap_resolution ? std::to_string(*lightmap_resolution) : "auto", target_resolution, validity_rays, seed,
+      lightmap_resolution ? std::to_string(*lightmap_resolution) : "auto", target_resolution,
+      uv_mode == charts::UvMode::kAuto ? "auto" : uv_mode == charts::UvMode::kKeep ? "keep" : "generate", validity_rays, seed,
       kGeneratorRevision);
 }
 
@@ -208,6 +209,7 @@ Expected<charts::UnwrapResult> unwrapFor(scene::Scene& scene, const PrecomputeOp
   u.max_pages = options.max_pages;
   u.resolution = options.lightmap_resolution;
   u.target_resolution = options.target_resolution;
+  u.uv_mode = options.uv_mode;
   u.max_texels = options.limits.max_texels;
   u.progress = progress;
   return charts::unwrap(scene, u);

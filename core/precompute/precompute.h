@@ -72,6 +72,7 @@ struct PrecomputeOptions {
   int max_pages = 0;               // 0 = as many as needed; else the texel size is raised to fit
   std::optional<int> lightmap_resolution;
   int target_resolution = 128;     // with texel_budget 0 and no texel size: one atlas this size
+  charts::UvMode uv_mode = charts::UvMode::kAuto;  // what happens to an existing TEXCOORD_1
   int validity_rays = 64;
   std::uint64_t seed = 1;
   PrecomputeLimits limits;         // not in canonical(): budgets, not parameters of the result
