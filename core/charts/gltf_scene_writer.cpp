@@ -1,5 +1,7 @@
 #include "core/charts/gltf_scene_writer.h"
 
+#include "core/charts/gltf_append.h"
+
 #include <algorithm>
 #include <cctype>
 #include <cstring>
@@ -34,68 +36,6 @@ std::string encodeUri(const std::string& name) {
   }
   return out;
 }
-
-class Builder {
- public:
-  explicit Builder(tinygltf::Model& model) : model_(model) { model_.buffers.resize(1); }
-
-  int addView(const void* bytes, std::size_t size, int target) {
-    std::vector<unsigned char>& data = model_.buffers[0].data;
-    data.resize((data.size() + 3) / 4 * 4, 0);
-    tinygltf::BufferView bv;
-    bv.buffer = 0;
-    bv.byteOffset = data.size();
-    bv.byteLength = size;
-    bv.target = target;
-    const auto* p = static_cast<const unsigned char*>(bytes);
-    data.insert(data.end(), p, p + size);
-    model_.bufferViews.push_back(std::move(bv));
-    return static_cast<int>(model_.bufferViews.size() - 1);
-  }
-
-  int addVec3(const std::vector<glm::vec3>& v, bool with_bounds) {
-    tinygltf::Accessor a;
-    a.bufferView = addView(v.data(), v.size() * sizeof(glm::vec3), TINYGLTF_TARGET_ARRAY_BUFFER);
-    a.componentType = TINYGLTF_COMPONENT_TYPE_FLOAT;
-    a.type = TINYGLTF_TYPE_VEC3;
-    a.count = v.size();
-    if (with_bounds) {  // required on POSITION
-      glm::vec3 lo(std::numeric_limits<float>::max()), hi(-std::numeric_limits<float>::max());
-      for (const glm::vec3& p : v) {
-        lo = glm::min(lo, p);
-        hi = glm::max(hi, p);
-      }
-      a.minValues = {lo.x, lo.y, lo.z};
-      a.maxValues = {hi.x, hi.y, hi.z};
-    }
-    model_.accessors.push_back(std::move(a));
-    return static_cast<int>(model_.accessors.size() - 1);
-  }
-
-  int addVec2(const std::vector<glm::vec2>& v) {
-    tinygltf::Accessor a;
-    a.bufferView = addView(v.data(), v.size() * sizeof(glm::vec2), TINYGLTF_TARGET_ARRAY_BUFFER);
-    a.componentType = TINYGLTF_COMPONENT_TYPE_FLOAT;
-    a.type = TINYGLTF_TYPE_VEC2;
-    a.count = v.size();
-    model_.accessors.push_back(std::move(a));
-    return static_cast<int>(model_.accessors.size() - 1);
-  }
-
-  int addIndices(const std::vector<std::uint32_t>& indices) {
-    tinygltf::Accessor a;
-    a.bufferView =
-        addView(indices.data(), indices.size() * sizeof(std::uint32_t), TINYGLTF_TARGET_ELEMENT_ARRAY_BUFFER);
-    a.componentType = TINYGLTF_COMPONENT_TYPE_UNSIGNED_INT;
-    a.type = TINYGLTF_TYPE_SCALAR;
-    a.count = indices.size();
-    model_.accessors.push_back(std::move(a));
-    return static_cast<int>(model_.accessors.size() - 1);
-  }
-
- private:
-  tinygltf::Model& model_;
-};
 
 // Copies the texture files the materials use next to the output and gives each its glTF
 // texture index (-1: left out). Names inside the scene folder keep their relative path;
@@ -167,7 +107,7 @@ Status writeGltfFromScene(const std::string& in_path, const scene::Scene& scene,
   tinygltf::Model model;
   model.asset.version = "2.0";
   model.asset.generator = "lightlink (from " + fs::path(in_path).filename().string() + ")";
-  Builder build(model);
+  GltfAppender build(model);
   TextureCopier textures(*files, *out_dir, model);
   bool emissive_strength_used = false;
   for (const scene::Material& m : scene.materials) {
@@ -210,7 +150,7 @@ Status writeGltfFromScene(const std::string& in_path, const scene::Scene& scene,
     prim.attributes["NORMAL"] = build.addVec3(inst.normals, false);
     if (!inst.uv0.empty()) prim.attributes["TEXCOORD_0"] = build.addVec2(inst.uv0);
     if (!inst.uv1.empty()) prim.attributes["TEXCOORD_1"] = build.addVec2(inst.uv1);
-    prim.indices = build.addIndices(inst.indices);
+    prim.indices = build.addIndices(inst.indices, inst.positions.size());
     tinygltf::Mesh mesh;
     mesh.name = inst.name;
     mesh.primitives.push_back(std::move(prim));

@@ -1,5 +1,7 @@
 #include "core/charts/gltf_writer.h"
 
+#include "core/charts/gltf_append.h"
+
 #include <algorithm>
 #include <cstring>
 #include <filesystem>
@@ -90,9 +92,9 @@ int componentBytes(int component_type) {
   }
 }
 
-class ModelEditor {
+class ModelEditor : public GltfAppender {
  public:
-  explicit ModelEditor(tinygltf::Model& model) : model_(model) {}
+  explicit ModelEditor(tinygltf::Model& model) : GltfAppender(model) {}
 
   // All buffers into buffer 0, each old one starting 16-byte aligned.
   void mergeBuffers() {
@@ -114,21 +116,6 @@ class ModelEditor {
     }
     one.data = std::move(merged);
     model_.buffers.assign(1, std::move(one));
-  }
-
-  // Appends bytes as a new bufferView; returns its index.
-  int addView(const void* bytes, std::size_t size, int target) {
-    std::vector<unsigned char>& data = model_.buffers[0].data;
-    data.resize((data.size() + 3) / 4 * 4, 0);
-    tinygltf::BufferView bv;
-    bv.buffer = 0;
-    bv.byteOffset = data.size();
-    bv.byteLength = size;
-    bv.target = target;
-    const auto* p = static_cast<const unsigned char*>(bytes);
-    data.insert(data.end(), p, p + size);
-    model_.bufferViews.push_back(std::move(bv));
-    return static_cast<int>(model_.bufferViews.size() - 1);
   }
 
   // New accessor with the elements of `src` listed in `source_vertex`, bytes as stored.
@@ -169,38 +156,9 @@ class ModelEditor {
       }
       if (source_vertex.empty()) na.minValues.clear(), na.maxValues.clear();
     }
-    model_.accessors.push_back(std::move(na));
-    return static_cast<int>(model_.accessors.size() - 1);
+    return push(std::move(na));
   }
 
-  int addUv(const std::vector<glm::vec2>& uv) {
-    tinygltf::Accessor a;
-    a.bufferView = addView(uv.data(), uv.size() * sizeof(glm::vec2), TINYGLTF_TARGET_ARRAY_BUFFER);
-    a.componentType = TINYGLTF_COMPONENT_TYPE_FLOAT;
-    a.type = TINYGLTF_TYPE_VEC2;
-    a.count = uv.size();
-    model_.accessors.push_back(std::move(a));
-    return static_cast<int>(model_.accessors.size() - 1);
-  }
-
-  int addIndices(const std::vector<std::uint32_t>& indices, std::size_t vertex_count) {
-    tinygltf::Accessor a;
-    if (vertex_count <= 0xffff) {
-      std::vector<std::uint16_t> small(indices.begin(), indices.end());
-      a.bufferView = addView(small.data(), small.size() * 2, TINYGLTF_TARGET_ELEMENT_ARRAY_BUFFER);
-      a.componentType = TINYGLTF_COMPONENT_TYPE_UNSIGNED_SHORT;
-    } else {
-      a.bufferView = addView(indices.data(), indices.size() * 4, TINYGLTF_TARGET_ELEMENT_ARRAY_BUFFER);
-      a.componentType = TINYGLTF_COMPONENT_TYPE_UNSIGNED_INT;
-    }
-    a.type = TINYGLTF_TYPE_SCALAR;
-    a.count = indices.size();
-    model_.accessors.push_back(std::move(a));
-    return static_cast<int>(model_.accessors.size() - 1);
-  }
-
- private:
-  tinygltf::Model& model_;
 };
 
 // A material whose textures sample TEXCOORD_1 would sample the lightmap uv once it is
@@ -325,7 +283,7 @@ Status writeGltfWithLightmapUv(const std::string& in_path, const scene::Scene& s
           if (!a) return a.status();
           attributes[out_name] = *a;
         }
-        attributes["TEXCOORD_1"] = edit.addUv(inst.uv1);
+        attributes["TEXCOORD_1"] = edit.addVec2(inst.uv1);
         if (old_uv1_set >= 0) prim.material = remapMaterialTexCoord1(model, prim.material, old_uv1_set, material_copies);
         for (std::map<std::string, int>& target_attrs : prim.targets) {
           for (auto& [name, accessor] : target_attrs) {

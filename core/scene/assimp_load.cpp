@@ -401,40 +401,13 @@ Status Loader::buildGeometry(const std::vector<PlacedMesh>& placed) {
       out.indices.push_back(face.mIndices[mirrored ? 2 : 1]);
       out.indices.push_back(face.mIndices[mirrored ? 1 : 2]);
     }
-    bool need_generated = mesh.mNormals == nullptr;
     if (mesh.mNormals != nullptr) {
-      const glm::dmat3 normal_from_mesh = glm::transpose(glm::inverse(linear));
       out.normals.resize(n);
-      for (std::size_t v = 0; v < n; ++v) {
-        const aiVector3D& a = mesh.mNormals[v];
-        const glm::dvec3 w = normal_from_mesh * glm::dvec3(a.x, a.y, a.z);
-        const double len = glm::length(w);
-        if (len > 0.0 && std::isfinite(len)) {
-          out.normals[v] = glm::vec3(w / len);
-        } else {
-          out.normals[v] = glm::vec3(0.0f);
-          need_generated = true;
-        }
-      }
+      for (std::size_t v = 0; v < n; ++v) out.normals[v] = glm::vec3(mesh.mNormals[v].x, mesh.mNormals[v].y, mesh.mNormals[v].z);
     }
-    if (need_generated) {
-      std::vector<glm::vec3> generated;
-      generateVertexNormals(out.positions, out.indices, generated);
-      if (out.normals.empty()) {
-        out.normals = std::move(generated);
-        out.normals_generated = true;
-      } else {
-        std::size_t replaced = 0;
-        for (std::size_t v = 0; v < n; ++v) {
-          if (out.normals[v] == glm::vec3(0.0f)) {
-            out.normals[v] = generated[v];
-            ++replaced;
-          }
-        }
-        warn(describeObject(p, mesh), fmt::format("{} zero-length or non-finite normals replaced by generated ones",
-                                                  replaced));
-      }
-    }
+    if (const std::size_t replaced = worldNormalsOrGenerated(linear, out); replaced > 0)
+      warn(describeObject(p, mesh),
+           fmt::format("{} zero-length or non-finite normals replaced by generated ones", replaced));
     scene_.stats.triangles_in += out.triangleCount();
     scene_.stats.vertices += out.positions.size();
     scene_.meshes.push_back(std::move(out));

@@ -190,37 +190,8 @@ Expected<MeshInstance> buildInstance(const Context& ctx, const PlacedNode& place
     }
   }
 
-  bool need_generated = out.normals.empty();
-  if (!out.normals.empty()) {
-    const glm::dmat3 normal_from_mesh = glm::transpose(glm::inverse(linear));
-    for (glm::vec3& n : out.normals) {
-      const glm::dvec3 w = normal_from_mesh * glm::dvec3(n);
-      const double len = glm::length(w);
-      if (len > 0.0 && std::isfinite(len)) {
-        n = glm::vec3(w / len);
-      } else {
-        n = glm::vec3(0.0f);  // filled from the generated normal below
-        need_generated = true;
-      }
-    }
-  }
-  if (need_generated) {
-    std::vector<glm::vec3> generated;
-    generateVertexNormals(out.positions, out.indices, generated);
-    if (out.normals.empty()) {
-      out.normals = std::move(generated);
-      out.normals_generated = true;
-    } else {
-      std::size_t replaced = 0;
-      for (std::size_t i = 0; i < vertex_count; ++i) {
-        if (out.normals[i] == glm::vec3(0.0f)) {
-          out.normals[i] = generated[i];
-          ++replaced;
-        }
-      }
-      ctx.warn(object, fmt::format("{} zero-length normals replaced by generated ones", replaced));
-    }
-  }
+  if (const std::size_t replaced = worldNormalsOrGenerated(linear, out); replaced > 0)
+    ctx.warn(object, fmt::format("{} zero-length normals replaced by generated ones", replaced));
   return out;
 }
 

@@ -22,6 +22,37 @@ void generateVertexNormals(const std::vector<glm::vec3>& positions,
   }
 }
 
+std::size_t worldNormalsOrGenerated(const glm::dmat3& linear, MeshInstance& mesh) {
+  bool need_generated = mesh.normals.empty();
+  const glm::dmat3 normal_from_mesh = glm::transpose(glm::inverse(linear));
+  for (glm::vec3& n : mesh.normals) {
+    const glm::dvec3 w = normal_from_mesh * glm::dvec3(n);
+    const double len = glm::length(w);
+    if (len > 0.0 && std::isfinite(len)) {
+      n = glm::vec3(w / len);
+    } else {
+      n = glm::vec3(0.0f);  // filled from the generated normal below
+      need_generated = true;
+    }
+  }
+  if (!need_generated) return 0;
+  std::vector<glm::vec3> generated;
+  generateVertexNormals(mesh.positions, mesh.indices, generated);
+  if (mesh.normals.empty()) {
+    mesh.normals = std::move(generated);
+    mesh.normals_generated = true;
+    return 0;
+  }
+  std::size_t replaced = 0;
+  for (std::size_t i = 0; i < mesh.normals.size(); ++i) {
+    if (mesh.normals[i] == glm::vec3(0.0f)) {
+      mesh.normals[i] = generated[i];
+      ++replaced;
+    }
+  }
+  return replaced;
+}
+
 double triangleArea(const glm::vec3& a, const glm::vec3& b, const glm::vec3& c) {
   const glm::dvec3 da(a);
   return 0.5 * glm::length(glm::cross(glm::dvec3(b) - da, glm::dvec3(c) - da));

@@ -19,6 +19,13 @@ void generateVertexNormals(const std::vector<glm::vec3>& positions,
                            const std::vector<std::uint32_t>& indices,
                            std::vector<glm::vec3>& normals);
 
+// Turns `mesh.normals`, given in mesh space (or empty), into world-space unit normals: the
+// inverse transpose of `linear` (the mesh-to-world linear part), renormalised. Normals that
+// come out zero-length or non-finite, or all of them when there are none, are taken from
+// generateVertexNormals over the (world-space) positions and indices; an empty input sets
+// `normals_generated`. Returns how many given normals were replaced.
+std::size_t worldNormalsOrGenerated(const glm::dmat3& linear, MeshInstance& mesh);
+
 // Triangle area in m^2, computed in double so large coordinates do not cancel.
 double triangleArea(const glm::vec3& a, const glm::vec3& b, const glm::vec3& c);
 

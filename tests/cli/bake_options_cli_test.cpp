@@ -16,20 +16,10 @@
 namespace lightlink {
 namespace {
 
-struct CliResult {
-  int exit_code = -1;
-  std::string output;
-};
+using CliResult = testing::ShellResult;
 
 CliResult runCli(const std::string& args) {
-  CliResult r;
-  FILE* pipe = ::popen(("timeout 120 " + std::string(LIGHTLINK_CLI_PATH) + " " + args + " 2>&1").c_str(), "r");
-  if (pipe == nullptr) return r;
-  std::array<char, 4096> buffer{};
-  for (std::size_t n; (n = std::fread(buffer.data(), 1, buffer.size(), pipe)) > 0;) r.output.append(buffer.data(), n);
-  const int status = ::pclose(pipe);
-  r.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status);
-  return r;
+  return testing::runShell("timeout 120 " + std::string(LIGHTLINK_CLI_PATH) + " " + args);
 }
 
 nlohmann::json readJson(const std::filesystem::path& p) {

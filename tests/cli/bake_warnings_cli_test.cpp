@@ -20,22 +20,9 @@
 namespace lightlink {
 namespace {
 
-struct ProcessRun {
-  int exit_code = -1;
-  std::string output;  // stdout and stderr together
-};
+using ProcessRun = testing::ShellResult;
 
-ProcessRun runProcess(const std::string& command) {
-  ProcessRun result;
-  FILE* pipe = ::popen((command + " 2>&1").c_str(), "r");
-  if (pipe == nullptr) return result;
-  std::array<char, 4096> buffer{};
-  std::size_t n = 0;
-  while ((n = std::fread(buffer.data(), 1, buffer.size(), pipe)) > 0) result.output.append(buffer.data(), n);
-  const int status = ::pclose(pipe);
-  result.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-  return result;
-}
+ProcessRun runProcess(const std::string& command) { return testing::runShell(command); }
 
 nlohmann::json readJson(const std::filesystem::path& path) {
   std::ifstream in(path);

@@ -14,24 +14,12 @@
 namespace lightlink {
 namespace {
 
-struct CliRun {
-  int exit_code = -1;
-  std::string output;
-};
+using CliRun = testing::ShellResult;
 
 // Runs under `timeout` so that a regression that computes without bound fails (exit 124)
 // instead of hanging the suite.
 CliRun run(const std::string& args) {
-  CliRun r;
-  const std::string command = "timeout 120 " + std::string(LIGHTLINK_CLI_PATH) + " " + args + " 2>&1";
-  FILE* pipe = ::popen(command.c_str(), "r");
-  if (pipe == nullptr) return r;
-  std::array<char, 4096> buffer{};
-  std::size_t n = 0;
-  while ((n = std::fread(buffer.data(), 1, buffer.size(), pipe)) > 0) r.output.append(buffer.data(), n);
-  const int status = ::pclose(pipe);
-  r.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status);
-  return r;
+  return testing::runShell("timeout 120 " + std::string(LIGHTLINK_CLI_PATH) + " " + args);
 }
 
 std::string demo() { return (testing::sourceDir() / "clients/demo/cornell_box.gltf").string(); }

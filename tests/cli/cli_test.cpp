@@ -20,22 +20,8 @@
 namespace lightlink {
 namespace {
 
-struct ProcessResult {
-  int exit_code = -1;
-  std::string output;  // stdout and stderr together
-};
-
-ProcessResult runCommand(const std::string& command) {
-  ProcessResult result;
-  FILE* pipe = ::popen((command + " 2>&1").c_str(), "r");
-  if (pipe == nullptr) return result;
-  std::array<char, 4096> buffer{};
-  std::size_t n = 0;
-  while ((n = std::fread(buffer.data(), 1, buffer.size(), pipe)) > 0) result.output.append(buffer.data(), n);
-  const int status = ::pclose(pipe);
-  result.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-  return result;
-}
+using ProcessResult = testing::ShellResult;
+using testing::runShell;
 
 std::string readAll(const std::filesystem::path& path) {
   std::ifstream in(path, std::ios::binary);
@@ -51,14 +37,14 @@ std::filesystem::path demoScene() { return testing::sourceDir() / "clients/demo/
 TEST(DemoScene, CommittedFileMatchesGenerator) {
   testing::TempDir dir;
   const auto regenerated = dir / "cornell_box.gltf";
-  const auto r = runCommand(std::string(LIGHTLINK_MAKE_CORNELL_BOX_PATH) + " " + regenerated.string());
+  const auto r = runShell(std::string(LIGHTLINK_MAKE_CORNELL_BOX_PATH) + " " + regenerated.string());
   ASSERT_EQ(r.exit_code, 0) << r.output;
   EXPECT_EQ(readAll(regenerated), readAll(demoScene()))
       << "clients/demo/cornell_box.gltf is stale: rerun make_cornell_box";
 }
 
 TEST(Inspect, DemoSceneJsonCounts) {
-  const auto r = runCommand(kCli + " inspect --json " + demoScene().string());
+  const auto r = runShell(kCli + " inspect --json " + demoScene().string());
   ASSERT_EQ(r.exit_code, 0) << r.output;
   const auto j = nlohmann::json::parse(r.output);
   EXPECT_EQ(j["triangles"], 112);  // 32 in the room and blocks + an 80-triangle probe
@@ -75,7 +61,7 @@ TEST(Inspect, DemoSceneJsonCounts) {
 }
 
 TEST(Inspect, TextSummaryNamesTheEssentials) {
-  const auto r = runCommand(kCli + " inspect " + demoScene().string());
+  const auto r = runShell(kCli + " inspect " + demoScene().string());
   ASSERT_EQ(r.exit_code, 0) << r.output;
   EXPECT_NE(r.output.find("112 (32 static, 80 dynamic)"), std::string::npos) << r.output;
   EXPECT_NE(r.output.find("1 point, 0 spot, 0 directional"), std::string::npos) << r.output;
@@ -83,7 +69,7 @@ TEST(Inspect, TextSummaryNamesTheEssentials) {
 }
 
 TEST(Inspect, MissingFileIsBadInput) {
-  const auto r = runCommand(kCli + " inspect /nonexistent/scene.gltf");
+  const auto r = runShell(kCli + " inspect /nonexistent/scene.gltf");
   EXPECT_EQ(r.exit_code, cli::kExitBadInput) << r.output;
   EXPECT_NE(r.output.find("/nonexistent/scene.gltf"), std::string::npos) << r.output;
 }
@@ -91,7 +77,7 @@ TEST(Inspect, MissingFileIsBadInput) {
 TEST(Inspect, MalformedGltfIsBadInputNamingTheFile) {
   testing::TempDir dir;
   const auto path = testing::writeFile(dir / "broken.gltf", "{ \"asset\": {\"version\": \"2.0\"}, \"meshes\": [ ");
-  const auto r = runCommand(kCli + " inspect " + path);
+  const auto r = runShell(kCli + " inspect " + path);
   EXPECT_EQ(r.exit_code, cli::kExitBadInput) << r.output;
   EXPECT_NE(r.output.find("broken.gltf"), std::string::npos) << r.output;
 }
@@ -100,7 +86,7 @@ TEST(Precompute, WritesAnArtifactAndAReport) {
   testing::TempDir dir;
   const auto artifact = dir / "demo.llk";
   const auto report = dir / "report.json";
-  const auto r = runCommand(kCli + " precompute " + demoScene().string() + " -o " + artifact.string() +
+  const auto r = runShell(kCli + " precompute " + demoScene().string() + " -o " + artifact.string() +
                             " --surfels 512 --links 16 --rays 64 --resolution 32 -q --report " + report.string());
   ASSERT_EQ(r.exit_code, 0) << r.output;
   EXPECT_TRUE(std::filesystem::exists(artifact));
@@ -114,7 +100,7 @@ TEST(Precompute, WritesAnArtifactAndAReport) {
 TEST(Precompute, BadParametersAreBadInputNamingTheOption) {
   for (const std::string bad : {"--bands 9", "--hierarchy bogus", "--surfels 0", "--grid maybe",
                                 "--texel-size -1", "--subdivide 9"}) {
-    const auto r = runCommand(kCli + " precompute " + demoScene().string() + " -o /tmp/never.llk -q " + bad);
+    const auto r = runShell(kCli + " precompute " + demoScene().string() + " -o /tmp/never.llk -q " + bad);
     EXPECT_EQ(r.exit_code, cli::kExitBadInput) << bad << ": " << r.output;
     EXPECT_NE(r.output.find(bad.substr(0, bad.find(' '))), std::string::npos) << bad << ": " << r.output;
   }
@@ -123,11 +109,11 @@ TEST(Precompute, BadParametersAreBadInputNamingTheOption) {
 TEST(Unwrap, WritesGltfWithLightmapUvs) {
   testing::TempDir dir;
   const auto out = dir / "box_lm.gltf";
-  const auto r = runCommand(kCli + " unwrap " + demoScene().string() + " -o " + out.string() + " --json");
+  const auto r = runShell(kCli + " unwrap " + demoScene().string() + " -o " + out.string() + " --json");
   ASSERT_EQ(r.exit_code, 0) << r.output;
   const auto report = nlohmann::json::parse(r.output);
   EXPECT_EQ(report["overlaps"], 0);
-  const auto inspect = runCommand(kCli + " inspect --json " + out.string());
+  const auto inspect = runShell(kCli + " inspect --json " + out.string());
   ASSERT_EQ(inspect.exit_code, 0) << inspect.output;
   const auto j = nlohmann::json::parse(inspect.output);
   EXPECT_FALSE(j["lightmap_uv"]["unwrap_needed"].get<bool>());
@@ -137,7 +123,7 @@ TEST(Bake, WritesEverythingThenReusesTheArtifact) {
   testing::TempDir dir;
   const std::string cmd = kCli + " bake " + demoScene().string() + " -o " + (dir / "out").string() +
                           " --preset draft --bounces 2 -q";
-  const auto first = runCommand(cmd);
+  const auto first = runShell(cmd);
   ASSERT_EQ(first.exit_code, 0) << first.output;
   for (const char* f : {"lightmap.exr", "lightmap.png", "report.json", "grid.exr", "grid.json", "grid.raw",
                         "cornell_box_lm.gltf"})
@@ -147,7 +133,7 @@ TEST(Bake, WritesEverythingThenReusesTheArtifact) {
   EXPECT_TRUE(report["effects_plan"].is_object());
   EXPECT_EQ(report["relight"]["backend"], "cpu");
 
-  const auto second = runCommand(cmd);
+  const auto second = runShell(cmd);
   ASSERT_EQ(second.exit_code, 0) << second.output;
   report = nlohmann::json::parse(readAll(dir / "out" / "report.json"));
   EXPECT_EQ(report["artifact"].get<std::string>().rfind("reused", 0), 0u) << report["artifact"];
@@ -158,11 +144,11 @@ TEST(Bake, WritesEverythingThenReusesTheArtifact) {
     bytes[bytes.size() / 2] ^= 0x5a;
     testing::writeFile(e.path(), bytes);
   }
-  const auto third = runCommand(cmd);
+  const auto third = runShell(cmd);
   ASSERT_EQ(third.exit_code, 0) << third.output;
   report = nlohmann::json::parse(readAll(dir / "out" / "report.json"));
   EXPECT_NE(report["artifact"].get<std::string>().find("unusable"), std::string::npos) << report["artifact"];
-  const auto fourth = runCommand(cmd);
+  const auto fourth = runShell(cmd);
   report = nlohmann::json::parse(readAll(dir / "out" / "report.json"));
   EXPECT_EQ(report["artifact"].get<std::string>().rfind("reused", 0), 0u) << report["artifact"];
 }
@@ -175,7 +161,7 @@ TEST(Bake, CacheIsPrivateAndAFifoInItDoesNotHang) {
   const auto cache = dir / "out" / "cache";
   const std::string cmd = "umask 0 && timeout 120 " + kCli + " bake " + demoScene().string() + " -o " +
                           (dir / "out").string() + " --preset draft --bounces 1 -q";
-  const auto first = runCommand(cmd);
+  const auto first = runShell(cmd);
   ASSERT_EQ(first.exit_code, 0) << first.output;
   std::vector<std::filesystem::path> artifacts;
   for (const auto& e : std::filesystem::directory_iterator(cache)) artifacts.push_back(e.path());
@@ -188,7 +174,7 @@ TEST(Bake, CacheIsPrivateAndAFifoInItDoesNotHang) {
   EXPECT_EQ(mode(artifacts[0]), 0600u);
   std::filesystem::remove(artifacts[0]);
   ASSERT_EQ(::mkfifo(artifacts[0].c_str(), 0600), 0);
-  const auto second = runCommand(cmd);
+  const auto second = runShell(cmd);
   ASSERT_EQ(second.exit_code, 0) << "exit 124 is the timeout: the bake hung on the FIFO\n" << second.output;
   const auto report = nlohmann::json::parse(readAll(dir / "out" / "report.json"));
   EXPECT_NE(report["artifact"].get<std::string>().find("FIFO"), std::string::npos) << report["artifact"];
@@ -198,10 +184,10 @@ TEST(Bake, CacheIsPrivateAndAFifoInItDoesNotHang) {
 TEST(Render, DrawsTheBakedCornellBox) {
   testing::TempDir dir;
   const auto out = dir / "out";
-  auto r = runCommand(kCli + " bake " + demoScene().string() + " -o " + out.string() + " --preset draft --bounces 1 -q");
+  auto r = runShell(kCli + " bake " + demoScene().string() + " -o " + out.string() + " --preset draft --bounces 1 -q");
   ASSERT_EQ(r.exit_code, 0) << r.output;
   const auto png = dir / "frame.png";
-  r = runCommand(kCli + " render " + (out / "cornell_box_lm.gltf").string() + " --bake " + out.string() + " -o " +
+  r = runShell(kCli + " render " + (out / "cornell_box_lm.gltf").string() + " --bake " + out.string() + " -o " +
                  png.string() + " --width 96 --height 96");
   ASSERT_EQ(r.exit_code, 0) << r.output;
   EXPECT_GT(std::filesystem::file_size(png), 1000u);
@@ -210,7 +196,7 @@ TEST(Render, DrawsTheBakedCornellBox) {
   EXPECT_EQ(r.output.find(" 0 from the grid"), std::string::npos) << r.output;
   EXPECT_EQ(r.output.find(" 0 pixels from the lightmap"), std::string::npos) << r.output;
   // The source scene has no lightmap UVs: a clear error, not a black picture.
-  r = runCommand(kCli + " render " + demoScene().string() + " --bake " + out.string() + " -o " + png.string());
+  r = runShell(kCli + " render " + demoScene().string() + " --bake " + out.string() + " -o " + png.string());
   EXPECT_EQ(r.exit_code, cli::kExitBadInput) << r.output;
   EXPECT_NE(r.output.find("TEXCOORD_1"), std::string::npos) << r.output;
 
@@ -226,7 +212,7 @@ TEST(Render, DrawsTheBakedCornellBox) {
   grid.resize(48);
   grid += std::string(points * 3 * bands * bands * sizeof(float), '\0') + std::string(points, '\1');
   testing::writeFile(out / "grid.raw", grid);
-  r = runCommand(kCli + " render " + (out / "cornell_box_lm.gltf").string() + " --bake " + out.string() + " -o " +
+  r = runShell(kCli + " render " + (out / "cornell_box_lm.gltf").string() + " --bake " + out.string() + " -o " +
                  png.string() + " --width 96 --height 96");
   EXPECT_EQ(r.exit_code, cli::kExitBadInput) << r.output;
   EXPECT_NE(r.output.find("grid.raw: field 'dims'"), std::string::npos) << r.output;
@@ -263,12 +249,12 @@ usemtl lamp
 f 9 10 11 12
 )");
   const auto out = dir / "out";
-  auto r = runCommand(kCli + " bake " + (dir / "room.obj").string() + " -o " + out.string() +
+  auto r = runShell(kCli + " bake " + (dir / "room.obj").string() + " -o " + out.string() +
                       " --preset draft --bounces 1 -q");
   ASSERT_EQ(r.exit_code, 0) << r.output;
   ASSERT_TRUE(std::filesystem::exists(out / "room_lm.gltf")) << r.output;
   const auto png = dir / "frame.png";
-  r = runCommand(kCli + " render " + (out / "room_lm.gltf").string() + " --bake " + out.string() + " -o " +
+  r = runShell(kCli + " render " + (out / "room_lm.gltf").string() + " --bake " + out.string() + " -o " +
                  png.string() + " --eye 0,1,0.9 --target 0,1,-1 --width 64 --height 64");
   ASSERT_EQ(r.exit_code, 0) << r.output;
   EXPECT_EQ(r.output.find(" 0 pixels from the lightmap"), std::string::npos) << r.output;
@@ -277,7 +263,7 @@ f 9 10 11 12
 TEST(Compare, MeasuresTheBakeAgainstTheReference) {
   testing::TempDir dir;
   const auto out = dir / "cmp";
-  const auto r = runCommand(kCli + " compare " + demoScene().string() + " --preset draft --max-points 40 " +
+  const auto r = runShell(kCli + " compare " + demoScene().string() + " --preset draft --max-points 40 " +
                             "--target-error 0.05 -q -o " + out.string());
   ASSERT_EQ(r.exit_code, 0) << r.output;
   const auto j = nlohmann::json::parse(readAll(out / "compare.json"));
@@ -292,7 +278,7 @@ TEST(Compare, MeasuresTheBakeAgainstTheReference) {
   }
   EXPECT_TRUE(std::filesystem::exists(out / "error_total.png"));
   EXPECT_TRUE(std::filesystem::exists(out / "error_indirect.png"));
-  const auto bad = runCommand(kCli + " compare " + demoScene().string() + " --against guesswork -q");
+  const auto bad = runShell(kCli + " compare " + demoScene().string() + " --against guesswork -q");
   EXPECT_EQ(bad.exit_code, cli::kExitBadInput) << bad.output;
 }
 
@@ -300,23 +286,23 @@ TEST(Bake, BadLightSetAndPresetAreBadInput) {
   testing::TempDir dir;
   const auto lights = testing::writeFile(
       dir / "lights.json", R"({"version": 1, "lights": [{"id": "sun", "type": "directional", "intensity": -5}]})");
-  auto r = runCommand(kCli + " bake " + demoScene().string() + " -o " + (dir / "out").string() + " -q --lights " + lights);
+  auto r = runShell(kCli + " bake " + demoScene().string() + " -o " + (dir / "out").string() + " -q --lights " + lights);
   EXPECT_EQ(r.exit_code, cli::kExitBadInput) << r.output;
   EXPECT_NE(r.output.find("lights[0].intensity"), std::string::npos) << r.output;
-  r = runCommand(kCli + " bake " + demoScene().string() + " -o " + (dir / "out").string() + " -q --preset ultra");
+  r = runShell(kCli + " bake " + demoScene().string() + " -o " + (dir / "out").string() + " -q --preset ultra");
   EXPECT_EQ(r.exit_code, cli::kExitBadInput) << r.output;
   EXPECT_NE(r.output.find("--preset"), std::string::npos) << r.output;
 }
 
 TEST(Cli, UnknownSubcommandIsUsageError) {
-  const auto r = runCommand(kCli + " frobnicate");
+  const auto r = runShell(kCli + " frobnicate");
   EXPECT_EQ(r.exit_code, cli::kExitUsage) << r.output;
 }
 
 // A daemon token in argv is visible to every user in ps: refused before any connection,
 // naming the alternatives.
 TEST(Cli, DaemonTokenInArgvIsRefused) {
-  const auto r = runCommand(kCli + " watch --target 127.0.0.1:1 --scene s1 --scene-token t1 --count 1 --timeout 2000"
+  const auto r = runShell(kCli + " watch --target 127.0.0.1:1 --scene s1 --scene-token t1 --count 1 --timeout 2000"
                                    " --token 0123456789abcdef0123");
   EXPECT_EQ(r.exit_code, cli::kExitBadInput) << r.output;
   EXPECT_NE(r.output.find("--token-file"), std::string::npos) << r.output;
@@ -336,15 +322,15 @@ TEST(Cli, SceneCommandsReadOnlyInsideTheSceneFolder) {
     for (const std::string& command : {"inspect " + scene, "unwrap " + scene + " -o " + out + "/lm.gltf",
                                        "precompute " + scene + " -q -o " + out + "/a.llk",
                                        "bake " + scene + " -q --preset draft -o " + out}) {
-      const auto r = runCommand("cd / && " + kCli + " " + command);
+      const auto r = runShell("cd / && " + kCli + " " + command);
       EXPECT_EQ(r.exit_code, cli::kExitBadInput) << command << "\n" << r.output;
       EXPECT_NE(r.output.find("buffers[0].uri"), std::string::npos) << command << "\n" << r.output;
       EXPECT_NE(r.output.find("--allow-outside-scene"), std::string::npos) << command << "\n" << r.output;
     }
-    const auto allowed = runCommand("cd / && " + kCli + " inspect --allow-outside-scene " + scene);
+    const auto allowed = runShell("cd / && " + kCli + " inspect --allow-outside-scene " + scene);
     EXPECT_EQ(allowed.exit_code, cli::kExitOk) << allowed.output;
     const auto unwrapped =
-        runCommand(kCli + " unwrap --allow-outside-scene " + scene + " -o " + out + "/lm.gltf");
+        runShell(kCli + " unwrap --allow-outside-scene " + scene + " -o " + out + "/lm.gltf");
     EXPECT_EQ(unwrapped.exit_code, cli::kExitOk) << unwrapped.output;
   }
 }
@@ -355,7 +341,7 @@ TEST(Cli, MessagesNeverQuoteFileContent) {
   testing::TempDir dir;
   const std::string scene = testing::writeSecretReadingScene(dir.path()).string();
   for (const std::string& flags : {std::string(), std::string("--allow-outside-scene ")}) {
-    const auto r = runCommand(kCli + " inspect " + flags + scene);
+    const auto r = runShell(kCli + " inspect " + flags + scene);
     EXPECT_EQ(r.exit_code, cli::kExitBadInput) << r.output;
     EXPECT_EQ(r.output.find(testing::secretFirstIndex()), std::string::npos) << "quotes the file: " << r.output;
     EXPECT_EQ(r.output.find("TOPS"), std::string::npos) << r.output;

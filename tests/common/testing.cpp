@@ -1,5 +1,10 @@
 #include "tests/common/testing.h"
 
+#include <sys/wait.h>
+
+#include <array>
+#include <cstdio>
+
 #include <atomic>
 #include <fstream>
 #include <random>
@@ -42,6 +47,17 @@ std::string writeFile(const std::filesystem::path& path, const std::string& text
   out.write(text.data(), static_cast<std::streamsize>(text.size()));
   if (!out) throw std::runtime_error("cannot write " + path.string());
   return path.string();
+}
+
+ShellResult runShell(const std::string& command) {
+  ShellResult r;
+  FILE* pipe = ::popen((command + " 2>&1").c_str(), "r");
+  if (pipe == nullptr) return r;
+  std::array<char, 4096> buffer{};
+  for (std::size_t n; (n = std::fread(buffer.data(), 1, buffer.size(), pipe)) > 0;) r.output.append(buffer.data(), n);
+  const int status = ::pclose(pipe);
+  r.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status);
+  return r;
 }
 
 }  // namespace lightlink::testing

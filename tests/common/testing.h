@@ -27,6 +27,14 @@ class TempDir {
   std::filesystem::path path_;
 };
 
+// A command run through /bin/sh (tests/client/process.h runs argv with a time limit): its exit code (128 + signal when killed, as a shell
+// reports it) and its stdout and stderr together.
+struct ShellResult {
+  int exit_code = -1;
+  std::string output;
+};
+ShellResult runShell(const std::string& command);
+
 // Writes `text` to `path` (binary, truncating) and returns the path as a string.
 std::string writeFile(const std::filesystem::path& path, const std::string& text);
 

@@ -20,22 +20,6 @@ namespace {
 
 namespace fs = std::filesystem;
 
-struct Process {
-  int exit_code = -1;
-  std::string output;
-};
-
-Process run(const std::string& command) {
-  Process r;
-  FILE* pipe = ::popen((command + " 2>&1").c_str(), "r");
-  if (pipe == nullptr) return r;
-  std::array<char, 4096> buffer{};
-  std::size_t n = 0;
-  while ((n = std::fread(buffer.data(), 1, buffer.size(), pipe)) > 0) r.output.append(buffer.data(), n);
-  const int status = ::pclose(pipe);
-  r.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-  return r;
-}
 
 // Scene files as the shared README names them (folder/file), one per folder except the
 // McGuire boxes, which are eight scenes.
@@ -80,7 +64,7 @@ TEST_P(SharedSceneBake, ExitsZeroWithAReport) {
   std::string command = std::string(LIGHTLINK_CLI_PATH) + " bake '" + scene.string() + "' -o '" +
                         out.path().string() + "' --preset " + preset + " -q";
   if (fs::exists(lights)) command += " --lights '" + lights.string() + "'";
-  const Process r = run(command);
+  const testing::ShellResult r = testing::runShell(command);
   ASSERT_EQ(r.exit_code, 0) << command << "\n" << r.output;
   std::ifstream in(out / "report.json");
   ASSERT_TRUE(in) << "no report.json";
