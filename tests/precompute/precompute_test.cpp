@@ -8,6 +8,7 @@
 #include <gtest/gtest.h>
 #include <tbb/global_control.h>
 
+#include "core/charts/test_meshes.h"
 #include "core/scene/load.h"
 #include "tests/common/escaping_scenes.h"
 #include "tests/common/testing.h"
@@ -282,6 +283,28 @@ TEST(Precompute, CacheKeyKeysAMissingImageAsMissing) {
   auto escaping = cacheKeyFor(scene, smallOptions());
   ASSERT_FALSE(escaping);
   EXPECT_NE(escaping.status().message().find("images[0].uri"), std::string::npos) << escaping.status().message();
+}
+
+TEST(Precompute, ObjectsTooSmallForTheLightmapGetAGridAroundThem) {
+  namespace tm = charts::test_meshes;
+  scene::MeshInstance room = tm::cube(4.0f, 2), pebble = tm::sphere(0.01f, 8, 4);
+  for (glm::vec3& q : pebble.positions) q += glm::vec3(0.5f, -1.9f, 0.5f);
+  pebble.name = "pebble";
+  scene::Scene scene = tm::makeScene({room, pebble});
+  PrecomputeOptions o = smallOptions();
+  o.texel_budget = 2048;  // ~0.2 m texels: the 2 cm pebble is far below 2x2 texels
+  auto p = run(scene, o);
+  ASSERT_TRUE(p) << p.status().toString();
+  EXPECT_EQ(p->atlas.probe_lit, std::vector<std::uint32_t>{1});
+  EXPECT_TRUE(p->has_grid);  // no dynamic mesh: the grid is there for the pebble
+  // A volume around the pebble (one spacing of margin), not the whole room.
+  const glm::vec3 hi = p->grid.origin + glm::vec3(p->grid.dims - 1) * p->grid.spacing_m;
+  EXPECT_TRUE(glm::all(glm::lessThanEqual(p->grid.origin, glm::vec3(0.49f, -1.91f, 0.49f))));
+  EXPECT_TRUE(glm::all(glm::greaterThanEqual(hi, glm::vec3(0.51f, -1.89f, 0.51f))));
+  EXPECT_LT(glm::length(hi - p->grid.origin), 0.5f * scene.scale);  // the room is 4 m wide
+  bool noted = false;
+  for (const std::string& n : p->notes) noted |= n.find("probe-lit") != std::string::npos;
+  EXPECT_TRUE(noted);
 }
 
 }  // namespace

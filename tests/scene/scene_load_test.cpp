@@ -355,6 +355,35 @@ TEST(SceneLoad, StaticFlagIsInheritedUnlessOverridden) {
   EXPECT_EQ(scene.triangleCount(), 4u);
 }
 
+TEST(SceneLoad, LightmapScaleAndProbeLitFlagsAreInheritedUnlessOverridden) {
+  TempDir dir;
+  GltfBuilder b;
+  const int mesh = b.addTriangles(unitTriangle(), {0, 1, 2});
+  const int root = b.addNode({{"mesh", mesh}, {"extras", {{"lightlink", {{"lightmap_scale", 4.0}}}}}});
+  const int child = b.addNode({{"mesh", mesh}}, false);
+  const int grandchild = b.addNode({{"mesh", mesh}, {"extras", {{"lightlink", {{"lightmap", false}}}}}}, false);
+  const int other = b.addNode({{"mesh", mesh}});
+  b.addChild(root, child);
+  b.addChild(child, grandchild);
+  const Scene scene = loadOk(b.writeGltf(dir / "t.gltf"));
+  ASSERT_EQ(scene.meshes.size(), 4u);
+  for (const MeshInstance& m : scene.meshes) {
+    EXPECT_EQ(m.lightmap_scale, m.gltf_node == other ? 1.0f : 4.0f) << "node " << m.gltf_node;
+    EXPECT_EQ(m.probe_lit, m.gltf_node == grandchild) << "node " << m.gltf_node;
+  }
+  // Bad values are errors naming the node and the key.
+  for (const nlohmann::json& bad : {nlohmann::json{{"lightmap_scale", 0.0}}, nlohmann::json{{"lightmap_scale", "2"}},
+                                    nlohmann::json{{"lightmap_scale", 100.0}}, nlohmann::json{{"lightmap", 0}}}) {
+    GltfBuilder c;
+    const int m = c.addTriangles(unitTriangle(), {0, 1, 2});
+    c.addNode({{"mesh", m}, {"name", "Statue"}, {"extras", {{"lightlink", bad}}}});
+    const Expected<Scene> r = loadGltf(c.writeGltf(dir / "bad.gltf"));
+    ASSERT_FALSE(r) << bad.dump();
+    EXPECT_NE(r.status().message().find("Statue"), std::string::npos) << r.status().message();
+    EXPECT_NE(r.status().message().find(bad.begin().key()), std::string::npos) << r.status().message();
+  }
+}
+
 TEST(SceneLoad, DegenerateTrianglesAreDroppedCountedAndWarnedOncePerMesh) {
   TempDir dir;
   GltfBuilder b;
