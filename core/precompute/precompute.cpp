@@ -245,6 +245,7 @@ Expected<Precomputation> run(scene::Scene& scene, const PrecomputeOptions& optio
     if (!r) return r.status();
     p.atlas = std::move(r->atlas);
     p.warnings = r->report.warnings;
+    p.probe_lit_names = r->report.probe_lit;
     p.notes.push_back(p.atlas.generated
                           ? fmt::format("lightmap UVs generated: {} charts on {} page{} of {}x{} at {:.4g} m/texel",
                                         p.atlas.chart_count, p.atlas.pages, p.atlas.pages == 1 ? "" : "s",
@@ -383,7 +384,10 @@ nlohmann::ordered_json Precomputation::report() const {
                  {"tree_nodes", tree.nodeCount()},
                  {"tree_levels", tree.levelCount()},
                  {"lightmap_resolution", atlas.resolution},
+                 {"lightmap_pages", atlas.pages},
+                 {"lightmap_charts", atlas.chart_count},
                  {"texel_size_m", atlas.texel_size_m},
+                 {"probe_lit_meshes", atlas.probe_lit.size()},
                  {"surfels_seen", std::count(surfel_seen.begin(), surfel_seen.end(), 1)},
                  {"lightmap_caches", lightmap.size()},
                  {"lightmap_caches_valid", lightmap.validCount()},
@@ -429,6 +433,7 @@ nlohmann::ordered_json Precomputation::report() const {
   j["links"] = {{"lightmap", linkStatsJson(lightmap_links)}, {"grid", linkStatsJson(grid_links)}};
   j["notes"] = notes;
   j["warnings"] = warnings;
+  j["probe_lit"] = probe_lit_names;
   return j;
 }
 
@@ -456,6 +461,7 @@ Status save(const Precomputation& p, const std::string& path, std::uint64_t cach
   // No timings in here: the same scene and options must give a bit-identical file.
   meta["notes"] = p.notes;
   meta["warnings"] = p.warnings;
+  meta["probe_lit"] = p.probe_lit_names;
   const std::string meta_text = meta.dump();
   if (status) status = w.addString("meta", meta_text);
   if (!status) return status;

@@ -121,6 +121,7 @@ struct Precomputation {
   std::vector<StageTime> timings;
   std::vector<std::string> notes;  // decisions taken (what was skipped and why)
   std::vector<std::string> warnings;  // findings a user should act on (the unwrap's: uv1 replaced, charts scaled down)
+  std::vector<std::string> probe_lit_names;  // static meshes lit from the grid, not the lightmap
 
   // Report: counts, time per stage, memory per structure, rays and rays/s.
   nlohmann::ordered_json report() const;

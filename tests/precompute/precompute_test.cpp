@@ -305,6 +305,9 @@ TEST(Precompute, ObjectsTooSmallForTheLightmapGetAGridAroundThem) {
   bool noted = false;
   for (const std::string& n : p->notes) noted |= n.find("probe-lit") != std::string::npos;
   EXPECT_TRUE(noted);
+  const auto report = p->report();
+  EXPECT_EQ(report["counts"]["probe_lit_meshes"], 1u);
+  EXPECT_EQ(report["probe_lit"], nlohmann::ordered_json::array({"pebble"}));
 }
 
 }  // namespace
