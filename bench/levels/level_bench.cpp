@@ -7,8 +7,6 @@
 // memory (a ~1M-triangle level from a 60k one) before anything else.
 //
 //   level_bench SCENE [--preset P] [--lights FILE] [--tile N] [--repeats N] [--json OUT]
-#include <sys/resource.h>
-
 #include <cstdio>
 #include <cstring>
 #include <fstream>
@@ -17,6 +15,7 @@
 #include <nlohmann/json.hpp>
 
 #include "bench/common/bench_common.h"
+#include "core/common/process_memory.h"
 #include "core/precompute/precompute.h"
 #include "core/relight/relight.h"
 #include "core/rt/accel.h"
@@ -26,11 +25,7 @@ using namespace lightlink;
 
 namespace {
 
-double peakRssMiB() {
-  rusage u{};
-  getrusage(RUSAGE_SELF, &u);
-  return double(u.ru_maxrss) / 1024.0;  // KiB on Linux
-}
+double peakRssMiB() { return double(peakResidentBytes()) / double(1 << 20); }
 
 void tile(scene::Scene& scene, int n) {
   if (n <= 1) return;

@@ -1,8 +1,8 @@
 // Internal to core/scene: the loader's file access (SceneFiles::install) with some files
 // left unread. An image nothing lightlink computes reads (a normal map, an unused image;
-// lighting_images.h) is not read from disk at all: tinygltf is told it exists and gets one
-// placeholder byte, which the image loader never decodes. So such a file costs no I/O, and
-// a missing one is no warning.
+// lighting_images.h) is not read from disk at all: tinygltf is told it exists and is handed
+// a one-byte stand-in, which the image loader never decodes. So such a file costs no I/O,
+// and a missing one is no warning.
 #pragma once
 
 #include <filesystem>
