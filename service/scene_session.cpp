@@ -3,6 +3,7 @@
 #include <future>
 #include <new>
 
+#include "core/relight/direct_layer.h"
 #include "service/gpu/backend_factory.h"
 #include "service/logging.h"
 #include "service/validation.h"
@@ -311,11 +312,15 @@ std::shared_ptr<const Snapshot> SceneSession::buildSnapshot(const relight::Relig
   s->width = r.width;
   s->height = r.height;
   s->lightmap_sh = r.lightmap_sh;
-  s->direct.resize(r.direct.size() * 3);
-  for (std::size_t i = 0; i < r.direct.size(); ++i) {
-    s->direct[3 * i + 0] = r.direct[i].x;
-    s->direct[3 * i + 1] = r.direct[i].y;
-    s->direct[3 * i + 2] = r.direct[i].z;
+  // The wire carries one atlas size: a finer direct layer is streamed box-filtered to it
+  // (bake writes it at full size, direct.exr).
+  std::vector<glm::vec3> direct;
+  relight::directAtLightmapSize(r, direct);
+  s->direct.resize(direct.size() * 3);
+  for (std::size_t i = 0; i < direct.size(); ++i) {
+    s->direct[3 * i + 0] = direct[i].x;
+    s->direct[3 * i + 1] = direct[i].y;
+    s->direct[3 * i + 2] = direct[i].z;
   }
   s->texel_valid = r.texel_valid;
   const auto& p = resident_.precomputation();

@@ -85,7 +85,15 @@ int runBake(const BakeArgs& args) {
   exr.scene_hash = key_hex;
   auto lm_stats = output::writeLightmapExr(*result, (out / "lightmap.exr").string(), exr);
   if (!lm_stats) return reportError(kCmd, lm_stats.status());
-  if (Status s = output::writeIrradiancePng(*result, p.lightmap, (out / "lightmap.png").string()); !s)
+  if (result->directIsFiner()) {
+    auto d = output::writeDirectExr(*result, (out / "direct.exr").string(), exr);
+    if (!d) return reportError(kCmd, d.status());
+    lm_stats->clamped += d->clamped;
+    lm_stats->underflowed += d->underflowed;
+  }
+  if (Status s = output::writeIrradiancePng(*result, p.lightmap, (out / "lightmap.png").string(), {},
+                                            p.hasDirectLayer() ? &p.direct_texels : nullptr);
+      !s)
     return reportError(kCmd, s);
   std::size_t grid_clamped = 0, grid_underflowed = 0;
   if (p.has_grid) {
@@ -131,6 +139,7 @@ int runBake(const BakeArgs& args) {
   report["half_clamped_values"] = {{"lightmap", lm_stats->clamped}, {"grid", grid_clamped}};
   report["half_underflowed_values"] = {{"lightmap", lm_stats->underflowed}, {"grid", grid_underflowed}};
   std::vector<std::string> outputs = {"lightmap.exr", "lightmap.png", "report.json"};
+  if (result->directIsFiner()) outputs.insert(outputs.begin() + 1, "direct.exr");
   if (p.has_grid) outputs.insert(outputs.end(), {"grid.exr", "grid.json", "grid.raw"});
   if (atlas.generated) outputs.push_back(gltf_name);
   report["outputs"] = outputs;

@@ -118,7 +118,11 @@ bool finite3(const float v[3]) { return std::isfinite(v[0]) && std::isfinite(v[1
 
 }  // namespace
 
-Status readLightmapExr(const std::string& path, BakedLighting& b, std::uint64_t max_texels) {
+namespace {
+
+// One reader for lightmap.exr and direct.exr (the direct layer alone, when it is finer than
+// the lightmap): the same checks, the channels each file must hold.
+Status readExr(const std::string& path, BakedLighting& b, std::uint64_t max_texels, bool direct_file) {
   auto file_bytes = regularFileSize(path);
   if (!file_bytes) return file_bytes.status();
   if (Status s = checkExrHeader(path, *file_bytes); !s) return s;
@@ -149,13 +153,27 @@ Status readLightmapExr(const std::string& path, BakedLighting& b, std::uint64_t 
     if (w < 1 || hgt < 1 || std::uint64_t(w) > max_texels || std::uint64_t(hgt) > max_texels ||
         std::uint64_t(w) * std::uint64_t(hgt) > max_texels)
       return invalidInput("{}: data window {}x{} is out of range (1 to {} texels)", path, w, hgt, max_texels);
-    b.bands = bands->value();
-    b.width = static_cast<int>(w);
-    b.height = static_cast<int>(hgt);
+    const auto* scale = h.findTypedAttribute<Imf::IntAttribute>("lightlink.direct_scale");
+    const int direct_scale = scale ? scale->value() : 1;
+    if (direct_scale < 1 || direct_scale > 64)
+      return invalidInput("{}: lightlink.direct_scale {} is out of range (1..64)", path, direct_scale);
+    if (direct_file) {
+      if (b.width < 1 || direct_scale != b.direct_scale || w != std::int64_t(b.width) * direct_scale ||
+          hgt != std::int64_t(b.height) * direct_scale)
+        return invalidInput("{}: a {}x{} direct layer at scale {} does not match the {}x{} lightmap at scale {}", path,
+                            w, hgt, direct_scale, b.width, b.height, b.direct_scale);
+    } else {
+      b.bands = bands->value();
+      b.width = static_cast<int>(w);
+      b.height = static_cast<int>(hgt);
+      b.direct_scale = direct_scale;
+    }
     const std::size_t texels = std::size_t(w) * std::size_t(hgt), nc = std::size_t(b.bands) * b.bands;
     // Channels are read straight into their interleaved place (no planar copy).
-    b.lightmap_sh.assign(texels * 3 * nc, 0.0f);
+    if (!direct_file) b.lightmap_sh.assign(texels * 3 * nc, 0.0f);
     b.direct.assign(texels, glm::vec3(0.0f));
+    b.direct_width = static_cast<int>(w);
+    b.direct_height = static_cast<int>(hgt);
     std::vector<float> valid(texels, 0.0f);
     const std::ptrdiff_t origin = std::ptrdiff_t(dw.min.x) + std::ptrdiff_t(dw.min.y) * std::ptrdiff_t(w);
     Imf::FrameBuffer fb;
@@ -167,29 +185,43 @@ Status readLightmapExr(const std::string& path, BakedLighting& b, std::uint64_t 
       return true;
     };
     const char* rgb[3] = {".R", ".G", ".B"};
-    for (std::size_t i = 0; i < nc; ++i)
+    for (std::size_t i = 0; i < nc && !direct_file; ++i)
       for (int ch = 0; ch < 3; ++ch)
         if (!slice(output::shLayerName(static_cast<int>(i)) + rgb[ch], b.lightmap_sh.data() + ch * nc + i, 3 * nc))
           return invalidInput("{}: channel {}{} is missing", path, output::shLayerName(static_cast<int>(i)), rgb[ch]);
-    for (int ch = 0; ch < 3; ++ch) slice(std::string("direct") + rgb[ch], &b.direct[0][ch], 3);
+    for (int ch = 0; ch < 3; ++ch)
+      if (!slice(std::string("direct") + rgb[ch], &b.direct[0][ch], 3) && direct_file)
+        return invalidInput("{}: channel direct{} is missing", path, rgb[ch]);
     if (!slice("valid.Y", valid.data(), 1)) return invalidInput("{}: channel valid.Y is missing", path);
     file.setFrameBuffer(fb);
     file.readPixels(dw.min.y, dw.max.y);
-    b.valid.resize(texels);
+    std::vector<float>& valid_out = direct_file ? b.direct_valid : b.valid;
+    valid_out.resize(texels);
     for (std::size_t t = 0; t < texels; ++t) {
       const float* sh = b.lightmap_sh.data() + t * 3 * nc;
-      for (std::size_t k = 0; k < 3 * nc; ++k)
+      for (std::size_t k = 0; k < 3 * nc && !direct_file; ++k)
         if (!std::isfinite(sh[k]))
           return invalidInput("{}: channel {}{} of texel ({}, {}) is not finite", path,
                               output::shLayerName(static_cast<int>(k % nc)), rgb[k / nc], t % w, t / w);
       if (!finite3(&b.direct[t][0]))
         return invalidInput("{}: channel direct of texel ({}, {}) is not finite", path, t % w, t / w);
-      b.valid[t] = valid[t] > 0.5f ? 1.0f : 0.0f;  // NaN counts as invalid
+      valid_out[t] = valid[t] > 0.5f ? 1.0f : 0.0f;  // NaN counts as invalid
     }
   } catch (const std::exception& e) {
     return invalidInput("cannot read lightmap {}: {}", path, e.what());
   }
   return {};
+}
+
+}  // namespace
+
+Status readLightmapExr(const std::string& path, BakedLighting& b, std::uint64_t max_texels) {
+  b.direct_valid.clear();
+  return readExr(path, b, max_texels, /*direct_file=*/false);
+}
+
+Status readDirectExr(const std::string& path, BakedLighting& b, std::uint64_t max_texels) {
+  return readExr(path, b, max_texels, /*direct_file=*/true);
 }
 
 Status readGridRaw(const std::string& path, BakedLighting& b) {
@@ -270,13 +302,32 @@ bool BakedLighting::sampleLightmap(glm::vec2 uv, const glm::vec3& normal, glm::v
       const float w = (dx ? ax : 1 - ax) * (dy ? ay : 1 - ay) * valid[t];
       if (w <= 0.0f) continue;
       for (int k = 0; k < 3 * nc; ++k) sh[k] += w * lightmap_sh[t * 3 * nc + k];
-      dir += w * direct[t];
+      if (direct_scale == 1) dir += w * direct[t];
       wsum += w;
     }
   if (wsum <= 0.0f) return false;
   // SH interpolates linearly, so evaluating the weighted sum equals the weighted evaluations.
   for (int k = 0; k < 3 * nc; ++k) sh[k] /= wsum;
-  irradiance = shIrradiance(sh, bands, normal) + dir / wsum;
+  if (direct_scale == 1) {
+    dir /= wsum;
+  } else {  // the finer direct layer: its own bilinear lookup over its valid texels
+    const float gx = std::clamp(uv.x * float(direct_width) - 0.5f, -1.0f, float(direct_width)),
+                gy = std::clamp(uv.y * float(direct_height) - 0.5f, -1.0f, float(direct_height));
+    const int gx0 = static_cast<int>(std::floor(gx)), gy0 = static_cast<int>(std::floor(gy));
+    const float bx = gx - float(gx0), by = gy - float(gy0);
+    float dsum = 0.0f;
+    for (int dy = 0; dy < 2; ++dy)
+      for (int dx = 0; dx < 2; ++dx) {
+        const int x = std::clamp(gx0 + dx, 0, direct_width - 1), y = std::clamp(gy0 + dy, 0, direct_height - 1);
+        const std::size_t t = std::size_t(y) * direct_width + x;
+        const float w = (dx ? bx : 1 - bx) * (dy ? by : 1 - by) * direct_valid[t];
+        if (w <= 0.0f) continue;
+        dir += w * direct[t];
+        dsum += w;
+      }
+    if (dsum > 0.0f) dir /= dsum;
+  }
+  irradiance = shIrradiance(sh, bands, normal) + dir;
   return true;
 }
 
@@ -311,6 +362,9 @@ Expected<BakedLighting> loadBakedLighting(const std::string& dir) {
   BakedLighting b;
   const std::filesystem::path d(dir);
   if (Status s = readLightmapExr((d / "lightmap.exr").string(), b); !s) return s;
+  if (b.direct_scale > 1) {  // the direct layer is finer: its own file
+    if (Status s = readDirectExr((d / "direct.exr").string(), b); !s) return s;
+  }
   const std::string grid = (d / "grid.raw").string();
   std::error_code ec;
   if (std::filesystem::exists(grid, ec)) {

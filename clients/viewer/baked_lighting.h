@@ -20,8 +20,13 @@ struct BakedLighting {
   int bands = 0;
   int width = 0, height = 0;          // lightmap texels
   std::vector<float> lightmap_sh;     // per texel 3 * bands^2: R coefficients, then G, then B
-  std::vector<glm::vec3> direct;      // per texel: baked direct irradiance
   std::vector<float> valid;           // per texel: 1 or 0
+  // Baked direct irradiance per direct texel: the lightmap's texels (direct_scale 1) or a
+  // finer layer of the same UVs (direct.exr) with its own validity.
+  int direct_scale = 1;
+  int direct_width = 0, direct_height = 0;
+  std::vector<glm::vec3> direct;
+  std::vector<float> direct_valid;    // direct_scale > 1 only
   bool has_grid = false;
   glm::ivec3 dims{0};
   glm::vec3 origin{0.0f};
@@ -36,8 +41,8 @@ struct BakedLighting {
   bool sampleGrid(const glm::vec3& p, const glm::vec3& normal, glm::vec3& irradiance) const;
 };
 
-// Reads `dir`/lightmap.exr and, when present, `dir`/grid.raw, and checks that they agree
-// (same bands). Nothing read is trusted: see the two readers below.
+// Reads `dir`/lightmap.exr, `dir`/direct.exr when the lightmap says its direct layer is
+// finer, and, when present, `dir`/grid.raw, and checks that they agree (same bands, sizes). Nothing read is trusted: see the two readers below.
 Expected<BakedLighting> loadBakedLighting(const std::string& dir);
 
 // The largest lightmap read (16384^2 texels, the largest atlas `unwrap` makes).
@@ -49,6 +54,9 @@ inline constexpr std::uint64_t kMaxGridPoints = std::uint64_t(1) << 24;
 // naming what is wrong: a missing or out-of-range lightlink.bands, a missing channel, a data
 // window that is empty or larger than `max_texels`, a value that is not finite.
 Status readLightmapExr(const std::string& path, BakedLighting& b, std::uint64_t max_texels = kMaxLightmapTexels);
+// Reads a direct.exr (the finer direct layer; its size must be the lightmap's times the
+// lightmap's lightlink.direct_scale) into b's direct fields. Call after readLightmapExr.
+Status readDirectExr(const std::string& path, BakedLighting& b, std::uint64_t max_texels = kMaxLightmapTexels);
 
 // Reads a grid.raw (docs/outputs.md) into b's grid fields. Every header field is checked
 // before anything is allocated: bands 1..4, each dim 1..2^24 and their product at most

@@ -27,7 +27,7 @@ namespace lightlink::artifact {
 
 inline constexpr char kMagic[8] = {'L', 'L', 'N', 'K', 'A', 'R', 'T', '\0'};
 // Bump whenever the layout of any section changes; readers reject other versions.
-inline constexpr std::uint32_t kFormatVersion = 2;  // 2: surfel.seen
+inline constexpr std::uint32_t kFormatVersion = 3;  // 2: surfel.seen. 3: the direct layer's texels (dt.*)
 inline constexpr std::size_t kSectionAlignment = 64;
 inline constexpr std::size_t kMaxSectionName = 23;
 

@@ -92,6 +92,13 @@ constexpr Row kRows[] = {
        o.precompute.lightmap_resolution = int(*x);
        return {};
      }},
+    {{"direct-scale", "1..8", "Direct-light texels per lightmap texel along each axis (baked shadows finer than the indirect)"},
+     [](BakeOptions& o, std::string_view v, const std::string& l) -> Status {
+       auto x = integer(v, l, 1, precompute::kMaxDirectScale);
+       if (!x) return x.status();
+       o.precompute.direct_scale = int(*x);
+       return {};
+     }},
     {{"uv", "auto|keep|generate", "An existing TEXCOORD_1: kept unless broken (auto), always kept, or regenerated"},
      [](BakeOptions& o, std::string_view v, const std::string& l) -> Status {
        auto m = choice<charts::UvMode>(v, l, std::array<std::pair<std::string_view, charts::UvMode>, 3>{

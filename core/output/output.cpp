@@ -76,6 +76,9 @@ Expected<WriteStats> writeExr(Planes& planes, const std::string& path, const rel
     header.insert("lightlink.scene_hash", Imf::StringAttribute(options.scene_hash));
     header.insert("lightlink.link_form",
                   Imf::StringAttribute(result.link_form == relight::LinkForm::kProjected ? "projected" : "runtime"));
+    // How many direct texels per lightmap texel (1: `direct` is in the lightmap file itself).
+    if (result.width > 0)
+      header.insert("lightlink.direct_scale", Imf::IntAttribute(std::max(1, result.direct_width / result.width)));
     Imf::OutputFile file(path.c_str(), header);
     file.setFrameBuffer(fb);
     file.writePixels(planes.height);
@@ -128,19 +131,40 @@ Expected<WriteStats> writeLightmapExr(const relight::RelightResult& result, cons
                                       const ExrOptions& options) {
   const std::size_t texels = std::size_t(result.width) * result.height;
   const int nc = result.coeffCount();
-  if (texels == 0 || result.lightmap_sh.size() != texels * 3 * nc || result.direct.size() != texels)
+  const bool finer = result.directIsFiner();
+  if (texels == 0 || result.lightmap_sh.size() != texels * 3 * nc || (!finer && result.direct.size() != texels))
     return invalidInput("lightmap EXR: result holds no {}x{} lightmap", result.width, result.height);
   Planes planes{result.width, result.height, options.half};
   addShPlanes(planes, result.lightmap_sh, texels, nc, [](std::size_t t) { return t; });
   std::vector<float> plane(texels);
   static const char* kCh[3] = {"R", "G", "B"};
-  for (int ch = 0; ch < 3; ++ch) {
+  // A finer direct layer goes to its own file (writeDirectExr); the header says its scale.
+  for (int ch = 0; ch < 3 && !finer; ++ch) {
     for (std::size_t t = 0; t < texels; ++t) plane[t] = result.direct[t][ch];
     planes.add(std::string("direct.") + kCh[ch], plane, /*signal=*/true);
   }
   for (std::size_t t = 0; t < texels; ++t) plane[t] = result.texel_valid[t] ? 1.0f : 0.0f;
   planes.add("valid.Y", plane);
   return writeExr(planes, path, result, options, "lightmap");
+}
+
+Expected<WriteStats> writeDirectExr(const relight::RelightResult& result, const std::string& path,
+                                    const ExrOptions& options) {
+  const std::size_t texels = std::size_t(result.direct_width) * std::size_t(result.direct_height);
+  const bool finer = result.directIsFiner();
+  const std::vector<std::uint8_t>& valid = finer ? result.direct_valid : result.texel_valid;
+  if (texels == 0 || result.direct.size() != texels || valid.size() != texels)
+    return invalidInput("direct EXR: result holds no {}x{} direct layer", result.direct_width, result.direct_height);
+  Planes planes{result.direct_width, result.direct_height, options.half};
+  std::vector<float> plane(texels);
+  static const char* kCh[3] = {"R", "G", "B"};
+  for (int ch = 0; ch < 3; ++ch) {
+    for (std::size_t t = 0; t < texels; ++t) plane[t] = result.direct[t][ch];
+    planes.add(std::string("direct.") + kCh[ch], plane, /*signal=*/true);
+  }
+  for (std::size_t t = 0; t < texels; ++t) plane[t] = valid[t] ? 1.0f : 0.0f;
+  planes.add("valid.Y", plane);
+  return writeExr(planes, path, result, options, "direct");
 }
 
 Expected<WriteStats> writeGridExr(const relight::RelightResult& result, const caches::GridCaches& grid,
@@ -198,31 +222,67 @@ Status writeGridRaw(const relight::RelightResult& result, const caches::GridCach
 }
 
 Status writeIrradiancePng(const relight::RelightResult& result, const caches::LightmapCaches& lightmap,
-                          const std::string& path, const PreviewOptions& options) {
+                          const std::string& path, const PreviewOptions& options,
+                          const caches::LightmapCaches* direct_texels) {
   const int w = result.width, h = result.height;
   const std::size_t texels = std::size_t(w) * h;
   const int nc = result.coeffCount();
   if (texels == 0 || lightmap.cache_of_texel.size() != texels || result.lightmap_sh.size() != texels * 3 * nc)
     return invalidInput("irradiance preview: result and lightmap caches disagree ({}x{})", w, h);
-  std::vector<glm::vec3> e(texels, glm::vec3(0.0f));
-  std::vector<std::uint8_t> lit(texels, 0);
-  double sum = 0.0;
-  std::size_t n = 0;
-  for (std::size_t t = 0; t < texels; ++t) {
-    const std::int32_t c = lightmap.cache_of_texel[t];
-    if (c < 0 || !result.texel_valid[t]) continue;
-    const float* s = result.lightmap_sh.data() + t * 3 * nc;
-    const glm::vec3 nrm = lightmap.normal[c];
-    e[t] = glm::vec3(sh::irradiance(result.bands, s, nrm), sh::irradiance(result.bands, s + nc, nrm),
-                     sh::irradiance(result.bands, s + 2 * nc, nrm));
+  // With a finer direct layer (and its texels) the preview is drawn at the direct layer's
+  // size: the indirect SH interpolated bilinearly over valid lightmap texels, evaluated at the
+  // direct texel's own normal, plus its direct light. Otherwise texel by texel.
+  const bool fine = result.directIsFiner() && direct_texels != nullptr && direct_texels->width == result.direct_width &&
+                    direct_texels->height == result.direct_height &&
+                    result.direct.size() == std::size_t(result.direct_width) * result.direct_height;
+  const int ow = fine ? result.direct_width : w, oh = fine ? result.direct_height : h;
+  const std::size_t out_texels = std::size_t(ow) * oh;
+  if (!fine && result.directIsFiner() && options.include_direct)
+    return invalidInput("irradiance preview: a {}x{} direct layer needs its texels", result.direct_width,
+                        result.direct_height);
+  std::vector<glm::vec3> e(out_texels, glm::vec3(0.0f));
+  std::vector<std::uint8_t> lit(out_texels, 0);
+  std::vector<float> sh(3 * std::size_t(nc));
+  for (std::size_t t = 0; t < out_texels; ++t) {
+    glm::vec3 nrm;
+    if (fine) {
+      const std::int32_t c = direct_texels->cache_of_texel[t];
+      if (c < 0 || !result.direct_valid[t]) continue;
+      nrm = direct_texels->normal[c];
+      const float fx = (float(t % ow) + 0.5f) * float(w) / float(ow) - 0.5f;
+      const float fy = (float(t / ow) + 0.5f) * float(h) / float(oh) - 0.5f;
+      const int x0 = int(std::floor(fx)), y0 = int(std::floor(fy));
+      std::fill(sh.begin(), sh.end(), 0.0f);
+      float wsum = 0.0f;
+      for (int dy = 0; dy < 2; ++dy)
+        for (int dx = 0; dx < 2; ++dx) {
+          const int x = std::clamp(x0 + dx, 0, w - 1), y = std::clamp(y0 + dy, 0, h - 1);
+          const std::size_t s = std::size_t(y) * w + x;
+          const float wt = (dx ? fx - float(x0) : 1.0f - (fx - float(x0))) * (dy ? fy - float(y0) : 1.0f - (fy - float(y0)));
+          if (!result.texel_valid[s] || wt <= 0.0f) continue;
+          for (int k = 0; k < 3 * nc; ++k) sh[k] += wt * result.lightmap_sh[s * 3 * nc + k];
+          wsum += wt;
+        }
+      if (wsum > 0.0f)
+        for (float& v : sh) v /= wsum;
+    } else {
+      const std::int32_t c = lightmap.cache_of_texel[t];
+      if (c < 0 || !result.texel_valid[t]) continue;
+      nrm = lightmap.normal[c];
+      std::copy_n(result.lightmap_sh.data() + t * 3 * nc, 3 * nc, sh.data());
+    }
+    e[t] = glm::vec3(sh::irradiance(result.bands, sh.data(), nrm), sh::irradiance(result.bands, sh.data() + nc, nrm),
+                     sh::irradiance(result.bands, sh.data() + 2 * nc, nrm));
     if (options.include_direct) e[t] += result.direct[t];
     lit[t] = 1;
-    sum += (e[t].x + e[t].y + e[t].z) / 3.0;
-    ++n;
   }
+  double sum = 0.0;
+  std::size_t n = 0;
+  for (std::size_t t = 0; t < out_texels; ++t)
+    if (lit[t]) sum += (e[t].x + e[t].y + e[t].z) / 3.0, ++n;
   const float exposure = options.exposure > 0.0f ? options.exposure : (sum > 0.0 ? float(n / sum) : 1.0f);
-  std::vector<std::uint8_t> rgb(texels * 3, 0);
-  for (std::size_t t = 0; t < texels; ++t) {
+  std::vector<std::uint8_t> rgb(out_texels * 3, 0);
+  for (std::size_t t = 0; t < out_texels; ++t) {
     if (!lit[t]) {
       rgb[3 * t] = rgb[3 * t + 1] = rgb[3 * t + 2] = 24;  // empty texels dark grey, not black
       continue;
@@ -232,7 +292,7 @@ Status writeIrradiancePng(const relight::RelightResult& result, const caches::Li
       rgb[3 * t + ch] = encodeSrgb8(x / (1.0f + x));  // Reinhard
     }
   }
-  return writePngRgb8(path, w, h, rgb, "irradiance preview");
+  return writePngRgb8(path, ow, oh, rgb, "irradiance preview");
 }
 
 Status writeReportJson(const nlohmann::ordered_json& report, const std::string& path) {

@@ -2,7 +2,9 @@
 //
 //   lightmap  OpenEXR, one layer per SH coefficient `L<l><m>` with channels R, G, B
 //             (m < 0 written as `m<|m|>`: L00, L1m1, L10, L11, L2m2, ...), plus `direct.{R,G,B}`
-//             (baked direct irradiance) and `valid.Y` (1 where the texel holds a value).
+//             (baked direct irradiance; in its own file `direct` at its own size when the
+//             direct layer is finer, header `lightlink.direct_scale`) and `valid.Y` (1 where
+//             the texel holds a value).
 //             Half by default, float on request. Row 0 = texel row 0 = glTF v = 0 (top).
 //             Header attributes `lightlink.*` state the SH convention, units, bands, link form,
 //             light-set version and scene hash.
@@ -50,6 +52,10 @@ std::string shLayerName(int index);
 
 Expected<WriteStats> writeLightmapExr(const relight::RelightResult& result, const std::string& path,
                                       const ExrOptions& options = {});
+// The direct layer alone (`direct.{R,G,B}`, `valid.Y`) at its own size: what bake writes as
+// direct.exr when the direct layer is finer than the lightmap (lightlink.direct_scale > 1).
+Expected<WriteStats> writeDirectExr(const relight::RelightResult& result, const std::string& path,
+                                    const ExrOptions& options = {});
 Expected<WriteStats> writeGridExr(const relight::RelightResult& result, const caches::GridCaches& grid,
                                   const std::string& path, const ExrOptions& options = {});
 // JSON metadata for the grid (origin, spacing, dims, bands, channel order, validity mask).
@@ -61,8 +67,11 @@ struct PreviewOptions {
   float exposure = 0.0f;  // multiplies irradiance before tone mapping; 0 = auto (mean lit texel -> 0.5)
   bool include_direct = true;
 };
+// With a finer direct layer, pass its texels (Precomputation::direct_texels): the preview is
+// then drawn at the direct layer's size.
 Status writeIrradiancePng(const relight::RelightResult& result, const caches::LightmapCaches& lightmap,
-                          const std::string& path, const PreviewOptions& options = {});
+                          const std::string& path, const PreviewOptions& options = {},
+                          const caches::LightmapCaches* direct_texels = nullptr);
 
 Status writeReportJson(const nlohmann::ordered_json& report, const std::string& path);
 

@@ -73,8 +73,20 @@ void visitSmallArrays(P& p, V&& v) {
   v("lm.cache_of_texel", p.lightmap.cache_of_texel);
   v("grid.position", p.grid.position);
   v("grid.valid", p.grid.valid);
-  for (auto* plan : {&p.lightmap_fill, &p.grid_fill, &p.dilation}) {
-    const char* prefix = plan == &p.lightmap_fill ? "lmfill" : plan == &p.grid_fill ? "gridfill" : "dilate";
+  v("dt.position", p.direct_texels.position);
+  v("dt.normal", p.direct_texels.normal);
+  v("dt.texel", p.direct_texels.texel);
+  v("dt.mesh", p.direct_texels.mesh);
+  v("dt.triangle", p.direct_texels.triangle);
+  v("dt.valid", p.direct_texels.valid);
+  v("dt.pushed", p.direct_texels.pushed);
+  v("dt.cache_of_texel", p.direct_texels.cache_of_texel);
+  for (auto* plan : {&p.lightmap_fill, &p.grid_fill, &p.dilation, &p.direct_fill, &p.direct_dilation}) {
+    const char* prefix = plan == &p.lightmap_fill ? "lmfill"
+                         : plan == &p.grid_fill   ? "gridfill"
+                         : plan == &p.dilation    ? "dilate"
+                         : plan == &p.direct_fill ? "dtfill"
+                                                  : "dtdilate";
     v(fmt::format("{}.target", prefix), plan->target);
     v(fmt::format("{}.begin", prefix), plan->source_begin);
     v(fmt::format("{}.source", prefix), plan->source);
@@ -142,6 +154,8 @@ Status PrecomputeOptions::validate() const {
                         charts::kMaxAtlasResolution);
   if (validity_rays < 1 || validity_rays > 65536)
     return invalidInput("validity rays {} is out of range (1..65536)", validity_rays);
+  if (direct_scale < 1 || direct_scale > kMaxDirectScale)
+    return invalidInput("--direct-scale {} is out of range (1..{})", direct_scale, kMaxDirectScale);
   return {};
 }
 
@@ -160,12 +174,14 @@ Expected<PrecomputeOptions> preset(std::string_view name) {
     o.links = 128;
     o.rays = 1024;
     o.texel_budget = 32768;
+    o.direct_scale = 2;
   } else if (name == "high") {
     o.surfels = 16384;
     o.links = 256;
     o.bands = 3;
     o.rays = 2048;
     o.texel_budget = 131072;
+    o.direct_scale = 2;
   } else {
     return invalidInput("--preset '{}' must be draft, medium or high", name);
   }
@@ -176,12 +192,13 @@ std::string PrecomputeOptions::canonical() const {
   return fmt::format(
       "surfels={};links={};bands={};rays={};builder={};grid={};grid_spacing={:a};grid_resolution={};"
       "texel_size={};texel_budget={};max_atlas={};max_pages={};lightmap_resolution={};target_resolution={};uv={};"
-      "validity_rays={};seed={};generator={}",
+      "validity_rays={};direct_scale={};seed={};generator={}",
       surfels, links, bands, rays, builder == hierarchy::Builder::kAgglomerative ? "hac" : "kd",
       static_cast<int>(grid), grid_spacing_m, grid_resolution,
       texel_size_m ? fmt::format("{:a}", *texel_size_m) : "auto", texel_budget, max_atlas, max_pages,
       lightmap_resolution ? std::to_string(*lightmap_resolution) : "auto", target_resolution,
-      uv_mode == charts::UvMode::kAuto ? "auto" : uv_mode == charts::UvMode::kKeep ? "keep" : "generate", validity_rays, seed,
+      uv_mode == charts::UvMode::kAuto ? "auto" : uv_mode == charts::UvMode::kKeep ? "keep" : "generate", validity_rays,
+      direct_scale, seed,
       kGeneratorRevision);
 }
 
@@ -332,6 +349,41 @@ Expected<Precomputation> run(scene::Scene& scene, const PrecomputeOptions& optio
   });
   if (!s) return s;
 
+  // The direct layer: the same charts rasterised direct_scale times finer, placed and
+  // validity-tested as caches are (a texel inside geometry would read a false shadow).
+  if (options.direct_scale > 1 && p.lightmap.width > 0) {
+    int scale = options.direct_scale;
+    auto fits = [&](int k) {
+      const std::uint64_t w = std::uint64_t(p.lightmap.width) * k, h = std::uint64_t(p.lightmap.height) * k;
+      return w <= std::uint64_t(charts::kMaxAtlasResolution) && h <= std::uint64_t(charts::kMaxAtlasResolution) &&
+             w * h <= options.limits.max_texels;
+    };
+    while (scale > 1 && !fits(scale)) --scale;
+    if (scale != options.direct_scale)
+      p.warnings.push_back(fmt::format(
+          "direct scale {} lowered to {}: a {}x{} direct layer would exceed the texel limit (raise --texel-size "
+          "or lower --direct-scale)",
+          options.direct_scale, scale, std::uint64_t(p.lightmap.width) * options.direct_scale,
+          std::uint64_t(p.lightmap.height) * options.direct_scale));
+    if (scale > 1) {
+      s = stage("direct_texels", [&]() -> Status {
+        auto dt = caches::placeLightmapCaches(
+            scene, *accel,
+            {.resolution = p.atlas.resolution * scale, .pages = p.atlas.pages, .validity = validity});
+        if (!dt) return dt.status();
+        p.direct_texels = std::move(dt).value();
+        p.direct_fill = caches::planLightmapFill(p.direct_texels);
+        p.direct_dilation = caches::planDilation(p.direct_texels, std::max(1, p.atlas.gutter_texels * scale));
+        p.notes.push_back(fmt::format("direct layer: {}x{} texels ({} per lightmap texel along each axis), {} placed",
+                                      p.direct_texels.width, p.direct_texels.height, scale, p.direct_texels.size()));
+        return {};
+      });
+      if (!s) return s;
+    }
+  } else if (options.direct_scale > 1) {
+    p.notes.push_back("direct layer skipped: no lightmap texels");
+  }
+
   // Which surfel owns a hit: built once for the lightmap and the grid caches (a per-scene
   // structure, as the BVH is, and timed as its own stage).
   std::optional<links::SurfelLocator> owners;
@@ -392,6 +444,10 @@ nlohmann::ordered_json Precomputation::report() const {
                  {"lightmap_caches", lightmap.size()},
                  {"lightmap_caches_valid", lightmap.validCount()},
                  {"lightmap_caches_pushed", std::count(lightmap.pushed.begin(), lightmap.pushed.end(), 1)},
+                 {"direct_width", direct_texels.width},
+                 {"direct_height", direct_texels.height},
+                 {"direct_texels", direct_texels.size()},
+                 {"direct_texels_valid", direct_texels.validCount()},
                  {"grid_caches", grid.size()},
                  {"grid_caches_valid", grid.validCount()},
                  {"grid_dims", {grid.dims.x, grid.dims.y, grid.dims.z}},
@@ -454,6 +510,7 @@ Status save(const Precomputation& p, const std::string& path, std::uint64_t cach
   meta["lightmap"] = {{"width", p.lightmap.width}, {"height", p.lightmap.height},
                       {"texel_size_m", p.atlas.texel_size_m}, {"gutter_texels", p.atlas.gutter_texels},
                       {"generated_uv", p.atlas.generated}};
+  meta["direct"] = {{"width", p.direct_texels.width}, {"height", p.direct_texels.height}};
   meta["grid"] = {{"origin", {p.grid.origin.x, p.grid.origin.y, p.grid.origin.z}},
                   {"spacing_m", p.grid.spacing_m},
                   {"dims", {p.grid.dims.x, p.grid.dims.y, p.grid.dims.z}}};
@@ -712,29 +769,47 @@ Status checkSurfelsAndTree(const Precomputation& p, StructureCheck& c) {
   return c.status();
 }
 
+// A set of lightmap-texel points (the caches, or the direct layer's texels) under section
+// prefix `sec`: sizes, finite values, and texel <-> point indices that agree.
+void checkTexelPoints(const caches::LightmapCaches& lm, const char* sec, StructureCheck& c) {
+  const std::size_t texels = static_cast<std::size_t>(lm.width) * static_cast<std::size_t>(lm.height);
+  const std::size_t nc = lm.size();
+  auto name = [&](const char* field) { return fmt::format("{}.{}", sec, field); };
+  c.size(name("cache_of_texel"), lm.cache_of_texel.size(), texels);
+  c.size(name("normal"), lm.normal.size(), nc);
+  c.size(name("texel"), lm.texel.size(), nc);
+  c.size(name("mesh"), lm.mesh.size(), nc);
+  c.size(name("triangle"), lm.triangle.size(), nc);
+  c.size(name("valid"), lm.valid.size(), nc);
+  c.size(name("pushed"), lm.pushed.size(), nc);
+  c.allFinite<glm::vec3>(name("position"), lm.position);
+  c.allFinite<glm::vec3>(name("normal"), lm.normal);
+  c.below<std::uint32_t>(name("texel"), lm.texel, texels);
+  for (std::size_t t = 0; c.ok() && t < texels; ++t) {
+    const std::int32_t cache = lm.cache_of_texel[t];
+    if (cache < -1 || (cache >= 0 && static_cast<std::size_t>(cache) >= nc))
+      c.fail("section '{}.cache_of_texel' element {} = {} is not -1 or a cache below {}", sec, t, cache, nc);
+  }
+  for (std::size_t i = 0; c.ok() && i < nc; ++i)
+    if (lm.cache_of_texel[lm.texel[i]] != std::int32_t(i))
+      c.fail("sections '{0}.texel' and '{0}.cache_of_texel' disagree about point {1}", sec, i);
+}
+
 Status checkCachesAndLinks(const LoadedPrecomputation& l, StructureCheck& c) {
   const Precomputation& p = l.p;
   const caches::LightmapCaches& lm = p.lightmap;
   const std::size_t texels = static_cast<std::size_t>(lm.width) * static_cast<std::size_t>(lm.height);
   const std::size_t nc = lm.size();
-  c.size("lm.cache_of_texel", lm.cache_of_texel.size(), texels);
-  c.size("lm.normal", lm.normal.size(), nc);
-  c.size("lm.texel", lm.texel.size(), nc);
-  c.size("lm.mesh", lm.mesh.size(), nc);
-  c.size("lm.triangle", lm.triangle.size(), nc);
-  c.size("lm.valid", lm.valid.size(), nc);
-  c.size("lm.pushed", lm.pushed.size(), nc);
-  c.allFinite<glm::vec3>("lm.position", lm.position);
-  c.allFinite<glm::vec3>("lm.normal", lm.normal);
-  c.below<std::uint32_t>("lm.texel", lm.texel, texels);
-  for (std::size_t t = 0; c.ok() && t < texels; ++t) {
-    const std::int32_t cache = lm.cache_of_texel[t];
-    if (cache < -1 || (cache >= 0 && static_cast<std::size_t>(cache) >= nc))
-      c.fail("section 'lm.cache_of_texel' element {} = {} is not -1 or a cache below {}", t, cache, nc);
-  }
-  for (std::size_t i = 0; c.ok() && i < nc; ++i)
-    if (lm.cache_of_texel[lm.texel[i]] != std::int32_t(i))
-      c.fail("sections 'lm.texel' and 'lm.cache_of_texel' disagree about cache {}", i);
+  checkTexelPoints(lm, "lm", c);
+  const caches::LightmapCaches& dt = p.direct_texels;
+  if (c.ok() && (dt.width == 0) != (dt.height == 0))
+    c.fail("direct layer {}x{}: width and height must both be 0 or both positive", dt.width, dt.height);
+  if (c.ok() && dt.width > 0 &&
+      (dt.width % lm.width != 0 || dt.height % lm.height != 0 || dt.width / lm.width != dt.height / lm.height ||
+       dt.width / lm.width < 2 || dt.width / lm.width > kMaxDirectScale))
+    c.fail("direct layer {}x{} is not the {}x{} lightmap scaled by 2..{}", dt.width, dt.height, lm.width, lm.height,
+           kMaxDirectScale);
+  checkTexelPoints(dt, "dt", c);
 
   const caches::GridCaches& g = p.grid;
   const std::size_t ng = g.size();
@@ -766,6 +841,8 @@ Status checkCachesAndLinks(const LoadedPrecomputation& l, StructureCheck& c) {
   c.fillPlan("lmfill", p.lightmap_fill, nc);
   c.fillPlan("gridfill", p.grid_fill, ng);
   c.fillPlan("dilate", p.dilation, texels);
+  c.fillPlan("dtfill", p.direct_fill, dt.size());
+  c.fillPlan("dtdilate", p.direct_dilation, std::size_t(dt.width) * std::size_t(dt.height));
   const std::size_t nodes = p.tree.nodeCount();
   c.links("lmlink", l.lightmap_links, nc, nodes);
   c.links("gridlink", l.grid_links, ng, nodes);
@@ -809,6 +886,8 @@ Expected<LoadedPrecomputation> open(const std::string& path) {
   out.p.atlas.gutter_texels = meta.integer("lightmap", "gutter_texels", -1, 0, charts::kMaxAtlasResolution);
   out.p.atlas.generated = meta.boolean("lightmap", "generated_uv");
   out.p.options.bands = bands;
+  out.p.direct_texels.width = meta.integer("direct", "width", -1, 0, charts::kMaxAtlasResolution);
+  out.p.direct_texels.height = meta.integer("direct", "height", -1, 0, charts::kMaxAtlasResolution);
   for (int i = 0; i < 3; ++i) {
     out.p.grid.origin[i] = meta.number("grid", "origin", i);
     out.p.grid.dims[i] = meta.integer("grid", "dims", i, 0, 1 << 16);

@@ -54,6 +54,9 @@ std::uint64_t linkBytesEstimate(std::uint64_t caches, int max_links, int bands);
 // max_link_bytes with 0 resolved to half of the physical memory.
 std::uint64_t effectiveLinkBudget(const PrecomputeLimits& limits);
 
+// The finest direct layer: direct_scale texels per lightmap texel along each axis.
+inline constexpr int kMaxDirectScale = 8;
+
 struct PrecomputeOptions {
   std::uint32_t surfels = 32768;   // nS
   int links = 128;                 // nL, most links per cache
@@ -73,6 +76,10 @@ struct PrecomputeOptions {
   std::optional<int> lightmap_resolution;
   int target_resolution = 128;     // with texel_budget 0 and no texel size: one atlas this size
   charts::UvMode uv_mode = charts::UvMode::kAuto;  // what happens to an existing TEXCOORD_1
+  // Direct texels per lightmap texel along each axis, 1..8 (Unity's lightmap vs indirect
+  // resolution): above 1 the baked direct light gets its own atlas of the same charts, this
+  // many times finer, so baked shadows are crisp while the indirect caches stay cheap to relight.
+  int direct_scale = 1;
   int validity_rays = 64;
   std::uint64_t seed = 1;
   PrecomputeLimits limits;         // not in canonical(): budgets, not parameters of the result
@@ -118,6 +125,12 @@ struct Precomputation {
   // it. Node radiosity is averaged over these alone (relight::pullAreas).
   std::vector<std::uint8_t> surfel_seen;
   caches::FillPlan lightmap_fill, grid_fill, dilation;
+  // The direct layer's own texels when options.direct_scale > 1 (same charts, the atlas
+  // direct_scale times finer; positions, normals and validity as for caches, no links), with
+  // its fill and dilation plans. Empty (width 0): the direct light lives at the caches.
+  caches::LightmapCaches direct_texels;
+  caches::FillPlan direct_fill, direct_dilation;
+  bool hasDirectLayer() const { return direct_texels.width > 0; }
   std::vector<StageTime> timings;
   std::vector<std::string> notes;  // decisions taken (what was skipped and why)
   std::vector<std::string> warnings;  // findings a user should act on (the unwrap's: uv1 replaced, charts scaled down)

@@ -12,6 +12,8 @@
 
 #include "core/common/check.h"
 #include "core/relight/cache_lighting.h"
+#include "core/relight/direct_layer.h"
+#include "core/relight/direct_points.h"
 #include "core/relight/emitter_direct.h"
 #include "core/common/sampling.h"
 #include "core/scene/light_eval.h"
@@ -20,51 +22,17 @@
 namespace lightlink::relight {
 namespace {
 
+using detail::forChunks;
+using detail::kCacheChunk;
+using detail::kChunk;
+using detail::lightEmits;
+using detail::reaches;
+using detail::sameEmissive;
+using detail::shadowedLight;
+
 constexpr float kPi = std::numbers::pi_v<float>;
 using Clock = std::chrono::steady_clock;
 double secondsSince(Clock::time_point t0) { return std::chrono::duration<double>(Clock::now() - t0).count(); }
-
-// Surfels / caches per TBB task: large enough that a task amortises its shadow-ray batch,
-// small enough to balance on 2..16 cores. Fixed, so results do not depend on the split.
-constexpr std::size_t kChunk = 256;
-constexpr std::size_t kCacheChunk = 64;
-
-// Runs body(chunk, begin, end) over fixed chunks [chunk * size, min(n, (chunk + 1) * size)) in
-// parallel. Chunk boundaries do not depend on the thread count, so per-chunk partial sums
-// combined in chunk order are deterministic (TBB's own range splitting is not aligned).
-template <typename F>
-void forChunks(std::size_t n, std::size_t size, F&& body) {
-  const std::size_t chunks = (n + size - 1) / size;
-  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, chunks, 1), [&](const tbb::blocked_range<std::size_t>& r) {
-    for (std::size_t c = r.begin(); c < r.end(); ++c) body(c, c * size, std::min(n, (c + 1) * size));
-  });
-}
-
-bool sameEmissive(const std::vector<EmissiveOverride>& a, const std::vector<EmissiveOverride>& b) {
-  if (a.size() != b.size()) return false;
-  for (std::size_t i = 0; i < a.size(); ++i)
-    if (a[i].material != b[i].material || a[i].mode != b[i].mode || a[i].value != b[i].value) return false;
-  return true;
-}
-
-bool lightEmits(const scene::Light& l) {
-  return l.intensity > 0.0f && (l.color.x > 0.0f || l.color.y > 0.0f || l.color.z > 0.0f);
-}
-
-// Can `light` give non-zero irradiance at p? Geometric only (range sphere, spot cone); the
-// incremental relight re-lights exactly the surfels for which this holds before or after.
-bool reaches(const scene::Light& l, const glm::vec3& p) {
-  if (!lightEmits(l)) return false;
-  if (l.kind == scene::Light::Kind::kDirectional) return true;
-  const glm::vec3 d = p - l.position;
-  const float dist2 = glm::dot(d, d);
-  if (l.range > 0.0f && dist2 >= l.range * l.range) return false;
-  if (l.kind == scene::Light::Kind::kSpot) {
-    if (dist2 <= 0.0f) return false;
-    return glm::dot(d, l.direction) > std::cos(l.outer_cone_angle) * std::sqrt(dist2);
-  }
-  return true;
-}
 
 // Gauss-Legendre nodes/weights on [-1, 1] by Newton iteration on P_n.
 void gaussLegendre(int n, std::vector<double>& x, std::vector<double>& w) {
@@ -179,8 +147,9 @@ struct Relighter::Impl {
   // cache, a dilated texel the dilation plan's averages flattened to caches (they are fixed
   // per precomputation), so writing the texels is one parallel gather, not a serial pass
   // over the dilation plan. Texels without an entry are empty (invalid, zero).
-  std::vector<std::uint32_t> texel_begin, texel_cache;
-  std::vector<float> texel_weight;
+  detail::TexelMap texel_map;
+  // The finer direct layer when the precomputation has one: then the caches carry no direct.
+  DirectLayer layer;
   PullAreas pull;  // leaf areas and node inverse areas of the pull (pullAreas)
 
   // Per-relight state, kept for incremental updates.
@@ -236,10 +205,9 @@ struct Relighter::Impl {
 
   Impl(const scene::Scene& s, const rt::Accel& a, const precompute::Precomputation& pc, links::LinksView lm,
        links::LinksView grid)
-      : scene(s), accel(a), p(pc), lm_links(lm), grid_links(grid) {}
+      : scene(s), accel(a), p(pc), lm_links(lm), grid_links(grid), layer(s, a, pc) {}
 
   void buildGather();
-  void buildTexelMap();
   void buildInverted();
   EffectsPlan makePlan(const LightSet& lights, const RelightOptions& o) const;
   void computeEmission(const LightSet& lights);
@@ -256,7 +224,9 @@ struct Relighter::Impl {
   void lightCaches(const links::LinksView& view, std::vector<float>& out, const std::vector<std::uint8_t>& valid,
                    const std::vector<std::uint32_t>* subset, int bands, LinkForm form, bool sky, const float* rad);
   void buildSkyMatrix(const Sky& sky, int bands_out, int bands_links);
-  void applyFill(const caches::FillPlan& plan, float* data, std::size_t stride) const;
+  void applyFill(const caches::FillPlan& plan, float* data, std::size_t stride) const {
+    detail::applyFill(plan, data, stride);
+  }
 };
 
 Relighter::Relighter(std::unique_ptr<Impl> impl) : impl_(std::move(impl)) {}
@@ -268,6 +238,7 @@ bool Relighter::simdAvailable() { return detail::cpuSupportsAvx2F16c(); }
 
 void Relighter::invalidate(Forget what) {
   impl_->last_valid = false;
+  impl_->layer.invalidate(what == Forget::kEverything);
   if (what == Forget::kEverything)
     impl_->emitter_valid = false, impl_->surfel_emit_valid = false;
 }
@@ -335,7 +306,7 @@ Expected<Relighter> Relighter::create(const scene::Scene& scene, const rt::Accel
   impl->surfel_material.resize(ns);
   for (std::size_t i = 0; i < ns; ++i) impl->surfel_material[i] = scene.meshes[p.surfels.mesh[i]].material;
   impl->buildGather();
-  impl->buildTexelMap();
+  impl->texel_map = detail::buildTexelMap(p.lightmap.cache_of_texel, impl->lm_has_value, p.dilation);
   const std::size_t nodes = p.tree.nodeCount();
   // The AVX2 runtime kernel gathers with 32-bit offsets 4 * node.
   if (nodes >= (std::size_t(1) << 29)) return invalidInput("relight: {} tree nodes exceed 2^29", nodes);
@@ -346,14 +317,8 @@ Expected<Relighter> Relighter::create(const scene::Scene& scene, const rt::Accel
 
 void Relighter::Impl::buildGather() {
   // Which caches hold a value after the fill: valid ones and fill targets with sources.
-  auto hasValue = [](const std::vector<std::uint8_t>& valid, const caches::FillPlan& plan) {
-    std::vector<std::uint8_t> v(valid);
-    for (std::size_t t = 0; t < plan.target.size(); ++t)
-      if (plan.source_begin[t + 1] > plan.source_begin[t]) v[plan.target[t]] = 1;
-    return v;
-  };
-  lm_has_value = hasValue(p.lightmap.valid, p.lightmap_fill);
-  if (p.has_grid) grid_has_value = hasValue(p.grid.valid, p.grid_fill);
+  lm_has_value = detail::hasValue(p.lightmap.valid, p.lightmap_fill);
+  if (p.has_grid) grid_has_value = detail::hasValue(p.grid.valid, p.grid_fill);
 
   const std::size_t ns = p.surfels.size();
   const int w = p.lightmap.width, h = p.lightmap.height;
@@ -436,62 +401,6 @@ void Relighter::Impl::buildGather() {
   grid_gathered = std::find(gather_from_grid.begin(), gather_from_grid.end(), std::uint8_t(1)) != gather_from_grid.end();
 }
 
-void Relighter::Impl::buildTexelMap() {
-  const std::size_t texels = std::size_t(p.lightmap.width) * std::size_t(p.lightmap.height);
-  const auto& cot = p.lightmap.cache_of_texel;
-  const auto& d = p.dilation;
-  // Dilated texels' cache weights, built in plan order exactly as the per-relight dilation
-  // would average them: a source counts when it holds a value at that point of the plan.
-  using Entry = std::pair<std::uint32_t, float>;
-  std::vector<std::int32_t> dilated(texels, -1);
-  std::vector<std::vector<Entry>> lists;
-  std::vector<Entry> acc;
-  for (std::size_t t = 0; t < d.target.size(); ++t) {
-    acc.clear();
-    std::uint32_t used = 0;
-    for (std::uint32_t k = d.source_begin[t]; k < d.source_begin[t + 1]; ++k) {
-      const std::uint32_t src = d.source[k];
-      const std::int32_t c = src < cot.size() ? cot[src] : -1;
-      if (c >= 0 && lm_has_value[std::size_t(c)]) {
-        acc.emplace_back(std::uint32_t(c), 1.0f);
-        ++used;
-      } else if (dilated[src] >= 0) {
-        for (const Entry& e : lists[std::size_t(dilated[src])]) acc.push_back(e);
-        ++used;
-      }
-    }
-    if (used == 0) continue;
-    std::sort(acc.begin(), acc.end(), [](const Entry& a, const Entry& b) { return a.first < b.first; });
-    std::vector<Entry> merged;
-    for (const Entry& e : acc) {
-      if (!merged.empty() && merged.back().first == e.first) merged.back().second += e.second;
-      else merged.push_back(e);
-    }
-    const float inv = 1.0f / float(used);
-    for (Entry& e : merged) e.second *= inv;
-    dilated[d.target[t]] = std::int32_t(lists.size());
-    lists.push_back(std::move(merged));
-  }
-  texel_begin.assign(texels + 1, 0);
-  for (std::size_t t = 0; t < texels; ++t) {
-    std::size_t n = 0;
-    if (cot[t] >= 0 && lm_has_value[std::size_t(cot[t])]) n = 1;
-    else if (dilated[t] >= 0) n = lists[std::size_t(dilated[t])].size();
-    texel_begin[t + 1] = texel_begin[t] + std::uint32_t(n);
-  }
-  texel_cache.resize(texel_begin[texels]);
-  texel_weight.resize(texel_begin[texels]);
-  for (std::size_t t = 0; t < texels; ++t) {
-    std::uint32_t k = texel_begin[t];
-    if (cot[t] >= 0 && lm_has_value[std::size_t(cot[t])]) {
-      texel_cache[k] = std::uint32_t(cot[t]);
-      texel_weight[k] = 1.0f;
-    } else if (dilated[t] >= 0) {
-      for (const Entry& e : lists[std::size_t(dilated[t])]) texel_cache[k] = e.first, texel_weight[k++] = e.second;
-    }
-  }
-}
-
 void Relighter::Impl::buildInverted() {
   auto invert = [&](const links::LinksView& v, std::vector<std::uint32_t>& begin, std::vector<std::uint32_t>& out) {
     const std::size_t nodes = p.tree.nodeCount();
@@ -550,7 +459,10 @@ EffectsPlan Relighter::Impl::makePlan(const LightSet& lights, const RelightOptio
   std::size_t baked = 0;
   for (const auto& e : lights.lights()) baked += e.baked && lightEmits(e.light);
   plan.baked_direct = baked > 0;
-  plan.reasons.push_back(plan.baked_direct ? fmt::format("{} baked lights: direct light written to texels", baked)
+  plan.reasons.push_back(plan.baked_direct ? fmt::format("{} baked lights: direct light written to {}", baked,
+                                                         layer.active() ? fmt::format("the {}x{} direct layer",
+                                                                                      layer.width(), layer.height())
+                                                                        : std::string("texels"))
                                            : "no baked light: baked direct skipped");
   // Emitter direct needs emitting triangles, not surfels: a lamp smaller than a surfel's
   // footprint still lights its surroundings directly.
@@ -604,54 +516,6 @@ Relighter::GatherTables Relighter::gatherTables() const {
   return {m.gather_begin, m.gather_cache, m.gather_weight, m.gather_from_grid, m.lm_has_value, m.grid_has_value,
           m.surfels_without_gather};
 }
-
-namespace {
-
-// Shadowed direct irradiance of one light at a set of points (surfels or lightmap caches):
-// irradianceFrom() times one shadow ray, batched per chunk. `valid` (optional) masks points
-// that get no light; `subset` (optional) restricts the work to those indices.
-void shadowedLight(const rt::Accel& accel, const scene::Light& light, std::span<const glm::vec3> position,
-                   std::span<const glm::vec3> normal, std::span<const std::uint8_t> valid,
-                   const std::vector<std::uint32_t>* subset, std::vector<glm::vec3>& out, std::size_t& rays,
-                   rt::Coherence coherence) {
-  const std::size_t n = subset ? subset->size() : position.size();
-  out.resize(position.size());
-  std::vector<std::size_t> chunk_rays((n + kChunk - 1) / kChunk, 0);
-  forChunks(n, kChunk, [&](std::size_t chunk, std::size_t begin, std::size_t end) {
-    std::array<rt::Ray, kChunk> ray_buf;
-    std::array<std::uint32_t, kChunk> who;
-    std::array<std::uint8_t, kChunk> blocked;
-    std::size_t count = 0;
-    for (std::size_t i = begin; i < end; ++i) {
-      const std::uint32_t k = subset ? (*subset)[i] : std::uint32_t(i);
-      const glm::vec3 pos = position[k], nrm = normal[k];
-      const bool lit = (valid.empty() || valid[k]) && reaches(light, pos);
-      const glm::vec3 e = lit ? scene::irradianceFrom(light, pos, nrm) : glm::vec3(0.0f);
-      out[k] = e;
-      if (e == glm::vec3(0.0f)) continue;
-      rt::Ray ray;
-      if (light.kind == scene::Light::Kind::kDirectional) {
-        ray.dir = -light.direction;
-        ray.origin = accel.offsetOrigin(pos, nrm, ray.dir);
-      } else {
-        ray.origin = accel.offsetOrigin(pos, nrm, light.position - pos);
-        ray.dir = light.position - ray.origin;
-        // Stop short of the light by the ray epsilon (a light on a surface is not shadowed
-        // by that surface); t is in units of |dir|.
-        ray.tfar = std::max(0.0f, 1.0f - accel.rayEpsilon() / std::max(glm::length(ray.dir), 1e-30f));
-      }
-      ray_buf[count] = ray;
-      who[count++] = k;
-    }
-    accel.occluded(std::span(ray_buf.data(), count), std::span(blocked.data(), count), coherence);
-    for (std::size_t k = 0; k < count; ++k)
-      if (blocked[k]) out[who[k]] = glm::vec3(0.0f);
-    chunk_rays[chunk] = count;
-  });
-  for (std::size_t c : chunk_rays) rays += c;
-}
-
-}  // namespace
 
 void Relighter::Impl::lightSurfels(const scene::Light& light, std::vector<glm::vec3>& out,
                                    const std::vector<std::uint32_t>* subset, std::size_t& rays) const {
@@ -831,22 +695,6 @@ void Relighter::Impl::lightCaches(const links::LinksView& view, std::vector<floa
                         }
                       }
                     });
-}
-
-void Relighter::Impl::applyFill(const caches::FillPlan& plan, float* data, std::size_t stride) const {
-  // Front to back: a target may read targets filled before it (the plan's order).
-  for (std::size_t t = 0; t < plan.target.size(); ++t) {
-    const std::uint32_t b0i = plan.source_begin[t], b1i = plan.source_begin[t + 1];
-    float* dst = data + std::size_t(plan.target[t]) * stride;
-    std::fill(dst, dst + stride, 0.0f);
-    if (b1i == b0i) continue;
-    const float inv = 1.0f / float(b1i - b0i);
-    for (std::uint32_t k = b0i; k < b1i; ++k) {
-      const float* src = data + std::size_t(plan.source[k]) * stride;
-      for (std::size_t i = 0; i < stride; ++i) dst[i] += src[i];
-    }
-    for (std::size_t i = 0; i < stride; ++i) dst[i] *= inv;
-  }
 }
 
 Expected<RelightResult> Relighter::relight(const LightSet& lights, const RelightOptions& o) {
@@ -1094,7 +942,7 @@ Status Relighter::relightInto(const LightSet& lights, const RelightOptions& o, R
       if (change == kAdded) m.per_light_cache.emplace_back();
       if (change == kRemoved) {
         m.per_light_cache.erase(m.per_light_cache.begin() + changed);
-      } else if (new_baked) {
+      } else if (new_baked && !m.layer.active()) {
         if (surfels_change || !old_baked || m.per_light_cache[changed].empty()) {
           m.bakedDirect(new_light, m.per_light_cache[changed], nullptr, res.counts.shadow_rays);
           res.passes.baked_direct = 1;
@@ -1252,7 +1100,7 @@ Status Relighter::relightInto(const LightSet& lights, const RelightOptions& o, R
     timed("baked_direct", [&] {
       m.per_light_cache.assign(L.size(), {});
       m.cache_direct.assign(m.p.lightmap.size(), glm::vec3(0.0f));
-      if (!plan.baked_direct) return;
+      if (!plan.baked_direct || m.layer.active()) return;
       for (std::size_t i = 0; i < L.size(); ++i) {
         if (!L[i].baked || !lightEmits(L[i].light)) continue;
         m.bakedDirect(L[i].light, m.per_light_cache[i], nullptr, res.counts.shadow_rays);
@@ -1264,7 +1112,7 @@ Status Relighter::relightInto(const LightSet& lights, const RelightOptions& o, R
     });
 
     timed("emissive_direct", [&] {
-      if (!plan.emissive_direct) {
+      if (!plan.emissive_direct || m.layer.active()) {
         m.emitter_cache.clear();
         m.emitter_valid = false;
         return;
@@ -1295,35 +1143,40 @@ Status Relighter::relightInto(const LightSet& lights, const RelightOptions& o, R
     const std::size_t texels = std::size_t(res.width) * res.height;
     // Every texel is written below (value or zero), so resize() need not clear.
     res.lightmap_sh.resize(texels * stride);
-    res.direct.resize(texels);
+    const bool coarse_direct = !m.layer.active();
+    if (coarse_direct) {
+      res.direct.resize(texels);
+      res.direct_width = res.width, res.direct_height = res.height;
+      res.direct_valid.clear();
+    }
     res.texel_valid.resize(texels);
     forChunks(texels, 4096, [&](std::size_t, std::size_t begin, std::size_t end) {
       for (std::size_t t = begin; t < end; ++t) {
         float* dst = res.lightmap_sh.data() + t * stride;
-        const std::uint32_t b0 = m.texel_begin[t], b1 = m.texel_begin[t + 1];
+        const std::uint32_t b0 = m.texel_map.begin[t], b1 = m.texel_map.begin[t + 1];
         if (b0 == b1) {
           std::fill(dst, dst + stride, 0.0f);
-          res.direct[t] = glm::vec3(0.0f);
+          if (coarse_direct) res.direct[t] = glm::vec3(0.0f);
           res.texel_valid[t] = 0;
           continue;
         }
-        if (b1 - b0 == 1 && m.texel_weight[b0] == 1.0f) {  // a texel with its own cache
-          const std::uint32_t c = m.texel_cache[b0];
+        if (b1 - b0 == 1 && m.texel_map.weight[b0] == 1.0f) {  // a texel with its own cache
+          const std::uint32_t c = m.texel_map.point[b0];
           std::memcpy(dst, m.lm_sh.data() + std::size_t(c) * stride, stride * sizeof(float));
-          res.direct[t] = m.cache_direct[c];
+          if (coarse_direct) res.direct[t] = m.cache_direct[c];
           res.texel_valid[t] = 1;
           continue;
         }
         std::fill(dst, dst + stride, 0.0f);
         glm::vec3 dir(0.0f);
         for (std::uint32_t k = b0; k < b1; ++k) {
-          const std::uint32_t c = m.texel_cache[k];
-          const float w = m.texel_weight[k];
+          const std::uint32_t c = m.texel_map.point[k];
+          const float w = m.texel_map.weight[k];
           const float* src = m.lm_sh.data() + std::size_t(c) * stride;
           for (std::size_t i = 0; i < stride; ++i) dst[i] += w * src[i];
           dir += w * m.cache_direct[c];
         }
-        res.direct[t] = dir;
+        if (coarse_direct) res.direct[t] = dir;
         res.texel_valid[t] = 1;
       }
     });
@@ -1333,6 +1186,7 @@ Status Relighter::relightInto(const LightSet& lights, const RelightOptions& o, R
     res.surfel_radiosity.resize(ns);
     for (std::size_t s = 0; s < ns; ++s) res.surfel_radiosity[s] = m.b[s] + m.emission_b[s];
   });
+  if (m.layer.active()) m.layer.compute(lights, o, plan, res);
   if (res.passes.incremental) res.bounce_stop = "disabled";
   if (res.passes.unchanged) res.bounce_stop = m.last_bounce_stop;
   m.last_bounce_log = res.bounce_log;

@@ -143,9 +143,14 @@ struct RelightResult {
   // light, emitters included) and the sky; no radiance straight from an emitter. Texels
   // without a value are 0 and have texel_valid = 0.
   std::vector<float> lightmap_sh;
-  // Per texel: direct irradiance (lux), linear RGB, of baked punctual lights (hard shadows)
-  // plus, when the light set bakes emitters, of emissive surfaces (sampled, soft shadows).
+  // Per direct texel (y * direct_width + x): direct irradiance (lux), linear RGB, of baked
+  // punctual lights (hard shadows) plus, when the light set bakes emitters, of emissive
+  // surfaces (sampled, soft shadows). The direct layer is the lightmap's size, or
+  // direct_scale times finer when the precomputation has a direct layer (same UVs).
   std::vector<glm::vec3> direct;
+  int direct_width = 0, direct_height = 0;
+  // With a finer direct layer: 1 where its texel holds a value (else empty: texel_valid).
+  std::vector<std::uint8_t> direct_valid;
   std::vector<std::uint8_t> texel_valid;    // 1 = the texel has a cache, a fill or a dilation
   // Per grid cache (GridCaches order), 3 * bands^2 floats as above; empty without a grid.
   // All light arriving from surfaces, emitters' direct light included, and the sky.
@@ -160,6 +165,8 @@ struct RelightResult {
   std::vector<std::string> warnings;
 
   int coeffCount() const { return bands * bands; }
+  // direct_width 0 (a result assembled by hand, e.g. from the wire): the lightmap's size.
+  bool directIsFiner() const { return direct_width > 0 && (direct_width != width || direct_height != height); }
   double totalSeconds() const;
   nlohmann::ordered_json report() const;
 };

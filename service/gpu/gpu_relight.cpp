@@ -16,6 +16,7 @@
 #include <tbb/parallel_for.h>
 
 #include "core/common/sampling.h"
+#include "core/relight/direct_layer.h"
 #include "core/relight/emitter_direct.h"
 #include "core/sh/sh.h"
 #include "service/gpu/gl_objects.h"
@@ -148,6 +149,9 @@ struct GpuRelighter::Impl {
   GpuOptions options;
   std::unique_ptr<GlContext> ctx;
   std::unique_ptr<relight::Relighter> cpu;  // the effects plan, gather tables, sky matrix, emission
+  // A finer direct layer is traced on the CPU (core/relight/direct_layer.h), as the CPU
+  // backend does, so both write the same direct.exr; the GPU's own direct is then unused.
+  std::unique_ptr<relight::DirectLayer> layer;
   std::unique_ptr<ShadowMaps> shadows;
   GpuTimers timers;
 
@@ -268,6 +272,7 @@ Expected<std::unique_ptr<GpuRelighter>> GpuRelighter::create(const scene::Scene&
     return invalidInput("gpu: lanes {} must be a power of two in 1..64", opts.lanes);
   auto impl = std::make_unique<Impl>(scene, accel, p, lightmap_links, grid_links, opts);
   impl->cpu = std::make_unique<relight::Relighter>(std::move(*cpu));
+  impl->layer = std::make_unique<relight::DirectLayer>(scene, accel, p);
   impl->ctx = std::move(*ctx);
   std::unique_ptr<GpuRelighter> r(new GpuRelighter(std::move(impl)));
   GlContext::Current cur(*r->impl_->ctx);
@@ -454,6 +459,7 @@ void GpuRelighter::invalidate() {
   impl_->emission_valid = false;
   impl_->emitter_valid = false;
   impl_->surfel_emit_valid = false;
+  impl_->layer->invalidate(true);
 }
 
 Status GpuRelighter::relightInto(const LightSet& lights, const RelightOptions& o, RelightResult& res) {
@@ -882,8 +888,11 @@ Status GpuRelighter::Impl::run(const LightSet& lights, const RelightOptions& o, 
     res.surfel_radiosity[s] = glm::vec3(b4[s]) + (has_emission ? emission_b[s] : glm::vec3(0.0f));
   host_stages.emplace_back("readback", secondsSince(t_read));
 
+  res.direct_width = res.width, res.direct_height = res.height;
+  res.direct_valid.clear();
   for (auto& [name, sec] : timers.resolve()) res.timings.push_back({name, sec});
   for (auto& [name, sec] : host_stages) res.timings.push_back({name, sec});
+  if (layer->active()) layer->compute(lights, o, plan, res);
   if (gt.surfels_without_gather > 0 && plan.bounces)
     res.warnings.push_back(fmt::format("{} surfels have no lightmap texel or grid cache to gather bounces from",
                                        gt.surfels_without_gather));

@@ -4,6 +4,7 @@
 #include <cmath>
 #include <cstdint>
 #include <cstring>
+#include <filesystem>
 #include <limits>
 #include <numbers>
 #include <string>
@@ -241,6 +242,38 @@ TEST(BakedLightingFile, LightmapSizeAndValuesAreChecked) {
   const Status s = readLightmapExr(path, nan);
   EXPECT_EQ(s.code(), Code::kInvalidInput);
   EXPECT_NE(s.message().find("is not finite"), std::string::npos) << s.message();
+}
+
+// A finer direct layer travels as direct.exr beside lightmap.exr (lightlink.direct_scale 2)
+// and is sampled at its own resolution: a direct step inside one lightmap texel survives.
+TEST(BakedLightingFile, FinerDirectLayerLoadsFromItsOwnFile) {
+  relight::RelightResult r;
+  r.bands = 1;
+  r.width = r.height = 2;
+  r.lightmap_sh.assign(4 * 3, 0.0f);
+  r.texel_valid.assign(4, 1);
+  r.direct_width = r.direct_height = 4;
+  r.direct.assign(16, glm::vec3(0.0f));
+  r.direct_valid.assign(16, 1);
+  for (int y = 0; y < 4; ++y) r.direct[std::size_t(y) * 4 + 3] = glm::vec3(8.0f);  // the last column lit
+  testing::TempDir dir;
+  ASSERT_TRUE(output::writeLightmapExr(r, (dir.path() / "lightmap.exr").string()));
+  ASSERT_TRUE(output::writeDirectExr(r, (dir.path() / "direct.exr").string()));
+  auto b = loadBakedLighting(dir.path().string());
+  ASSERT_TRUE(b) << b.status().toString();
+  EXPECT_EQ(b->direct_scale, 2);
+  EXPECT_EQ(b->direct_width, 4);
+  glm::vec3 e;
+  ASSERT_TRUE(b->sampleLightmap({0.875f, 0.5f}, {0, 1, 0}, e));
+  EXPECT_FLOAT_EQ(e.x, 8.0f);
+  ASSERT_TRUE(b->sampleLightmap({0.625f, 0.5f}, {0, 1, 0}, e));
+  EXPECT_FLOAT_EQ(e.x, 0.0f);  // same lightmap texel, a direct texel to the left: dark
+
+  // Without its direct.exr the bake is refused, naming the file.
+  std::filesystem::remove(dir.path() / "direct.exr");
+  auto missing = loadBakedLighting(dir.path().string());
+  ASSERT_FALSE(missing);
+  EXPECT_NE(missing.status().message().find("direct.exr"), std::string::npos) << missing.status().message();
 }
 
 }  // namespace

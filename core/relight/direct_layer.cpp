@@ -1,0 +1,149 @@
+#include "core/relight/direct_layer.h"
+
+#include <algorithm>
+#include <chrono>
+
+#include "core/common/sampling.h"
+#include "core/relight/direct_points.h"
+#include "core/relight/emitter_direct.h"
+
+namespace lightlink::relight {
+
+struct DirectLayer::State {
+  detail::TexelMap texels;  // direct texel -> points (own point or dilation sources)
+  struct Kept {
+    std::string id;
+    scene::Light light;
+    std::vector<glm::vec3> e;  // per point: this light's shadowed irradiance
+  };
+  std::vector<Kept> kept;  // the last call's baked lights, in its order
+  std::vector<glm::vec3> emitter;  // per point; valid while the emission state is
+  bool emitter_valid = false;
+  std::vector<EmissiveOverride> emitter_overrides;
+  int emitter_samples = 0;
+  std::size_t emitter_triangles = 0;
+  std::vector<glm::vec3> sum;  // per point, scratch
+};
+
+DirectLayer::DirectLayer(const scene::Scene& scene, const rt::Accel& accel, const precompute::Precomputation& p)
+    : scene_(scene), accel_(accel), p_(p), s_(std::make_unique<State>()) {
+  if (!active()) return;
+  s_->texels = detail::buildTexelMap(p.direct_texels.cache_of_texel,
+                                     detail::hasValue(p.direct_texels.valid, p.direct_fill), p.direct_dilation);
+}
+
+DirectLayer::DirectLayer(DirectLayer&&) noexcept = default;
+DirectLayer::~DirectLayer() = default;
+
+void DirectLayer::invalidate(bool everything) {
+  s_->kept.clear();
+  if (everything) s_->emitter_valid = false;
+}
+
+void DirectLayer::compute(const LightSet& lights, const RelightOptions& o, const EffectsPlan& plan,
+                          RelightResult& res) {
+  const auto t0 = std::chrono::steady_clock::now();
+  const caches::LightmapCaches& dt = p_.direct_texels;
+  const std::size_t n = dt.size();
+  State& s = *s_;
+
+  // Punctual lights: a light equal to one kept from the last call (same id, parameters) is
+  // reused, every other one traced. Kept in the new set's order, so sums run in that order.
+  std::vector<State::Kept> next;
+  for (const LightEntry& entry : lights.lights()) {
+    if (!plan.baked_direct || !entry.baked || !detail::lightEmits(entry.light)) continue;
+    auto old = std::find_if(s.kept.begin(), s.kept.end(), [&](const State::Kept& k) {
+      return k.id == entry.id && sameLight(k.light, entry.light) && k.e.size() == n;
+    });
+    State::Kept k{entry.id, entry.light, {}};
+    if (old != s.kept.end()) {
+      k.e = std::move(old->e);
+      s.kept.erase(old);
+    } else {
+      detail::shadowedLight(accel_, entry.light, dt.position, dt.normal, dt.valid, nullptr, k.e,
+                            res.counts.shadow_rays, rt::Coherence::kIncoherent);
+      res.passes.baked_direct++;
+    }
+    next.push_back(std::move(k));
+  }
+  s.kept = std::move(next);
+
+  if (!plan.emissive_direct) {
+    s.emitter.clear();
+    s.emitter_valid = false;
+  } else if (s.emitter_valid && s.emitter_samples == o.emitter_samples &&
+             detail::sameEmissive(s.emitter_overrides, lights.emissive())) {
+    res.counts.emitter_direct_reused = 1;
+    res.counts.emitter_triangles = s.emitter_triangles;
+  } else {
+    const detail::EmitterSampler sampler(scene_, accel_, lights.emissive());
+    s.emitter.assign(n, glm::vec3(0.0f));
+    std::vector<std::size_t> chunk_rays((n + detail::kCacheChunk - 1) / detail::kCacheChunk, 0);
+    detail::forChunks(n, detail::kCacheChunk, [&](std::size_t chunk, std::size_t begin, std::size_t end) {
+      detail::EmitterSampler::Scratch scratch;
+      std::size_t rays = 0;
+      for (std::size_t c = begin; c < end; ++c) {
+        if (!dt.valid[c]) continue;
+        // Seeded by the texel, as the caches' emitter direct is: independent of order and split.
+        const std::uint64_t seed = mixBits(0x6c6c656d69747465ULL ^ (std::uint64_t(dt.texel[c]) | (1ULL << 40)));
+        s.emitter[c] = sampler.irradiance(dt.position[c], dt.normal[c], o.emitter_samples, seed, scratch, rays);
+      }
+      chunk_rays[chunk] = rays;
+    });
+    for (std::size_t r : chunk_rays) res.counts.shadow_rays += r;
+    s.emitter_valid = true;
+    s.emitter_overrides = lights.emissive();
+    s.emitter_samples = o.emitter_samples;
+    s.emitter_triangles = sampler.triangleCount();
+    res.counts.emitter_triangles = s.emitter_triangles;
+    res.passes.emissive_direct = 1;
+  }
+
+  // Sum per point in light order, fill invalid points, then gather texels.
+  s.sum.assign(n, glm::vec3(0.0f));
+  for (const State::Kept& k : s.kept)
+    for (std::size_t c = 0; c < n; ++c) s.sum[c] += k.e[c];
+  if (!s.emitter.empty())
+    for (std::size_t c = 0; c < n; ++c) s.sum[c] += s.emitter[c];
+  detail::applyFill(p_.direct_fill, reinterpret_cast<float*>(s.sum.data()), 3);
+  const std::size_t texels = std::size_t(dt.width) * std::size_t(dt.height);
+  res.direct_width = dt.width;
+  res.direct_height = dt.height;
+  res.direct.resize(texels);
+  res.direct_valid.resize(texels);
+  const detail::TexelMap& m = s.texels;
+  detail::forChunks(texels, 4096, [&](std::size_t, std::size_t begin, std::size_t end) {
+    for (std::size_t t = begin; t < end; ++t) {
+      glm::vec3 e(0.0f);
+      for (std::uint32_t k = m.begin[t]; k < m.begin[t + 1]; ++k) e += m.weight[k] * s.sum[m.point[k]];
+      res.direct[t] = e;
+      res.direct_valid[t] = m.begin[t + 1] > m.begin[t] ? 1 : 0;
+    }
+  });
+  res.timings.push_back({"direct_layer", std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count()});
+}
+
+void directAtLightmapSize(const RelightResult& res, std::vector<glm::vec3>& out) {
+  if (!res.directIsFiner()) {
+    out = res.direct;
+    return;
+  }
+  const int w = res.width, h = res.height, k = res.direct_width / std::max(1, w);
+  out.assign(std::size_t(w) * std::size_t(h), glm::vec3(0.0f));
+  if (k < 1 || res.direct_height != h * k || res.direct.size() != std::size_t(res.direct_width) * res.direct_height ||
+      res.direct_valid.size() != res.direct.size())
+    return;
+  for (int y = 0; y < h; ++y)
+    for (int x = 0; x < w; ++x) {
+      glm::vec3 sum(0.0f);
+      int n = 0;
+      for (int j = 0; j < k; ++j)
+        for (int i = 0; i < k; ++i) {
+          const std::size_t t = std::size_t(y * k + j) * res.direct_width + std::size_t(x * k + i);
+          if (res.direct_valid[t]) sum += res.direct[t], ++n;
+        }
+      if (n > 0) out[std::size_t(y) * w + x] = sum / float(n);
+    }
+}
+
+}  // namespace lightlink::relight
