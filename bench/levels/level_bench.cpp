@@ -94,6 +94,9 @@ int main(int argc, char** argv) {
   out["lightmap_caches"] = p->lightmap.size();
   out["probe_lit_objects"] = p->atlas.probe_lit.size();
   out["grid_caches"] = p->grid.size();
+  out["direct_width"] = p->direct_texels.width;
+  out["direct_height"] = p->direct_texels.height;
+  out["direct_texels"] = p->direct_texels.size();
   out["precompute_peak_rss_mib"] = peakRssMiB();
 
   relight::LightSet lights = relight::LightSet::fromScene(*scene);

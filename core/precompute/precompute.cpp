@@ -367,9 +367,12 @@ Expected<Precomputation> run(scene::Scene& scene, const PrecomputeOptions& optio
           std::uint64_t(p.lightmap.height) * options.direct_scale));
     if (scale > 1) {
       s = stage("direct_texels", [&]() -> Status {
+        // A quarter of the caches' validity rays: a direct texel only needs to know whether
+        // it lies inside geometry (no links read its hemisphere), and there are K^2 as many.
+        caches::ValidityOptions dv = validity;
+        dv.rays = std::max(8, options.validity_rays / 4);
         auto dt = caches::placeLightmapCaches(
-            scene, *accel,
-            {.resolution = p.atlas.resolution * scale, .pages = p.atlas.pages, .validity = validity});
+            scene, *accel, {.resolution = p.atlas.resolution * scale, .pages = p.atlas.pages, .validity = dv});
         if (!dt) return dt.status();
         p.direct_texels = std::move(dt).value();
         p.direct_fill = caches::planLightmapFill(p.direct_texels);

@@ -6,6 +6,7 @@
 #include "core/common/sampling.h"
 #include "core/relight/direct_points.h"
 #include "core/relight/emitter_direct.h"
+#include "core/scene/light_eval.h"
 
 namespace lightlink::relight {
 
@@ -31,6 +32,80 @@ DirectLayer::DirectLayer(const scene::Scene& scene, const rt::Accel& accel, cons
   s_->texels = detail::buildTexelMap(p.direct_texels.cache_of_texel,
                                      detail::hasValue(p.direct_texels.valid, p.direct_fill), p.direct_dilation);
 }
+
+namespace {
+
+// Anti-aliased shadow edges (what Bakery and Unity do with texel supersampling, here only
+// where it matters): a texel whose light differs in kind (lit / unlit) from one of its 8
+// neighbours is re-evaluated as the mean of 2x2 sub-texel samples on its own triangle, so a
+// shadow edge becomes a ramp one texel wide instead of a staircase. Sub-samples are the
+// texel's quarter points mapped through its triangle's lightmap UVs (barycentrics clamped
+// into the triangle, so no sample leaves the surface); fixed, hence deterministic.
+void antialiasEdges(const scene::Scene& scene, const rt::Accel& accel, const caches::LightmapCaches& dt,
+                    const scene::Light& light, std::vector<glm::vec3>& e, std::size_t& rays) {
+  const int w = dt.width, h = dt.height;
+  const std::size_t n = dt.size();
+  std::vector<std::uint32_t> edge;
+  for (std::size_t c = 0; c < n; ++c) {
+    if (!dt.valid[c]) continue;
+    const int x = int(dt.texel[c] % std::uint32_t(w)), y = int(dt.texel[c] / std::uint32_t(w));
+    const bool lit = e[c] != glm::vec3(0.0f);
+    bool differs = false;
+    for (int dy = -1; dy <= 1 && !differs; ++dy)
+      for (int dx = -1; dx <= 1 && !differs; ++dx) {
+        const int nx = x + dx, ny = y + dy;
+        if ((dx == 0 && dy == 0) || nx < 0 || ny < 0 || nx >= w || ny >= h) continue;
+        const std::int32_t j = dt.cache_of_texel[std::size_t(ny) * w + nx];
+        differs = j >= 0 && dt.valid[std::size_t(j)] && (e[std::size_t(j)] != glm::vec3(0.0f)) != lit;
+      }
+    if (differs) edge.push_back(std::uint32_t(c));
+  }
+  std::vector<glm::vec3> value(edge.size());
+  std::vector<std::size_t> chunk_rays((edge.size() + detail::kCacheChunk - 1) / detail::kCacheChunk, 0);
+  detail::forChunks(edge.size(), detail::kCacheChunk, [&](std::size_t chunk, std::size_t begin, std::size_t end) {
+    std::vector<rt::Ray> ray_buf;
+    std::vector<glm::vec3> contrib;
+    std::vector<std::uint32_t> who;
+    for (std::size_t i = begin; i < end; ++i) {
+      const std::uint32_t c = edge[i];
+      const auto& mesh = scene.meshes[dt.mesh[c]];
+      const std::size_t tri = dt.triangle[c];
+      const std::uint32_t i0 = mesh.indices[3 * tri], i1 = mesh.indices[3 * tri + 1], i2 = mesh.indices[3 * tri + 2];
+      const glm::vec2 scale{float(w), float(h)};
+      const glm::vec2 t0 = mesh.uv1[i0] * scale, t1 = mesh.uv1[i1] * scale, t2 = mesh.uv1[i2] * scale;
+      const glm::vec2 e1 = t1 - t0, e2 = t2 - t0;
+      const float det = e1.x * e2.y - e1.y * e2.x;
+      const float x = float(dt.texel[c] % std::uint32_t(w)), y = float(dt.texel[c] / std::uint32_t(w));
+      for (int k = 0; k < 4; ++k) {
+        glm::vec3 pos = dt.position[c];
+        if (std::abs(det) > 1e-12f) {
+          const glm::vec2 q = glm::vec2(x + 0.25f + 0.5f * float(k & 1), y + 0.25f + 0.5f * float(k >> 1)) - t0;
+          float a = (q.x * e2.y - q.y * e2.x) / det, b = (e1.x * q.y - e1.y * q.x) / det;
+          a = std::max(a, 0.0f), b = std::max(b, 0.0f);
+          const float sum = a + b;
+          if (sum > 1.0f) a /= sum, b /= sum;
+          pos = mesh.positions[i0] + a * (mesh.positions[i1] - mesh.positions[i0]) +
+                b * (mesh.positions[i2] - mesh.positions[i0]);
+        }
+        const glm::vec3 ek = detail::reaches(light, pos) ? scene::irradianceFrom(light, pos, dt.normal[c]) : glm::vec3(0.0f);
+        if (ek == glm::vec3(0.0f)) continue;
+        ray_buf.push_back(detail::shadowRay(accel, light, pos, dt.normal[c]));
+        contrib.push_back(ek);
+        who.push_back(std::uint32_t(i));
+      }
+    }
+    std::vector<std::uint8_t> blocked(ray_buf.size());
+    accel.occluded(ray_buf, blocked, rt::Coherence::kIncoherent);
+    for (std::size_t i = begin; i < end; ++i) value[i] = glm::vec3(0.0f);
+    for (std::size_t k = 0; k < ray_buf.size(); ++k)
+      if (!blocked[k]) value[who[k]] += 0.25f * contrib[k];
+    chunk_rays[chunk] = ray_buf.size();
+  });
+  for (std::size_t i = 0; i < edge.size(); ++i) e[edge[i]] = value[i];
+  for (std::size_t r : chunk_rays) rays += r;
+}
+
+}  // namespace
 
 DirectLayer::DirectLayer(DirectLayer&&) noexcept = default;
 DirectLayer::~DirectLayer() = default;
@@ -62,6 +137,7 @@ void DirectLayer::compute(const LightSet& lights, const RelightOptions& o, const
     } else {
       detail::shadowedLight(accel_, entry.light, dt.position, dt.normal, dt.valid, nullptr, k.e,
                             res.counts.shadow_rays, rt::Coherence::kIncoherent);
+      antialiasEdges(scene_, accel_, dt, entry.light, k.e, res.counts.shadow_rays);
       res.passes.baked_direct++;
     }
     next.push_back(std::move(k));

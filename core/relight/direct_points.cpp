@@ -33,6 +33,21 @@ bool reaches(const scene::Light& l, const glm::vec3& p) {
   return true;
 }
 
+rt::Ray shadowRay(const rt::Accel& accel, const scene::Light& light, glm::vec3 pos, glm::vec3 nrm) {
+  rt::Ray ray;
+  if (light.kind == scene::Light::Kind::kDirectional) {
+    ray.dir = -light.direction;
+    ray.origin = accel.offsetOrigin(pos, nrm, ray.dir);
+  } else {
+    ray.origin = accel.offsetOrigin(pos, nrm, light.position - pos);
+    ray.dir = light.position - ray.origin;
+    // Stop short of the light by the ray epsilon (a light on a surface is not shadowed
+    // by that surface); t is in units of |dir|.
+    ray.tfar = std::max(0.0f, 1.0f - accel.rayEpsilon() / std::max(glm::length(ray.dir), 1e-30f));
+  }
+  return ray;
+}
+
 void shadowedLight(const rt::Accel& accel, const scene::Light& light, std::span<const glm::vec3> position,
                    std::span<const glm::vec3> normal, std::span<const std::uint8_t> valid,
                    const std::vector<std::uint32_t>* subset, std::vector<glm::vec3>& out, std::size_t& rays,
@@ -52,17 +67,7 @@ void shadowedLight(const rt::Accel& accel, const scene::Light& light, std::span<
       const glm::vec3 e = lit ? scene::irradianceFrom(light, pos, nrm) : glm::vec3(0.0f);
       out[k] = e;
       if (e == glm::vec3(0.0f)) continue;
-      rt::Ray ray;
-      if (light.kind == scene::Light::Kind::kDirectional) {
-        ray.dir = -light.direction;
-        ray.origin = accel.offsetOrigin(pos, nrm, ray.dir);
-      } else {
-        ray.origin = accel.offsetOrigin(pos, nrm, light.position - pos);
-        ray.dir = light.position - ray.origin;
-        // Stop short of the light by the ray epsilon (a light on a surface is not shadowed
-        // by that surface); t is in units of |dir|.
-        ray.tfar = std::max(0.0f, 1.0f - accel.rayEpsilon() / std::max(glm::length(ray.dir), 1e-30f));
-      }
+      const rt::Ray ray = shadowRay(accel, light, pos, nrm);
       ray_buf[count] = ray;
       who[count++] = k;
     }

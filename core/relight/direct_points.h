@@ -42,6 +42,9 @@ bool lightEmits(const scene::Light& l);
 // incremental relight re-lights exactly the surfels for which this holds before or after.
 bool reaches(const scene::Light& l, const glm::vec3& p);
 
+// The shadow ray from surface point pos (geometric normal nrm) to `light`.
+rt::Ray shadowRay(const rt::Accel& accel, const scene::Light& light, glm::vec3 pos, glm::vec3 nrm);
+
 // Shadowed direct irradiance of one light at a set of points (surfels or lightmap caches):
 // irradianceFrom() times one shadow ray, batched per chunk. `valid` (optional) masks points
 // that get no light; `subset` (optional) restricts the work to those indices.
