@@ -181,7 +181,7 @@ Expected<PrecomputeOptions> preset(std::string_view name) {
     o.bands = 3;
     o.rays = 2048;
     o.texel_budget = 131072;
-    o.direct_scale = 2;
+    o.direct_scale = 4;
   } else {
     return invalidInput("--preset '{}' must be draft, medium or high", name);
   }
