@@ -45,6 +45,7 @@
 #include "bench/rt/throughput.h"
 #include "core/precompute/precompute.h"
 #include "core/reference/compare.h"
+#include "core/relight/direct_layer.h"
 #include "core/relight/relight.h"
 #include "core/scene/load.h"
 #include "core/sh/sh.h"
@@ -170,6 +171,8 @@ Bake bakedAt(const relight::RelightResult& res, const precompute::Precomputation
   Bake b;
   const int nc = res.coeffCount();
   std::vector<float> sh(3 * nc);
+  std::vector<glm::vec3> direct;  // at the caches' texels (a finer direct layer box-filtered)
+  relight::directAtLightmapSize(res, direct);
   for (const auto& pt : points) {
     const std::uint32_t ta = p.lightmap.texel[pt.cache_a], tb = p.lightmap.texel[pt.cache_b];
     const float* a = res.lightmap_sh.data() + std::size_t(ta) * 3 * nc;
@@ -179,7 +182,7 @@ Bake bakedAt(const relight::RelightResult& res, const precompute::Precomputation
                         sh::irradiance(res.bands, sh.data() + nc, pt.normal),
                         sh::irradiance(res.bands, sh.data() + 2 * nc, pt.normal));
     b.indirect.push_back(ind);
-    b.total.push_back(ind + 0.5f * (res.direct[ta] + res.direct[tb]));
+    b.total.push_back(ind + 0.5f * (direct[ta] + direct[tb]));
   }
   return b;
 }

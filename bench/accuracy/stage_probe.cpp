@@ -115,6 +115,7 @@ int main(int argc, char** argv) {
   if (a.links) opt->links = a.links;
   if (a.rays) opt->rays = a.rays;
   if (a.resolution) opt->lightmap_resolution = a.resolution;
+  opt->direct_scale = 1;  // every stage is probed at the caches, direct light included
   auto p = precompute::run(*scene, *opt);
   if (!p) return fail(p.status());
   auto accel = rt::Accel::build(*scene);

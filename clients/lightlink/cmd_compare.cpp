@@ -19,6 +19,7 @@
 #include "core/precompute/precompute.h"
 #include "core/reference/compare.h"
 #include "core/reference/reference.h"
+#include "core/relight/direct_layer.h"
 #include "core/relight/relight.h"
 #include "core/sh/sh.h"
 #include "core/scene/load.h"
@@ -100,6 +101,9 @@ int runCompare(const CompareArgs& args) {
   if (!est) return reportError(kCmd, est.status());
 
   const int nc = baked->coeffCount();
+  // The direct light at the caches' texels (a finer direct layer box-filtered to them).
+  std::vector<glm::vec3> direct;
+  relight::directAtLightmapSize(*baked, direct);
   std::vector<glm::vec3> b_total, b_ind, r_total, r_ind;
   double ref_rel_err = 0.0;
   std::size_t converged = 0;
@@ -108,7 +112,7 @@ int runCompare(const CompareArgs& args) {
     const glm::vec3 ind(sh::irradiance(baked->bands, sh, nrm[k]), sh::irradiance(baked->bands, sh + nc, nrm[k]),
                         sh::irradiance(baked->bands, sh + 2 * nc, nrm[k]));
     b_ind.push_back(ind);
-    b_total.push_back(ind + baked->direct[texels[k]]);
+    b_total.push_back(ind + direct[texels[k]]);
     const auto& e = (*est)[k];
     r_total.push_back(e.total);
     r_ind.push_back(e.indirect);
