@@ -283,48 +283,51 @@ Status readGridRaw(const std::string& path, BakedLighting& b) {
   return {};
 }
 
-bool BakedLighting::sampleLightmap(glm::vec2 uv, const glm::vec3& normal, glm::vec3& irradiance) const {
-  if (width < 1 || height < 1 || !std::isfinite(uv.x) || !std::isfinite(uv.y)) return false;
+namespace {
+
+// The four bilinear taps of a w x h texel image at UV uv, each weighted by its validity;
+// calls tap(texel, weight) for every tap of positive weight.
+template <typename Tap>
+void bilinearTaps(glm::vec2 uv, int w, int h, const std::vector<float>& valid, Tap&& tap) {
   // Clamped before the int conversion (a huge UV would overflow it); the lookup clamps to the
   // edge texels anyway.
-  const float fx = std::clamp(uv.x * float(width) - 0.5f, -1.0f, float(width)),
-              fy = std::clamp(uv.y * float(height) - 0.5f, -1.0f, float(height));
+  const float fx = std::clamp(uv.x * float(w) - 0.5f, -1.0f, float(w)),
+              fy = std::clamp(uv.y * float(h) - 0.5f, -1.0f, float(h));
   const int x0 = static_cast<int>(std::floor(fx)), y0 = static_cast<int>(std::floor(fy));
   const float ax = fx - float(x0), ay = fy - float(y0);
+  for (int dy = 0; dy < 2; ++dy)
+    for (int dx = 0; dx < 2; ++dx) {
+      const int x = std::clamp(x0 + dx, 0, w - 1), y = std::clamp(y0 + dy, 0, h - 1);
+      const std::size_t t = std::size_t(y) * w + x;
+      const float wt = (dx ? ax : 1 - ax) * (dy ? ay : 1 - ay) * valid[t];
+      if (wt > 0.0f) tap(t, wt);
+    }
+}
+
+}  // namespace
+
+bool BakedLighting::sampleLightmap(glm::vec2 uv, const glm::vec3& normal, glm::vec3& irradiance) const {
+  if (width < 1 || height < 1 || !std::isfinite(uv.x) || !std::isfinite(uv.y)) return false;
   const int nc = bands * bands;
   float sh[3 * 16] = {};
   glm::vec3 dir(0.0f);
   float wsum = 0.0f;
-  for (int dy = 0; dy < 2; ++dy)
-    for (int dx = 0; dx < 2; ++dx) {
-      const int x = std::clamp(x0 + dx, 0, width - 1), y = std::clamp(y0 + dy, 0, height - 1);
-      const std::size_t t = std::size_t(y) * width + x;
-      const float w = (dx ? ax : 1 - ax) * (dy ? ay : 1 - ay) * valid[t];
-      if (w <= 0.0f) continue;
-      for (int k = 0; k < 3 * nc; ++k) sh[k] += w * lightmap_sh[t * 3 * nc + k];
-      if (direct_scale == 1) dir += w * direct[t];
-      wsum += w;
-    }
+  bilinearTaps(uv, width, height, valid, [&](std::size_t t, float w) {
+    for (int k = 0; k < 3 * nc; ++k) sh[k] += w * lightmap_sh[t * 3 * nc + k];
+    if (direct_scale == 1) dir += w * direct[t];
+    wsum += w;
+  });
   if (wsum <= 0.0f) return false;
   // SH interpolates linearly, so evaluating the weighted sum equals the weighted evaluations.
   for (int k = 0; k < 3 * nc; ++k) sh[k] /= wsum;
   if (direct_scale == 1) {
     dir /= wsum;
   } else {  // the finer direct layer: its own bilinear lookup over its valid texels
-    const float gx = std::clamp(uv.x * float(direct_width) - 0.5f, -1.0f, float(direct_width)),
-                gy = std::clamp(uv.y * float(direct_height) - 0.5f, -1.0f, float(direct_height));
-    const int gx0 = static_cast<int>(std::floor(gx)), gy0 = static_cast<int>(std::floor(gy));
-    const float bx = gx - float(gx0), by = gy - float(gy0);
     float dsum = 0.0f;
-    for (int dy = 0; dy < 2; ++dy)
-      for (int dx = 0; dx < 2; ++dx) {
-        const int x = std::clamp(gx0 + dx, 0, direct_width - 1), y = std::clamp(gy0 + dy, 0, direct_height - 1);
-        const std::size_t t = std::size_t(y) * direct_width + x;
-        const float w = (dx ? bx : 1 - bx) * (dy ? by : 1 - by) * direct_valid[t];
-        if (w <= 0.0f) continue;
-        dir += w * direct[t];
-        dsum += w;
-      }
+    bilinearTaps(uv, direct_width, direct_height, direct_valid, [&](std::size_t t, float w) {
+      dir += w * direct[t];
+      dsum += w;
+    });
     if (dsum > 0.0f) dir /= dsum;
   }
   irradiance = shIrradiance(sh, bands, normal) + dir;
