@@ -130,6 +130,7 @@ int main(int argc, char** argv) {
   }
   out["relight_one_bounce_ms"] = bench::median(warm);
   out["relight_one_bounce_stages"] = result.report()["seconds"];
+  out["seams"] = result.report()["seams"];
   relight::RelightOptions full;
   full.incremental = false;
   relighter->invalidate(relight::Relighter::Forget::kEverything);

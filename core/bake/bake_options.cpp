@@ -139,6 +139,13 @@ constexpr Row kRows[] = {
        o.relight.max_bounces = int(*x);
        return {};
      }},
+    {{"seams", "stitch|off", "Make texels on the two sides of smooth UV seams agree (least squares)"},
+     [](BakeOptions& o, std::string_view v, const std::string& l) -> Status {
+       auto m = choice<bool>(v, l, std::array<std::pair<std::string_view, bool>, 2>{{{"stitch", true}, {"off", false}}});
+       if (!m) return m.status();
+       o.relight.stitch_seams = *m;
+       return {};
+     }},
     {{"link-form", "projected|runtime", "Link form the relight uses"},
      [](BakeOptions& o, std::string_view v, const std::string& l) -> Status {
        using relight::LinkForm;

@@ -12,6 +12,7 @@ namespace lightlink::relight {
 
 struct DirectLayer::State {
   detail::TexelMap texels;  // direct texel -> points (own point or dilation sources)
+  SeamStitch seams;         // of the direct layer's atlas
   struct Kept {
     std::string id;
     scene::Light light;
@@ -31,6 +32,7 @@ DirectLayer::DirectLayer(const scene::Scene& scene, const rt::Accel& accel, cons
   if (!active()) return;
   s_->texels = detail::buildTexelMap(p.direct_texels.cache_of_texel,
                                      detail::hasValue(p.direct_texels.valid, p.direct_fill), p.direct_dilation);
+  s_->seams = SeamStitch::build(scene, p.direct_texels.width, p.direct_texels.height);
 }
 
 namespace {
@@ -196,6 +198,7 @@ void DirectLayer::compute(const LightSet& lights, const RelightOptions& o, const
       res.direct_valid[t] = m.begin[t + 1] > m.begin[t] ? 1 : 0;
     }
   });
+  if (o.stitch_seams) s.seams.apply(reinterpret_cast<float*>(res.direct.data()), 3, &res.direct_seams);
   res.timings.push_back({"direct_layer", std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count()});
 }
 

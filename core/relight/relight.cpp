@@ -110,6 +110,12 @@ nlohmann::ordered_json RelightResult::report() const {
                  {"texels", counts.texels},
                  {"texels_filled", counts.texels_filled},
                  {"surfels_without_gather", counts.surfels_without_gather}};
+  auto seamJson = [](const SeamStats& s) {
+    return nlohmann::ordered_json{{"edges", s.edges},           {"samples", s.samples},
+                                  {"texels", s.texels},         {"jump_before", s.jump_before},
+                                  {"jump_after", s.jump_after}};
+  };
+  j["seams"] = {{"lightmap", seamJson(seams)}, {"direct", seamJson(direct_seams)}};
   nlohmann::ordered_json t = nlohmann::ordered_json::object();
   for (const auto& s : timings) t[s.stage] = s.seconds;
   t["total"] = totalSeconds();
@@ -150,6 +156,7 @@ struct Relighter::Impl {
   detail::TexelMap texel_map;
   // The finer direct layer when the precomputation has one: then the caches carry no direct.
   DirectLayer layer;
+  SeamStitch seams;  // of the lightmap atlas
   PullAreas pull;  // leaf areas and node inverse areas of the pull (pullAreas)
 
   // Per-relight state, kept for incremental updates.
@@ -307,6 +314,7 @@ Expected<Relighter> Relighter::create(const scene::Scene& scene, const rt::Accel
   for (std::size_t i = 0; i < ns; ++i) impl->surfel_material[i] = scene.meshes[p.surfels.mesh[i]].material;
   impl->buildGather();
   impl->texel_map = detail::buildTexelMap(p.lightmap.cache_of_texel, impl->lm_has_value, p.dilation);
+  impl->seams = SeamStitch::build(scene, p.lightmap.width, p.lightmap.height);
   const std::size_t nodes = p.tree.nodeCount();
   // The AVX2 runtime kernel gathers with 32-bit offsets 4 * node.
   if (nodes >= (std::size_t(1) << 29)) return invalidInput("relight: {} tree nodes exceed 2^29", nodes);
@@ -1182,6 +1190,11 @@ Status Relighter::relightInto(const LightSet& lights, const RelightOptions& o, R
     });
     res.counts.texels = texels;
     res.counts.texels_filled = std::size_t(std::count(res.texel_valid.begin(), res.texel_valid.end(), 1));
+    res.seams = {}, res.direct_seams = {};
+    if (o.stitch_seams) {
+      m.seams.apply(res.lightmap_sh.data(), stride, &res.seams);
+      if (coarse_direct) m.seams.apply(reinterpret_cast<float*>(res.direct.data()), 3, &res.direct_seams);
+    }
     if (plan.grid) res.grid_sh = m.grid_sh;
     res.surfel_radiosity.resize(ns);
     for (std::size_t s = 0; s < ns; ++s) res.surfel_radiosity[s] = m.b[s] + m.emission_b[s];

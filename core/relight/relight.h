@@ -42,6 +42,7 @@
 #include "core/links/links.h"
 #include "core/precompute/precompute.h"
 #include "core/relight/light_set.h"
+#include "core/relight/seam_stitch.h"
 #include "core/rt/accel.h"
 #include "core/scene/scene.h"
 
@@ -63,6 +64,9 @@ struct RelightOptions {
   // Samples (one shadow ray each) per lightmap texel for the direct light of emissive
   // surfaces, 1..4096; the Monte Carlo noise of a texel's direct falls as 1/sqrt(samples).
   int emitter_samples = 32;
+  // Make texels on the two sides of smooth UV seams agree (SeamStitch), in the SH and the
+  // direct light: what engines show as lines along chart borders otherwise.
+  bool stitch_seams = true;
   // When not empty (one entry per surfel, tree order): the surfels' direct irradiance (lux)
   // used instead of evaluating the punctual lights' surfel lighting, so that two backends can
   // be fed identical surfel light and compared from the pull on (tests/gpu). Such a relight
@@ -151,6 +155,8 @@ struct RelightResult {
   int direct_width = 0, direct_height = 0;
   // With a finer direct layer: 1 where its texel holds a value (else empty: texel_valid).
   std::vector<std::uint8_t> direct_valid;
+  // The seam stitch of the SH (jump measured on R L00) and of the direct layer (R).
+  SeamStats seams, direct_seams;
   std::vector<std::uint8_t> texel_valid;    // 1 = the texel has a cache, a fill or a dilation
   // Per grid cache (GridCaches order), 3 * bands^2 floats as above; empty without a grid.
   // All light arriving from surfaces, emitters' direct light included, and the sky.

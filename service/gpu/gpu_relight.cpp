@@ -152,6 +152,7 @@ struct GpuRelighter::Impl {
   // A finer direct layer is traced on the CPU (core/relight/direct_layer.h), as the CPU
   // backend does, so both write the same direct.exr; the GPU's own direct is then unused.
   std::unique_ptr<relight::DirectLayer> layer;
+  relight::SeamStitch seams;  // applied to the read-back texels, as the CPU backend does
   std::unique_ptr<ShadowMaps> shadows;
   GpuTimers timers;
 
@@ -273,6 +274,7 @@ Expected<std::unique_ptr<GpuRelighter>> GpuRelighter::create(const scene::Scene&
   auto impl = std::make_unique<Impl>(scene, accel, p, lightmap_links, grid_links, opts);
   impl->cpu = std::make_unique<relight::Relighter>(std::move(*cpu));
   impl->layer = std::make_unique<relight::DirectLayer>(scene, accel, p);
+  impl->seams = relight::SeamStitch::build(scene, p.lightmap.width, p.lightmap.height);
   impl->ctx = std::move(*ctx);
   std::unique_ptr<GpuRelighter> r(new GpuRelighter(std::move(impl)));
   GlContext::Current cur(*r->impl_->ctx);
@@ -890,6 +892,11 @@ Status GpuRelighter::Impl::run(const LightSet& lights, const RelightOptions& o, 
 
   res.direct_width = res.width, res.direct_height = res.height;
   res.direct_valid.clear();
+  res.seams = {}, res.direct_seams = {};
+  if (o.stitch_seams) {
+    seams.apply(res.lightmap_sh.data(), std::size_t(stride), &res.seams);
+    if (!layer->active()) seams.apply(reinterpret_cast<float*>(res.direct.data()), 3, &res.direct_seams);
+  }
   for (auto& [name, sec] : timers.resolve()) res.timings.push_back({name, sec});
   for (auto& [name, sec] : host_stages) res.timings.push_back({name, sec});
   if (layer->active()) layer->compute(lights, o, plan, res);
