@@ -5,8 +5,6 @@
 // two-triangle walls) it reads the light of another place.
 #include <algorithm>
 #include <cmath>
-#include <cstdio>
-#include <cstdlib>
 #include <memory>
 #include <string>
 #include <vector>
@@ -41,9 +39,9 @@ LightEntry pointLight(glm::vec3 pos, float intensity_cd) {
 
 precompute::PrecomputeOptions placementOptions() {
   precompute::PrecomputeOptions o;
-  o.surfels = 4096;
-  o.links = 128;
-  o.rays = 512;
+  o.surfels = 16384;
+  o.links = 256;
+  o.rays = 1024;
   o.lightmap_resolution = 64;
   o.validity_rays = 64;
   o.builder = hierarchy::Builder::kKdMedian;
@@ -165,11 +163,6 @@ TEST(CachePlacement, ContactTexelsOfAClosedRoomMatchTheReference) {
   referenceAt(*b, lights, texels);
   if (::testing::Test::HasFatalFailure()) return;
 
-  if (std::getenv("PLACEMENT_DEBUG"))
-    for (std::size_t i = 0; i < texels.size(); ++i)
-      std::printf("band %d  c=(%.3f %.3f %.3f) n=(%.0f %.0f %.0f) baked %.4f ref %.4f ratio %.2f\n", band[i], texels[i].centre.x,
-                  texels[i].centre.y, texels[i].centre.z, texels[i].normal.x, texels[i].normal.y, texels[i].normal.z,
-                  texels[i].baked, texels[i].reference, texels[i].baked / texels[i].reference);
   for (int line = 0; line < 8; ++line) {
     double baked = 0.0, ref = 0.0;
     int n = 0;
