@@ -10,7 +10,10 @@
 // point of its texel's own footprint (a stratified pattern over the texel square, on the
 // triangles of its mesh that cover it) nearest the centre; it never leaves its texel, so a
 // texel at a contact line keeps the light of that line. If no point of the footprint is
-// valid the cache, like such grid caches, is marked invalid. Invalid caches are never shown black: the FillPlan says
+// valid, the texel is either covered by a one-sided sheet lying on it (most of the back faces
+// it sees are nearer than a texel: a card or rug over a floor), and then it keeps its centre
+// and its own, dark, value -- filling it from lit neighbours would make the sheet cast no
+// shadow -- or it is inside geometry and, like such grid caches, is marked invalid. Invalid caches are never shown black: the FillPlan says
 // from which valid neighbours each one is filled after relighting.
 #pragma once
 
@@ -90,6 +93,15 @@ Expected<GridCaches> placeGridCaches(const scene::Scene& scene, const rt::Accel&
 // sphere when `normal` is zero) that hit a back face of a single-sided material.
 float backfaceFraction(const scene::Scene& scene, const rt::Accel& accel, const glm::vec3& p,
                        const glm::vec3& normal, const ValidityOptions& options);
+
+// What a validity probe saw: the fraction of its rays that hit a back face of a single-sided
+// material, and the fraction that hit one closer than `near_m` (unit-length directions).
+struct BackfaceProbe {
+  float fraction = 0.0f;
+  float near_fraction = 0.0f;
+};
+BackfaceProbe probeBackfaces(const scene::Scene& scene, const rt::Accel& accel, const glm::vec3& p,
+                             const glm::vec3& normal, const ValidityOptions& options, float near_m);
 
 // How every cache that has no value of its own gets one after relighting: target caches
 // are filled in order, each from the average of its sources (valid caches or targets

@@ -111,6 +111,11 @@ constexpr int kFootprintSamples = 4;
 constexpr int kMaxFootprintTriangles = 16;
 // Halvings of the step from the valid footprint point toward the (invalid) centre.
 constexpr int kBisections = 4;
+// How far (texels) a footprint sample clamped onto a triangle's edge is moved inside it.
+constexpr float kEdgeInset = 0.125f;
+// Share of the back faces a texel sees that must lie within a texel for it to count as
+// covered by a sheet rather than inside geometry.
+constexpr float kSheetShare = 0.75f;
 
 struct FootprintPoint {
   float d2 = 0.0f;  // squared distance to the texel centre, texels
@@ -246,9 +251,18 @@ Expected<LightmapCaches> placeLightmapCaches(const scene::Scene& scene, const rt
         for (int k = 0; k < tri_count; ++k) {
           glm::vec2 t[3];
           uvTriangle(tris[k], t);
-          const glm::vec3 b = closestBarycentric(t, s);
-          const glm::vec2 q = b.x * t[0] + b.y * t[1] + b.z * t[2];
+          glm::vec3 b = closestBarycentric(t, s);
+          glm::vec2 q = b.x * t[0] + b.y * t[1] + b.z * t[2];
           const float d2 = glm::dot(q - s, q - s);
+          if (d2 > 0.0f) {
+            // Clamped onto an edge, which at a contact is the contact line itself, where
+            // half the rays start inside the other surface: step kEdgeInset into the triangle.
+            const glm::vec2 mid = (t[0] + t[1] + t[2]) / 3.0f;
+            const float to_mid = glm::length(mid - q);
+            const float f = to_mid > 0.0f ? std::min(1.0f, kEdgeInset / to_mid) : 0.0f;
+            b = glm::mix(b, glm::vec3(1.0f / 3.0f), f);
+            q = b.x * t[0] + b.y * t[1] + b.z * t[2];
+          }
           if (d2 < best_d2) best_d2 = d2, best = {glm::dot(q - centre, q - centre), tris[k], b, q};
         }
         constexpr float kSlack = 1e-4f;  // texels: a point on the square's border is in it
@@ -289,6 +303,19 @@ Expected<LightmapCaches> placeLightmapCaches(const scene::Scene& scene, const rt
         return;
       }
     }
+    // No point of the footprint is valid. Back faces nearer than a texel, for most of what
+    // failed, are a one-sided sheet lying on the texel (a card, a rug): the texel is a real
+    // surface in the sheet's shadow and keeps its own value; otherwise it is inside geometry.
+    const std::uint32_t* idx = &mesh.indices[3 * out.triangle[i]];
+    const glm::vec3 p0 = mesh.positions[idx[0]], p1 = mesh.positions[idx[1]], p2 = mesh.positions[idx[2]];
+    glm::vec2 t[3];
+    uvTriangle(out.triangle[i], t);
+    const float texel_area = std::abs(cross2(t[1] - t[0], t[2] - t[0]));
+    const float world_area = glm::length(glm::cross(p1 - p0, p2 - p0));
+    const float texel_m = std::sqrt(world_area / std::max(texel_area, 1e-12f));
+    const BackfaceProbe probe = probeBackfaces(scene, accel, out.position[i], out.normal[i], options.validity, texel_m);
+    const bool centre_inside = all[texel_range[i].first].score == 0.0f;  // not a grazed texel
+    if (centre_inside && probe.near_fraction > max_back && probe.near_fraction >= kSheetShare * probe.fraction) return;
     out.valid[i] = 0;
   });
   if (stopRequested(progress)) return cancelled("lightmap caches: cancelled");
