@@ -288,7 +288,9 @@ Expected<LightmapCaches> placeLightmapCaches(const scene::Scene& scene, const rt
         const Candidate& centre_candidate = all[texel_range[i].first];
         glm::vec3 good = pts[k].bary, bad = centre_candidate.bary;
         glm::vec3 good_q = q;
-        if (centre_candidate.mesh == m && centre_candidate.triangle == pts[k].triangle) {
+        // Not for a grazed texel: its centre is clamped onto the contact line itself, where
+        // validity turns on rounding (the inset samples are as near as it should get).
+        if (centre_candidate.score == 0.0f && centre_candidate.mesh == m && centre_candidate.triangle == pts[k].triangle) {
           for (int step = 0; step < kBisections; ++step) {
             const glm::vec3 mid = 0.5f * (good + bad);
             const glm::vec3 mq = surfacePoint(mesh, pts[k].triangle, mid);
