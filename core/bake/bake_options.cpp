@@ -125,7 +125,7 @@ constexpr Row kRows[] = {
        o.precompute.grid_spacing_m = *x;
        return {};
      }},
-    {{"bounces", "0..64", "Most indirect bounces of the relight"},
+    {{"bounces", "0..64", "Cap on indirect bounces (default 64); the relight stops earlier once converged"},
      [](BakeOptions& o, std::string_view v, const std::string& l) -> Status {
        auto x = integer(v, l, 0, 64);
        if (!x) return x.status();
