@@ -109,10 +109,8 @@ void rasterizeTriangle(const glm::vec2 t[3], int w, int h, std::uint32_t mesh, s
 // pattern over the texel square, against at most kMaxFootprintTriangles of its triangles.
 constexpr int kFootprintSamples = 4;
 constexpr int kMaxFootprintTriangles = 16;
-// Halvings of the step from the valid footprint point toward the (invalid) centre.
-constexpr int kBisections = 4;
 // How far (texels) a footprint sample clamped onto a triangle's edge is moved inside it.
-constexpr float kEdgeInset = 0.125f;
+constexpr float kEdgeInset = 0.0625f;
 // Share of the back faces a texel sees that must lie within a texel for it to count as
 // covered by a sheet rather than inside geometry.
 constexpr float kSheetShare = 0.75f;
@@ -282,23 +280,7 @@ Expected<LightmapCaches> placeLightmapCaches(const scene::Scene& scene, const rt
       if (q == out.position[i]) continue;  // the centre, already tested
       const glm::vec3 nq = hemisphereAxis(mesh, pts[k].triangle, pts[k].bary);
       if (backfaceFraction(scene, accel, q, nq, options.validity) <= max_back) {
-        // On the centre's own triangle, bisect toward the centre: the valid region's border
-        // is usually a contact line a hair from the centre (a centre clamped onto the edge
-        // where a wall meets the floor sees the floor's back), and the grid step is 1/8 texel.
-        const Candidate& centre_candidate = all[texel_range[i].first];
-        glm::vec3 good = pts[k].bary, bad = centre_candidate.bary;
-        glm::vec3 good_q = q;
-        // Not for a grazed texel: its centre is clamped onto the contact line itself, where
-        // validity turns on rounding (the inset samples are as near as it should get).
-        if (centre_candidate.score == 0.0f && centre_candidate.mesh == m && centre_candidate.triangle == pts[k].triangle) {
-          for (int step = 0; step < kBisections; ++step) {
-            const glm::vec3 mid = 0.5f * (good + bad);
-            const glm::vec3 mq = surfacePoint(mesh, pts[k].triangle, mid);
-            if (backfaceFraction(scene, accel, mq, nq, options.validity) <= max_back) good = mid, good_q = mq;
-            else bad = mid;
-          }
-        }
-        out.position[i] = good_q;
+        out.position[i] = q;
         out.normal[i] = nq;
         out.triangle[i] = pts[k].triangle;
         out.pushed[i] = 1;
