@@ -58,7 +58,7 @@ struct RelightOptions {
   int bands = 0;                   // output SH bands; 0 = the links' bands. kProjected: <= links' bands
   // Bounces run to convergence (bounce_threshold); the cap is a safety net for scenes whose
   // albedo is near 1 (0 = direct + emission only). The one default of bake, open and the daemon.
-  int max_bounces = 64;
+  int max_bounces = 100;
   float bounce_threshold = 1e-3f;  // stop when a bounce adds less than this fraction of the total flux
   bool incremental = true;         // allow incremental relight when exactly one light changed
   Kernel kernel = Kernel::kAuto;

@@ -160,7 +160,7 @@ TEST(RelightFurnace, AlbedoOneStopsAtTheCapWithABoundedResult) {
   ASSERT_TRUE(by_default);
   EXPECT_EQ(by_default->bounce_stop, "cap");
   EXPECT_EQ(int(by_default->bounce_log.size()), RelightOptions{}.max_bounces);
-  EXPECT_LE(RelightOptions{}.max_bounces, 64);
+  EXPECT_LE(RelightOptions{}.max_bounces, 256);
 }
 
 TEST(RelightFurnace, FillAndDilationLeaveNoBlackTexelNextToAValidOne) {
