@@ -166,7 +166,7 @@ void declareFlags(CLI::App& app, DaemonConfig& c, std::string& config_path, std:
   app.add_option("--drain-seconds", c.drain_seconds,
                  "On SIGTERM/SIGINT: seconds open streams get to finish before the server stops")
       ->capture_default_str();
-  app.add_option("--bounces", c.relight_bounces, "Indirect bounce cap of every relight (0..64)")->capture_default_str();
+  app.add_option("--bounces", c.relight_bounces, "Indirect bounce cap of every relight (0..256); relights stop earlier once converged")->capture_default_str();
   app.add_flag("--progressive", c.progressive,
                "Publish a bounce-free preview of each light change first, then the converged result as the next "
                "version");
@@ -216,8 +216,8 @@ Status DaemonConfig::validate() const {
     return invalidInput("--drain-seconds {} is out of range (0..3600)", drain_seconds);
   if (!shared_memory_dir.empty() && shared_memory_dir.front() != '/')
     return invalidInput("--shared-memory-dir '{}' must be an absolute path", shared_memory_dir);
-  if (relight_bounces < 0 || relight_bounces > 64)
-    return invalidInput("--bounces {} is out of range (0..64)", relight_bounces);
+  if (relight_bounces < 0 || relight_bounces > 256)
+    return invalidInput("--bounces {} is out of range (0..256)", relight_bounces);
   return {};
 }
 

@@ -17,6 +17,7 @@
 #include <vector>
 
 #include "core/common/status.h"
+#include "core/relight/relight.h"
 
 namespace lightlink::service {
 
@@ -51,7 +52,7 @@ struct DaemonConfig {
   std::size_t max_receive_bytes = 64u << 20;  // largest request message
   std::size_t max_send_bytes = 4u << 20;      // largest response message
   double drain_seconds = 5.0;              // SIGTERM: how long open streams may take to finish
-  int relight_bounces = 8;                 // relight options of every scene
+  int relight_bounces = relight::RelightOptions{}.max_bounces;  // relight options of every scene
   bool progressive = false;                // bounce-free preview first, then the converged result
   bool restore_sessions = true;            // re-open the scenes of sessions.json at start
   // Bytes the cache's artifacts and inline scenes may take; closed scenes' files are

@@ -132,9 +132,9 @@ constexpr Row kRows[] = {
        o.precompute.grid_spacing_m = *x;
        return {};
      }},
-    {{"bounces", "0..64", "Most indirect bounces of the relight"},
+    {{"bounces", "0..256", "Cap on indirect bounces (default 100); the relight stops earlier once converged"},
      [](BakeOptions& o, std::string_view v, const std::string& l) -> Status {
-       auto x = integer(v, l, 0, 64);
+       auto x = integer(v, l, 0, 256);
        if (!x) return x.status();
        o.relight.max_bounces = int(*x);
        return {};
@@ -265,8 +265,8 @@ Expected<BakeOptions> buildBakeOptions(std::span<const std::pair<std::string, st
 
 Status validate(const BakeOptions& o) {
   if (Status s = o.precompute.validate(); !s) return s;
-  if (o.relight.max_bounces < 0 || o.relight.max_bounces > 64)
-    return invalidInput("--bounces {} is out of range (0..64)", o.relight.max_bounces);
+  if (o.relight.max_bounces < 0 || o.relight.max_bounces > 256)
+    return invalidInput("--bounces {} is out of range (0..256)", o.relight.max_bounces);
   if (o.relight.link_form != relight::LinkForm::kProjected && o.relight.link_form != relight::LinkForm::kRuntime)
     return invalidInput("--link-form {} is not projected or runtime", static_cast<int>(o.relight.link_form));
   return {};

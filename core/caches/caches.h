@@ -6,9 +6,14 @@
 // read an empty texel). Grid caches sit on a uniform grid for dynamic objects.
 //
 // Validity (seed 000 Fig. 7a): a cache whose rays mostly hit back faces is inside
-// geometry or behind a wall. Lightmap caches are first pushed into their triangle and out
-// along the normal; if every candidate still sees mostly back faces they, like such grid
-// caches, are marked invalid. Invalid caches are never shown black: the FillPlan says
+// geometry or behind a wall. A lightmap cache whose texel centre fails moves to the valid
+// point of its texel's own footprint (a stratified pattern over the texel square, on the
+// triangles of its mesh that cover it) nearest the centre; it never leaves its texel, so a
+// texel at a contact line keeps the light of that line. If no point of the footprint is
+// valid, the texel is either covered by a one-sided sheet lying on it (most of the back faces
+// it sees are nearer than a texel: a card or rug over a floor), and then it keeps its centre
+// and its own, dark, value -- filling it from lit neighbours would make the sheet cast no
+// shadow -- or it is inside geometry and, like such grid caches, is marked invalid. Invalid caches are never shown black: the FillPlan says
 // from which valid neighbours each one is filled after relighting.
 #pragma once
 
@@ -44,13 +49,13 @@ struct LightmapCacheOptions {
 struct LightmapCaches {
   int width = 0;
   int height = 0;
-  std::vector<glm::vec3> position;   // world, metres (after validity push)
+  std::vector<glm::vec3> position;   // world, metres (in the texel footprint, after validity)
   std::vector<glm::vec3> normal;     // world, unit: the hemisphere axis (geometric normal)
   std::vector<std::uint32_t> texel;  // y * width + x
   std::vector<std::uint32_t> mesh;   // Scene::meshes index
   std::vector<std::uint32_t> triangle;
   std::vector<std::uint8_t> valid;   // 1 = usable, 0 = behind/inside geometry
-  std::vector<std::uint8_t> pushed;  // 1 = moved by the validity test
+  std::vector<std::uint8_t> pushed;  // 1 = moved from the texel centre by the validity test
   std::vector<std::int32_t> cache_of_texel;  // width*height, -1 where no triangle covers
   std::size_t degenerate_uv_triangles = 0;   // skipped: zero area in the lightmap
 
@@ -88,6 +93,15 @@ Expected<GridCaches> placeGridCaches(const scene::Scene& scene, const rt::Accel&
 // sphere when `normal` is zero) that hit a back face of a single-sided material.
 float backfaceFraction(const scene::Scene& scene, const rt::Accel& accel, const glm::vec3& p,
                        const glm::vec3& normal, const ValidityOptions& options);
+
+// What a validity probe saw: the fraction of its rays that hit a back face of a single-sided
+// material, and the fraction that hit one closer than `near_m` (unit-length directions).
+struct BackfaceProbe {
+  float fraction = 0.0f;
+  float near_fraction = 0.0f;
+};
+BackfaceProbe probeBackfaces(const scene::Scene& scene, const rt::Accel& accel, const glm::vec3& p,
+                             const glm::vec3& normal, const ValidityOptions& options, float near_m);
 
 // How every cache that has no value of its own gets one after relighting: target caches
 // are filled in order, each from the average of its sources (valid caches or targets

@@ -1,5 +1,7 @@
 #include <algorithm>
 #include <cmath>
+#include <limits>
+#include <utility>
 
 #include <tbb/parallel_for.h>
 
@@ -102,6 +104,40 @@ void rasterizeTriangle(const glm::vec2 t[3], int w, int h, std::uint32_t mesh, s
   }
 }
 
+
+// Footprint search of a texel whose centre fails validity: a kFootprintSamples^2 stratified
+// pattern over the texel square, against at most kMaxFootprintTriangles of its triangles.
+constexpr int kFootprintSamples = 4;
+constexpr int kMaxFootprintTriangles = 16;
+// How far (texels) a footprint sample clamped onto a triangle's edge is moved inside it.
+constexpr float kEdgeInset = 0.0625f;
+// Share of the back faces a texel sees that must lie within a texel for it to count as
+// covered by a sheet rather than inside geometry.
+constexpr float kSheetShare = 0.75f;
+
+struct FootprintPoint {
+  float d2 = 0.0f;  // squared distance to the texel centre, texels
+  std::uint32_t triangle = 0;
+  glm::vec3 bary{0.0f};
+  glm::vec2 uv{0.0f};  // atlas texels
+};
+
+glm::vec3 surfacePoint(const scene::MeshInstance& mesh, std::uint32_t tri, const glm::vec3& b) {
+  const std::uint32_t* idx = &mesh.indices[3 * tri];
+  return b.x * mesh.positions[idx[0]] + b.y * mesh.positions[idx[1]] + b.z * mesh.positions[idx[2]];
+}
+
+// The hemisphere axis is the geometric normal on the side the shading normal faces.
+glm::vec3 hemisphereAxis(const scene::MeshInstance& mesh, std::uint32_t tri, const glm::vec3& b) {
+  const std::uint32_t* idx = &mesh.indices[3 * tri];
+  const glm::vec3 p0 = mesh.positions[idx[0]], p1 = mesh.positions[idx[1]], p2 = mesh.positions[idx[2]];
+  glm::vec3 ng = glm::cross(p1 - p0, p2 - p0);
+  const glm::vec3 ns = b.x * mesh.normals[idx[0]] + b.y * mesh.normals[idx[1]] + b.z * mesh.normals[idx[2]];
+  if (glm::dot(ng, ng) == 0.0f) ng = ns;
+  if (glm::dot(ng, ns) < 0.0f) ng = -ng;
+  return glm::normalize(ng);
+}
+
 }  // namespace
 
 std::size_t LightmapCaches::validCount() const {
@@ -157,25 +193,24 @@ Expected<LightmapCaches> placeLightmapCaches(const scene::Scene& scene, const rt
   out.width = res;
   out.height = rows;
   out.cache_of_texel.assign(static_cast<std::size_t>(res) * rows, -1);
-  std::vector<glm::vec3> bary;
+  // Every cache keeps the range of its texel's candidates: the footprint search below needs
+  // all triangles of its mesh that overlap the texel, not only the one that won.
+  std::vector<std::pair<std::uint32_t, std::uint32_t>> texel_range;
+  const glm::vec2 atlas(res, rows);
   for (std::size_t i = 0; i < all.size(); ++i) {
-    if (i > 0 && all[i].texel == all[i - 1].texel) continue;
+    if (i > 0 && all[i].texel == all[i - 1].texel) {
+      texel_range.back().second = static_cast<std::uint32_t>(i + 1);
+      continue;
+    }
     const Candidate& c = all[i];
     const auto& mesh = scene.meshes[c.mesh];
-    const std::uint32_t* idx = &mesh.indices[3 * c.triangle];
-    const glm::vec3 p0 = mesh.positions[idx[0]], p1 = mesh.positions[idx[1]], p2 = mesh.positions[idx[2]];
-    glm::vec3 ng = glm::cross(p1 - p0, p2 - p0);
-    const glm::vec3 ns = c.bary.x * mesh.normals[idx[0]] + c.bary.y * mesh.normals[idx[1]] +
-                         c.bary.z * mesh.normals[idx[2]];
-    if (glm::dot(ng, ng) == 0.0f) ng = ns;
-    // The hemisphere axis is the geometric normal on the side the shading normal faces.
-    if (glm::dot(ng, ns) < 0.0f) ng = -ng;
     out.cache_of_texel[c.texel] = static_cast<std::int32_t>(out.position.size());
-    out.position.push_back(c.bary.x * p0 + c.bary.y * p1 + c.bary.z * p2);
-    out.normal.push_back(glm::normalize(ng));
+    out.position.push_back(surfacePoint(mesh, c.triangle, c.bary));
+    out.normal.push_back(hemisphereAxis(mesh, c.triangle, c.bary));
     out.texel.push_back(c.texel);
     out.mesh.push_back(c.mesh);
     out.triangle.push_back(c.triangle);
+    texel_range.emplace_back(static_cast<std::uint32_t>(i), static_cast<std::uint32_t>(i + 1));
   }
 
   const std::size_t n = out.position.size();
@@ -185,29 +220,86 @@ Expected<LightmapCaches> placeLightmapCaches(const scene::Scene& scene, const rt
   const Progress* progress = options.validity.progress;
   tbb::parallel_for(std::size_t(0), n, [&](std::size_t i) {
     if (stopRequested(progress)) return;
-    const glm::vec3 p = out.position[i], nrm = out.normal[i];
-    if (backfaceFraction(scene, accel, p, nrm, options.validity) <= max_back) return;
-    const auto& mesh = scene.meshes[out.mesh[i]];
-    const std::uint32_t* idx = &mesh.indices[3 * out.triangle[i]];
-    const glm::vec3 p0 = mesh.positions[idx[0]], p1 = mesh.positions[idx[1]], p2 = mesh.positions[idx[2]];
-    const glm::vec3 centroid = (p0 + p1 + p2) / 3.0f;
-    // World size of one texel on this triangle: sqrt(world area / texel area).
-    const glm::vec2 size(res, rows);
-    const glm::vec2 t0 = mesh.uv1[idx[0]] * size, t1 = mesh.uv1[idx[1]] * size, t2 = mesh.uv1[idx[2]] * size;
-    const float texel_area = std::abs(cross2(t1 - t0, t2 - t0));
-    const float world_area = glm::length(glm::cross(p1 - p0, p2 - p0));
-    const float texel_m = std::sqrt(world_area / std::max(texel_area, 1e-12f));
-    // Candidates in order of how little they move the cache: into the triangle (away from
-    // the wall that hides the texel), then off the surface.
-    const glm::vec3 candidates[4] = {glm::mix(p, centroid, 0.5f), centroid, p + nrm * (0.5f * texel_m),
-                                     centroid + nrm * (0.5f * texel_m)};
-    for (const auto& q : candidates) {
-      if (backfaceFraction(scene, accel, q, nrm, options.validity) <= max_back) {
+    if (backfaceFraction(scene, accel, out.position[i], out.normal[i], options.validity) <= max_back) return;
+    // The centre sees back faces (it lies on an edge, a contact line or under a card): look
+    // for the valid point of the texel's own footprint nearest its centre, as Bakery and
+    // Unity's progressive lightmapper do per texel. The cache never leaves its texel.
+    const std::uint32_t m = out.mesh[i];
+    const auto& mesh = scene.meshes[m];
+    std::uint32_t tris[kMaxFootprintTriangles];
+    int tri_count = 0;
+    for (std::uint32_t k = texel_range[i].first; k < texel_range[i].second && tri_count < kMaxFootprintTriangles; ++k)
+      if (all[k].mesh == m) tris[tri_count++] = all[k].triangle;
+    std::sort(tris, tris + tri_count);
+    const std::uint32_t texel = out.texel[i];
+    const glm::vec2 lo(float(texel % std::uint32_t(res)), float(texel / std::uint32_t(res)));
+    const glm::vec2 centre = lo + glm::vec2(0.5f);
+    const auto uvTriangle = [&](std::uint32_t tri, glm::vec2 t[3]) {
+      for (int k = 0; k < 3; ++k) t[k] = mesh.uv1[mesh.indices[3 * tri + k]] * atlas;
+    };
+    FootprintPoint pts[kFootprintSamples * kFootprintSamples];
+    int count = 0;
+    for (int sy = 0; sy < kFootprintSamples; ++sy) {
+      for (int sx = 0; sx < kFootprintSamples; ++sx) {
+        const glm::vec2 s = lo + (glm::vec2(sx, sy) + 0.5f) / float(kFootprintSamples);
+        // The sample itself where a triangle covers it, else the nearest point of the
+        // nearest triangle, if that still lies in the texel (a grazed texel).
+        FootprintPoint best{};
+        float best_d2 = std::numeric_limits<float>::infinity();
+        for (int k = 0; k < tri_count; ++k) {
+          glm::vec2 t[3];
+          uvTriangle(tris[k], t);
+          glm::vec3 b = closestBarycentric(t, s);
+          glm::vec2 q = b.x * t[0] + b.y * t[1] + b.z * t[2];
+          const float d2 = glm::dot(q - s, q - s);
+          if (d2 > 0.0f) {
+            // Clamped onto an edge, which at a contact is the contact line itself, where
+            // half the rays start inside the other surface: step kEdgeInset into the triangle.
+            const glm::vec2 mid = (t[0] + t[1] + t[2]) / 3.0f;
+            const float to_mid = glm::length(mid - q);
+            const float f = to_mid > 0.0f ? std::min(1.0f, kEdgeInset / to_mid) : 0.0f;
+            b = glm::mix(b, glm::vec3(1.0f / 3.0f), f);
+            q = b.x * t[0] + b.y * t[1] + b.z * t[2];
+          }
+          if (d2 < best_d2) best_d2 = d2, best = {glm::dot(q - centre, q - centre), tris[k], b, q};
+        }
+        constexpr float kSlack = 1e-4f;  // texels: a point on the square's border is in it
+        if (!(best_d2 < std::numeric_limits<float>::infinity()) || best.uv.x < lo.x - kSlack ||
+            best.uv.y < lo.y - kSlack || best.uv.x > lo.x + 1.0f + kSlack || best.uv.y > lo.y + 1.0f + kSlack)
+          continue;
+        bool seen = false;  // clamped samples often land on the same edge point
+        for (int k = 0; k < count && !seen; ++k)
+          seen = pts[k].triangle == best.triangle && glm::dot(pts[k].uv - best.uv, pts[k].uv - best.uv) < 1e-10f;
+        if (!seen) pts[count++] = best;
+      }
+    }
+    // Nearest the centre first; equal distances in sample order (stable sort): deterministic.
+    std::stable_sort(pts, pts + count, [](const FootprintPoint& a, const FootprintPoint& b) { return a.d2 < b.d2; });
+    for (int k = 0; k < count; ++k) {
+      const glm::vec3 q = surfacePoint(mesh, pts[k].triangle, pts[k].bary);
+      if (q == out.position[i]) continue;  // the centre, already tested
+      const glm::vec3 nq = hemisphereAxis(mesh, pts[k].triangle, pts[k].bary);
+      if (backfaceFraction(scene, accel, q, nq, options.validity) <= max_back) {
         out.position[i] = q;
+        out.normal[i] = nq;
+        out.triangle[i] = pts[k].triangle;
         out.pushed[i] = 1;
         return;
       }
     }
+    // No point of the footprint is valid. Back faces nearer than a texel, for most of what
+    // failed, are a one-sided sheet lying on the texel (a card, a rug): the texel is a real
+    // surface in the sheet's shadow and keeps its own value; otherwise it is inside geometry.
+    const std::uint32_t* idx = &mesh.indices[3 * out.triangle[i]];
+    const glm::vec3 p0 = mesh.positions[idx[0]], p1 = mesh.positions[idx[1]], p2 = mesh.positions[idx[2]];
+    glm::vec2 t[3];
+    uvTriangle(out.triangle[i], t);
+    const float texel_area = std::abs(cross2(t[1] - t[0], t[2] - t[0]));
+    const float world_area = glm::length(glm::cross(p1 - p0, p2 - p0));
+    const float texel_m = std::sqrt(world_area / std::max(texel_area, 1e-12f));
+    const BackfaceProbe probe = probeBackfaces(scene, accel, out.position[i], out.normal[i], options.validity, texel_m);
+    const bool centre_inside = all[texel_range[i].first].score == 0.0f;  // not a grazed texel
+    if (centre_inside && probe.near_fraction > max_back && probe.near_fraction >= kSheetShare * probe.fraction) return;
     out.valid[i] = 0;
   });
   if (stopRequested(progress)) return cancelled("lightmap caches: cancelled");

@@ -7,6 +7,11 @@ namespace lightlink::caches {
 
 float backfaceFraction(const scene::Scene& scene, const rt::Accel& accel, const glm::vec3& p,
                        const glm::vec3& normal, const ValidityOptions& options) {
+  return probeBackfaces(scene, accel, p, normal, options, 0.0f).fraction;
+}
+
+BackfaceProbe probeBackfaces(const scene::Scene& scene, const rt::Accel& accel, const glm::vec3& p,
+                             const glm::vec3& normal, const ValidityOptions& options, float near_m) {
   const bool hemisphere = glm::dot(normal, normal) > 0.0f;
   const auto strata = static_cast<std::uint32_t>(std::max(1.0, std::floor(std::sqrt(options.rays))));
   const std::uint32_t count = strata * strata;
@@ -30,15 +35,16 @@ float backfaceFraction(const scene::Scene& scene, const rt::Accel& accel, const 
     rays[i].tfar = std::numeric_limits<float>::infinity();
   }
   accel.intersect(rays, hits, rt::Coherence::kCoherent);
-  std::uint32_t back = 0;
+  std::uint32_t back = 0, near = 0;
   for (std::uint32_t i = 0; i < count; ++i) {
     const rt::Hit& h = hits[i];
     if (!h.hit() || !h.backFacing(rays[i].dir)) continue;
     // A double-sided surface has no inside: seeing its back is seeing a surface.
     if (scene.materialOf(scene.meshes[h.mesh]).double_sided) continue;
     ++back;
+    if (h.t < near_m) ++near;
   }
-  return static_cast<float>(back) / static_cast<float>(count);
+  return {static_cast<float>(back) / static_cast<float>(count), static_cast<float>(near) / static_cast<float>(count)};
 }
 
 }  // namespace lightlink::caches

@@ -57,7 +57,9 @@ enum class Kernel { kAuto, kScalar };
 struct RelightOptions {
   LinkForm link_form = LinkForm::kProjected;
   int bands = 0;                   // output SH bands; 0 = the links' bands. kProjected: <= links' bands
-  int max_bounces = 8;             // cap on indirect bounces (0 = direct + emission only)
+  // Bounces run to convergence (bounce_threshold); the cap is a safety net for scenes whose
+  // albedo is near 1 (0 = direct + emission only). The one default of bake, open and the daemon.
+  int max_bounces = 100;
   float bounce_threshold = 1e-3f;  // stop when a bounce adds less than this fraction of the total flux
   bool incremental = true;         // allow incremental relight when exactly one light changed
   Kernel kernel = Kernel::kAuto;

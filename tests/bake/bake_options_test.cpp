@@ -24,7 +24,7 @@ TEST(BakeOptions, UnknownNameIsRejectedListingTheKnownOnes) {
 }
 
 TEST(BakeOptions, MalformedAndOutOfRangeValuesNameTheOption) {
-  const Settings bad = {{"bands", "5"},        {"bands", "two"},          {"bounces", "65"},
+  const Settings bad = {{"bands", "5"},        {"bands", "two"},          {"bounces", "257"},
                         {"max-atlas", "8"},    {"max-pages", "-1"},       {"texel-size", "0"},
                         {"texel-size", "nan"}, {"texel-size", "0.1m"},    {"grid", "maybe"},
                         {"grid-spacing", "-2"}, {"link-form", "linear"},  {"uv", "reuse"},
@@ -111,7 +111,7 @@ TEST(BakeOptions, RelightDefaultsHoldUntilASettingChangesThem) {
 
 TEST(BakeOptions, ValidatorChecksTheWhole) {
   BakeOptions o;
-  o.relight.max_bounces = 65;
+  o.relight.max_bounces = 257;
   EXPECT_FALSE(validate(o));
   o.relight.max_bounces = 8;
   EXPECT_TRUE(validate(o));

@@ -85,5 +85,36 @@ std::string caseName(const ::testing::TestParamInfo<Case>& info) {
 INSTANTIATE_TEST_SUITE_P(All, SharedSceneBake, ::testing::Combine(::testing::ValuesIn(kScenes), ::testing::ValuesIn(kPresets)),
                          caseName);
 
+// Issue 46: the default bake (no --bounces) runs its bounces to convergence; the cap is a
+// safety net that a scene of ordinary albedo never reaches. A white Cornell box (25 bounces)
+// and a game level with its light set (12), both of which the old default (8) cut at the cap,
+// at draft (the bounce default does not depend on the preset).
+class DefaultBounces : public ::testing::TestWithParam<const char*> {};
+
+TEST_P(DefaultBounces, StopAtTheThresholdNotTheCap) {
+  const fs::path shared = testing::sharedScenesDir();
+  if (shared.empty()) GTEST_SKIP() << "../shared/scenes not found: the default-bounce bakes are not run";
+  const fs::path scene = shared / GetParam();
+  ASSERT_TRUE(fs::exists(scene)) << scene;
+  const fs::path lights = testing::sourceDir() / "tests/levels/lights" / (scene.stem().string() + ".json");
+  testing::TempDir out;
+  std::string command = std::string(LIGHTLINK_CLI_PATH) + " bake '" + scene.string() + "' -o '" +
+                        out.path().string() + "' --preset draft -q";
+  if (fs::exists(lights)) command += " --lights '" + lights.string() + "'";
+  const testing::ShellResult r = testing::runShell(command);
+  ASSERT_EQ(r.exit_code, 0) << command << "\n" << r.output;
+  std::ifstream in(out / "report.json");
+  ASSERT_TRUE(in) << "no report.json";
+  const nlohmann::json report = nlohmann::json::parse(in);
+  EXPECT_EQ(report["relight"]["bounce_stop"].get<std::string>(), "threshold") << command;
+}
+
+INSTANTIATE_TEST_SUITE_P(CornellAndLevel, DefaultBounces,
+                         ::testing::Values("cornell_box_mcguire_obj/CornellBox-Empty-White.obj",
+                                           "redeclipse_cyanide_obj/cyanide.obj"),
+                         [](const ::testing::TestParamInfo<const char*>& info) {
+                           return std::string(info.index == 0 ? "CornellBoxWhite" : "Cyanide");
+                         });
+
 }  // namespace
 }  // namespace lightlink

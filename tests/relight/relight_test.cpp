@@ -82,8 +82,12 @@ TEST(RelightFurnace, ConvergedRadiosityIsE0OverOneMinusRho) {
                     irradianceR(res->lightmap_sh.data() + std::size_t(lm.texel[c]) * 3 * nc, res->bands, lm.normal[c]);
     sum += e, ++n;
     // Texels half a texel from an edge see the adjacent wall as a near-field emitter; the
-    // solid-angle sampling of the direct light keeps them within the same tolerance.
-    EXPECT_NEAR(e, expected, 0.06 * expected) << "cache " << c << " at " << lm.position[c].x << ","
+    // solid-angle sampling of the direct light keeps them within the same tolerance. A cache
+    // pushed off its texel centre sits within its texel, 1/16 texel from the corner (issue
+    // 46; it used to be moved to its triangle's centroid): there the links' indirect reads
+    // 15-20 % low, 8-10 % of the total (a known limitation of links in concave corners).
+    const double tolerance = lm.pushed[c] ? 0.12 : 0.06;
+    EXPECT_NEAR(e, expected, tolerance * expected) << "cache " << c << " at " << lm.position[c].x << ","
                                                << lm.position[c].y << "," << lm.position[c].z << " direct "
                                                << res->direct[lm.texel[c]].x;
   }
@@ -151,6 +155,12 @@ TEST(RelightFurnace, AlbedoOneStopsAtTheCapWithABoundedResult) {
   }
   for (std::size_t k = 1; k < res->bounce_log.size(); ++k)
     EXPECT_NEAR(res->bounce_log[k].added_flux, res->bounce_log[0].added_flux, 0.1 * res->bounce_log[0].added_flux);
+  // The default options run bounces to convergence; here the default cap is what ends them.
+  auto by_default = r.relight(LightSet{}, {});
+  ASSERT_TRUE(by_default);
+  EXPECT_EQ(by_default->bounce_stop, "cap");
+  EXPECT_EQ(int(by_default->bounce_log.size()), RelightOptions{}.max_bounces);
+  EXPECT_LE(RelightOptions{}.max_bounces, 256);
 }
 
 TEST(RelightFurnace, FillAndDilationLeaveNoBlackTexelNextToAValidOne) {

@@ -75,7 +75,7 @@ TEST(BakeOptionsEverywhere, OpenSceneRejectsUnknownAndBadOptionsNamingThem) {
   ASSERT_TRUE(d.ok()) << d.error();
   auto rpc = d.rpc();
   for (const auto& [key, value] : std::vector<std::pair<std::string, std::string>>{
-           {"texel-sise", "0.1"}, {"bands", "9"}, {"grid", "maybe"}, {"max-atlas", "8"}, {"bounces", "65"}}) {
+           {"texel-sise", "0.1"}, {"bands", "9"}, {"grid", "maybe"}, {"max-atlas", "8"}, {"bounces", "257"}}) {
     const grpc::Status st = openScene(*rpc, demoRequest({{"preset", "draft"}, {key, value}}), nullptr);
     EXPECT_EQ(st.error_code(), grpc::StatusCode::INVALID_ARGUMENT) << key;
     EXPECT_NE(st.error_message().find("options." + key), std::string::npos) << st.error_message();

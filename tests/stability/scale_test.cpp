@@ -66,7 +66,7 @@ ScaledBake bakeAtScale(double s) {
 // Per lightmap cache (valid in both bakes) total irradiance, R channel, times s^2.
 struct Compared {
   std::size_t caches = 0, over_1pct = 0;
-  std::size_t push_flips = 0;  // caches pushed by the validity test at one scale, not at the other
+  std::size_t push_flips = 0;  // caches valid, pushed or placed differently at the two scales
   double max_rel = 0.0, mean_rel = 0.0;
 };
 
@@ -89,14 +89,16 @@ Compared compare(const ScaledBake& ref, const ScaledBake& other, bool indirect_o
     peak = std::max(peak, ea[i]);
   }
   for (std::size_t i = 0; i < la.size(); ++i) {
-    if (!la.valid[i] || !lb.valid[i]) continue;
-    // A cache exactly in a concave corner (the foot of a block, 1e-8 m above the floor) sits
-    // on the validity test's knife edge: rounding of the scaled coordinates decides whether
-    // it is pushed off the corner. Such flips are counted and bounded, not compared.
-    if (la.pushed[i] != lb.pushed[i]) {
+    // A texel whose footprint holds a contact line (the foot of a block) sits on the validity
+    // test's knife edge: rounding of the scaled coordinates decides whether its cache is
+    // pushed, to which point of the footprint, or whether none is valid. Such flips are
+    // counted and bounded, not compared.
+    const bool moved_apart = glm::length(la.position[i] - lb.position[i] / float(other.s)) > 1e-4f;
+    if (la.valid[i] != lb.valid[i] || la.pushed[i] != lb.pushed[i] || (la.pushed[i] && moved_apart)) {
       ++c.push_flips;
       continue;
     }
+    if (!la.valid[i]) continue;
     // Relative to the cache's own value, with a floor of 1e-3 of the peak so dark corners
     // (a few lux of a thousand) do not turn rounding into large ratios.
     const double rel = std::abs(eb[i] - ea[i]) / std::max(ea[i], 1e-3 * peak);
@@ -118,14 +120,14 @@ TEST(StabilityScale, MillimetreAndKilometreCornellBoxesObeyTheInverseSquareLaw) 
     ASSERT_TRUE(other.baked) << "scale " << s;
     EXPECT_EQ(countBadValues(other.result, "scale " + std::to_string(s)), 0u);
     EXPECT_EQ(other.baked->p.surfels.size(), one.baked->p.surfels.size());
-    EXPECT_EQ(other.baked->p.lightmap.validCount(), one.baked->p.lightmap.validCount()) << "scale " << s;
     for (bool indirect : {false, true}) {
       const Compared c = compare(one, other, indirect);
       ASSERT_GT(c.caches, 100u);
       // Bound: per cache within 2 % of E_1 / s^2 (measured 0.75 % at 1e-3, 0.18 % at 1e3:
       // float rounding of the scaled coordinates moves a few link rays between owners), mean
-      // <= 0.1 % (measured 0.03 %); validity-push flips at concave corners (see compare()) on
-      // at most 1 % of the caches (measured 3 of 430 at 1e-3, 0 at 1e3).
+      // <= 0.1 % (measured 0.03 %); placement flips at concave corners (see compare()) on
+      // at most 1 % of the caches (measured, with the footprint search of issue 46, 3 of 437
+      // at 1e-3 and 1 at 1e3).
       EXPECT_LE(c.mean_rel, 0.001) << "scale " << s << (indirect ? " indirect" : " total");
       EXPECT_LE(c.max_rel, 0.02) << "scale " << s << (indirect ? " indirect" : " total");
       EXPECT_LE(double(c.push_flips), 0.01 * double(c.caches)) << "scale " << s;
