@@ -162,17 +162,17 @@ int runCompare(const CompareArgs& args) {
   reference::ErrorOptions eo;
   eo.floor_fraction = args.error_floor;
   const auto total = reference::errorStats(b_total, r_total, eo);
+  // One floor for every figure: a fraction of the scene's mean total irradiance (the light
+  // level an error is seen against), not of the indirect's or a subset's own mean.
+  eo.floor_mean = total.mean_reference;
   const auto indirect = reference::errorStats(b_ind, r_ind, eo);
-  // Band and interior are judged against the floor of all points, not their own mean.
-  auto subset = [&](const std::vector<glm::vec3>& b, const std::vector<glm::vec3>& r, double mean, bool in_band) {
-    reference::ErrorOptions o = eo;
-    o.floor_mean = mean;
-    return reference::errorStats(pick(b, band, in_band), pick(r, band, in_band), o);
+  auto subset = [&](const std::vector<glm::vec3>& b, const std::vector<glm::vec3>& r, bool in_band) {
+    return reference::errorStats(pick(b, band, in_band), pick(r, band, in_band), eo);
   };
-  const auto band_total = subset(b_total, r_total, total.mean_reference, true);
-  const auto band_ind = subset(b_ind, r_ind, indirect.mean_reference, true);
-  const auto inner_total = subset(b_total, r_total, total.mean_reference, false);
-  const auto inner_ind = subset(b_ind, r_ind, indirect.mean_reference, false);
+  const auto band_total = subset(b_total, r_total, true);
+  const auto band_ind = subset(b_ind, r_ind, true);
+  const auto inner_total = subset(b_total, r_total, false);
+  const auto inner_ind = subset(b_ind, r_ind, false);
   const bool sky = lights.sky().emits();
 
   nlohmann::ordered_json report;
@@ -184,13 +184,14 @@ int runCompare(const CompareArgs& args) {
                          {"mean_rel_std_error_total", ref_rel_err},
                          {"converged_points", converged}};
   report["error_floor"] = {{"fraction_of_mean", args.error_floor},
-                           {"formula", "rel_error = |baked - ref| / max(ref, fraction_of_mean * mean(ref)), luminance"},
+                           {"formula", "rel_error = |baked - ref| / max(ref, floor), floor = fraction_of_mean * mean(ref total), luminance"},
+                           {"floor", total.floor},
                            {"leak", "ref < 0.1 * floor and baked > floor"},
                            {"missing_light", "baked < 0.1 * floor and ref > floor"}};
   report["total"] = total.toJson();
   report["indirect"] = indirect.toJson();
   report["near_contact"] = {{"definition", "another surface within 2 texel sizes of the point, or a cache moved by the "
-                                           "validity test; floor from all points"},
+                                           "validity test"},
                             {"radius_texels", kBandTexels},
                             {"points", band_total.points},
                             {"total", band_total.toJson()},
