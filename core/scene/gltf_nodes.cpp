@@ -116,6 +116,11 @@ Expected<NodeOverrides> nodeOverrides(const Context& ctx, int index) {
     if (!flag.IsBool()) return ctx.invalid(object, "extras.lightlink.lightmap must be true or false");
     out.lightmap = flag.Get<bool>() ? 1 : 0;
   }
+  if (ours.Has("cast_shadows")) {
+    const tinygltf::Value& flag = ours.Get("cast_shadows");
+    if (!flag.IsBool()) return ctx.invalid(object, "extras.lightlink.cast_shadows must be true or false");
+    out.cast_shadows = flag.Get<bool>() ? 1 : 0;
+  }
   if (ours.Has("lightmap_scale")) {
     const tinygltf::Value& v = ours.Get("lightmap_scale");
     const double scale = v.IsNumber() ? v.GetNumberAsDouble() : std::nan("");
@@ -157,6 +162,7 @@ Expected<std::vector<PlacedNode>> placeNodes(const Context& ctx) {
     int parent;
     float parent_scale = 1.0f;
     bool parent_probe_lit = false;
+    int parent_cast_shadows = -1;
   };
   std::vector<Pending> stack;
   for (auto it = roots.rbegin(); it != roots.rend(); ++it) {
@@ -199,6 +205,7 @@ Expected<std::vector<PlacedNode>> placeNodes(const Context& ctx) {
     const bool is_static = flags->is_static < 0 ? p.parent_static : flags->is_static == 1;
     const float lightmap_scale = flags->lightmap_scale > 0.0f ? flags->lightmap_scale : p.parent_scale;
     const bool probe_lit = flags->lightmap < 0 ? p.parent_probe_lit : flags->lightmap == 0;
+    const int cast_shadows = flags->cast_shadows < 0 ? p.parent_cast_shadows : flags->cast_shadows;
 
     const tinygltf::Node& node = model.nodes[static_cast<std::size_t>(p.node)];
     if (node.mesh >= 0 && static_cast<std::size_t>(node.mesh) >= model.meshes.size()) {
@@ -208,9 +215,9 @@ Expected<std::vector<PlacedNode>> placeNodes(const Context& ctx) {
     if (node.mesh >= 0 && node.skin >= 0) {
       ctx.warn(object, "skin is ignored; the mesh is placed by the node transform (bind pose)");
     }
-    placed.push_back({p.node, world, is_static, lightmap_scale, probe_lit});
+    placed.push_back({p.node, world, is_static, lightmap_scale, probe_lit, cast_shadows});
     for (auto it = node.children.rbegin(); it != node.children.rend(); ++it) {
-      stack.push_back({*it, world, is_static, p.node, lightmap_scale, probe_lit});
+      stack.push_back({*it, world, is_static, p.node, lightmap_scale, probe_lit, cast_shadows});
     }
   }
   return placed;

@@ -88,6 +88,9 @@ Expected<MeshInstance> buildInstance(const Context& ctx, const PlacedNode& place
   out.is_static = placed.is_static;
   out.lightmap_scale = placed.lightmap_scale;
   out.probe_lit = placed.probe_lit;
+  out.cast_shadows = placed.cast_shadows >= 0
+                         ? placed.cast_shadows == 1
+                         : prim.material < 0 || ctx.scene.materials[static_cast<std::size_t>(prim.material)].cast_shadows;
   out.world_from_mesh = glm::mat4(placed.world_from_node);
 
   const auto attribute = [&](const char* semantic) {
