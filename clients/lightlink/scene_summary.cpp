@@ -25,8 +25,23 @@ nlohmann::ordered_json summarizeScene(const scene::Scene& s) {
       case scene::Light::Kind::kDirectional: ++directional; break;
     }
   }
-  std::size_t emissive_materials = 0;
-  for (const auto& m : s.materials) emissive_materials += m.isEmissive() ? 1 : 0;
+  std::size_t emissive_materials = 0, mask_materials = 0, blend_materials = 0;
+  for (const auto& m : s.materials) {
+    emissive_materials += m.isEmissive() ? 1 : 0;
+    mask_materials += m.alpha_mode == scene::Material::AlphaMode::kMask ? 1 : 0;
+    blend_materials += m.alpha_mode == scene::Material::AlphaMode::kBlend ? 1 : 0;
+  }
+  // Instances whose flags change what rays see (issue 46), named up to a few.
+  constexpr std::size_t kNamed = 8;
+  std::size_t cutout_instances = 0;
+  nlohmann::ordered_json no_shadow = nlohmann::ordered_json::array();
+  std::size_t no_shadow_count = 0;
+  for (const auto& m : s.meshes) {
+    const bool cut = m.material >= 0 && std::size_t(m.material) < s.materials.size() &&
+                     s.materials[std::size_t(m.material)].hasCutout();
+    cutout_instances += cut ? 1 : 0;
+    if (!m.cast_shadows && no_shadow_count++ < kNamed) no_shadow.push_back(m.name);
+  }
 
   const std::size_t tris = s.triangleCount();
   const std::size_t static_tris = s.staticTriangleCount();
@@ -42,6 +57,10 @@ nlohmann::ordered_json summarizeScene(const scene::Scene& s) {
   j["degenerate_triangles_dropped"] = s.stats.degenerate_dropped;
   j["materials"] = s.materials.size();
   j["emissive_materials"] = emissive_materials;
+  j["alpha"] = {{"mask_materials", mask_materials},
+                {"blend_materials", blend_materials},
+                {"cutout_mesh_instances", cutout_instances}};
+  j["cast_shadows_false"] = {{"mesh_instances", no_shadow_count}, {"names", no_shadow}};
   j["lights"] = {{"point", point}, {"spot", spot}, {"directional", directional}};
   j["emissive_area_m2"] = s.emissiveArea();
   j["bounds_m"] = {{"min", {s.bounds.min.x, s.bounds.min.y, s.bounds.min.z}},
@@ -74,6 +93,16 @@ std::string formatSummary(const nlohmann::ordered_json& j) {
                                 j["degenerate_triangles_dropped"].get<std::size_t>()));
   line("materials", fmt::format("{} ({} emissive)", j["materials"].get<std::size_t>(),
                                 j["emissive_materials"].get<std::size_t>()));
+  const auto& a = j["alpha"];
+  line("alpha", fmt::format("{} MASK, {} BLEND materials (cut out for every ray: {} instances)",
+                            a["mask_materials"].get<std::size_t>(), a["blend_materials"].get<std::size_t>(),
+                            a["cutout_mesh_instances"].get<std::size_t>()));
+  const auto& ns = j["cast_shadows_false"];
+  if (const auto n = ns["mesh_instances"].get<std::size_t>(); n > 0) {
+    std::string names;
+    for (const auto& name : ns["names"]) names += (names.empty() ? "" : ", ") + name.get<std::string>();
+    line("no shadows", fmt::format("{} instances cast no shadows: {}{}", n, names, n > ns["names"].size() ? ", ..." : ""));
+  }
   const auto& l = j["lights"];
   line("lights", fmt::format("{} point, {} spot, {} directional; emissive area {:.6g} m^2",
                              l["point"].get<std::size_t>(), l["spot"].get<std::size_t>(),
