@@ -2,6 +2,8 @@
 // casts a checker shadow (about half the floor under it lit, each square as its alpha says),
 // and an opaque-looking BLEND sheet with extras cast_shadows false casts none. The scene is
 // tests/data/alpha/alpha_cards.gltf (scripts/scenes/alpha_cards.py): a 10 lux sun straight down.
+#include <cstdio>
+
 #include <gtest/gtest.h>
 
 #include "core/scene/load.h"
@@ -56,6 +58,8 @@ TEST(AlphaShadow, MaskCheckerCardCastsACheckerAndANoShadowSheetCastsNone) {
   ASSERT_GT(deep, 100u);
   ASSERT_GT(under_sheet, 500u);
   const double coverage = 1.0 - double(lit_under_card) / double(under_card);
+  std::printf("under the card %zu of %zu texels lit (coverage %.3f), %zu of %zu inside squares disagree; under the "
+              "sheet %zu of %zu lit\n", lit_under_card, under_card, coverage, deep_wrong, deep, lit_under_sheet, under_sheet);
   EXPECT_NEAR(coverage, 0.5, 0.1) << lit_under_card << " of " << under_card << " texels lit under the card";
   EXPECT_LE(deep_wrong, deep / 50) << deep_wrong << " of " << deep << " texels inside a square disagree with its alpha";
   EXPECT_EQ(lit_under_sheet, under_sheet) << "the cast_shadows false sheet shadows the floor";
