@@ -60,6 +60,21 @@ TEST(Inspect, DemoSceneJsonCounts) {
   EXPECT_TRUE(j["lightmap_uv"]["unwrap_needed"].get<bool>());
 }
 
+TEST(Inspect, ShowsAlphaCutoutsAndInstancesThatCastNoShadows) {
+  const auto scene = testing::sourceDir() / "tests/data/alpha/alpha_cards.gltf";
+  const auto r = runShell(kCli + " inspect --json " + scene.string());
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  const auto j = nlohmann::json::parse(r.output);
+  EXPECT_EQ(j["alpha"]["mask_materials"], 1);
+  EXPECT_EQ(j["alpha"]["blend_materials"], 1);
+  EXPECT_EQ(j["alpha"]["cutout_mesh_instances"], 2);
+  EXPECT_EQ(j["cast_shadows_false"]["mesh_instances"], 1);
+  EXPECT_EQ(j["cast_shadows_false"]["names"], nlohmann::json::array({"glass_sheet/0"}));
+  const auto text = runShell(kCli + " inspect " + scene.string());
+  EXPECT_NE(text.output.find("1 MASK, 1 BLEND"), std::string::npos) << text.output;
+  EXPECT_NE(text.output.find("cast no shadows: glass_sheet/0"), std::string::npos) << text.output;
+}
+
 TEST(Inspect, TextSummaryNamesTheEssentials) {
   const auto r = runShell(kCli + " inspect " + demoScene().string());
   ASSERT_EQ(r.exit_code, 0) << r.output;
