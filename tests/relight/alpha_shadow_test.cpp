@@ -1,6 +1,7 @@
 // Issue 46, end to end through the loader and the baker's direct layer: a MASK checker card
 // casts a checker shadow (about half the floor under it lit, each square as its alpha says),
-// and an opaque-looking BLEND sheet with extras cast_shadows false casts none. The scene is
+// and an opaque-looking BLEND sheet with extras cast_shadows false casts none; the card's
+// lightmap texels over its holes are invalid. The scene is
 // tests/data/alpha/alpha_cards.gltf (scripts/scenes/alpha_cards.py): a 10 lux sun straight down.
 #include <cstdio>
 
@@ -54,6 +55,19 @@ TEST(AlphaShadow, MaskCheckerCardCastsACheckerAndANoShadowSheetCastsNone) {
       lit_under_sheet += lit;
     }
   }
+  // The card's own texels over its holes are invalid (filled from the opaque squares).
+  std::uint32_t card = 0;
+  while (card < baked->scene.meshes.size() && baked->scene.meshes[card].name.rfind("checker_card", 0) != 0) ++card;
+  ASSERT_LT(card, baked->scene.meshes.size());
+  std::size_t card_texels = 0, card_invalid = 0;
+  for (std::size_t c = 0; c < lm.size(); ++c) {
+    if (lm.mesh[c] != card) continue;
+    ++card_texels;
+    card_invalid += !lm.valid[c];
+  }
+  std::printf("card texels %zu, %zu invalid over holes\n", card_texels, card_invalid);
+  ASSERT_GT(card_texels, 500u);
+  EXPECT_NEAR(double(card_invalid) / double(card_texels), 0.5, 0.1);
   ASSERT_GT(under_card, 500u);
   ASSERT_GT(deep, 100u);
   ASSERT_GT(under_sheet, 500u);
