@@ -1,4 +1,5 @@
 #include "core/scene/gltf_materials.h"
+#include "core/scene/gltf_nodes.h"
 
 #include <cmath>
 #include <cstdint>
@@ -254,6 +255,16 @@ Status loadMaterials(const Context& ctx) {
         const tinygltf::Value& flag = ours.Get("cast_shadows");
         if (!flag.IsBool()) return ctx.invalid(object, "extras.lightlink.cast_shadows must be true or false");
         m.cast_shadows = flag.Get<bool>();
+      }
+      if (ours.Has("contribute_gi")) {
+        const tinygltf::Value& flag = ours.Get("contribute_gi");
+        if (!flag.IsBool()) return ctx.invalid(object, "extras.lightlink.contribute_gi must be true or false");
+        m.contribute_gi = flag.Get<bool>();
+      }
+      if (ours.Has("receive_gi")) {
+        Expected<int> r = parseReceiveGi(ctx, object, ours.Get("receive_gi"));
+        if (!r) return r.status();
+        m.receive_gi = *r;
       }
     }
   }

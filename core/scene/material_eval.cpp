@@ -41,6 +41,10 @@ glm::vec3 emissionAt(const Scene& scene, const MeshInstance& mesh, std::uint32_t
          textureRgb(scene, mesh, m.emissive_texture, triangle, barycentric);
 }
 
+glm::vec3 bounceAlbedoAt(const Scene& scene, const MeshInstance& mesh, std::uint32_t triangle, glm::vec2 barycentric) {
+  return mesh.contribute_gi ? albedoAt(scene, mesh, triangle, barycentric) : glm::vec3(0.0f);
+}
+
 float alphaAt(const Scene& scene, const MeshInstance& mesh, std::uint32_t triangle, glm::vec2 barycentric) {
   const Material& m = scene.materialOf(mesh);
   const TextureRef& ref = m.base_color_texture;

@@ -64,6 +64,11 @@ struct Material {
   // extras {"lightlink": {"cast_shadows": false}}: shadow rays pass through the surface;
   // a node's own flag overrides it (MeshInstance::cast_shadows).
   bool cast_shadows = true;
+  // extras.lightlink.contribute_gi: false = reflects no bounce light onto other surfaces.
+  bool contribute_gi = true;
+  // extras.lightlink.receive_gi, when set (ReceiveGi), else -1: where the mesh's indirect
+  // light comes from. A node's own value wins.
+  int receive_gi = -1;
 
   bool hasCutout() const { return alpha_mode != AlphaMode::kOpaque; }
   // The alpha below which the surface is cut out.
@@ -74,6 +79,11 @@ struct Material {
            (emissive_factor.x > 0.0f || emissive_factor.y > 0.0f || emissive_factor.z > 0.0f);
   }
 };
+
+// Where a static mesh's indirect light comes from (extras.lightlink.receive_gi): its lightmap,
+// the irradiance volume ("volume", as "lightmap": false), or nowhere ("off": baked like
+// "volume", and listed so that the engine shades it without baked indirect light).
+enum class ReceiveGi { kLightmap = 0, kVolume = 1, kOff = 2 };
 
 // One triangle primitive placed in the world by one node.
 struct MeshInstance {
@@ -93,6 +103,10 @@ struct MeshInstance {
   // False: shadow rays (direct light) pass through this mesh; other rays still hit it. From
   // node extras {"lightlink": {"cast_shadows": b}} (inherited), else the material's.
   bool cast_shadows = true;
+  // False: the mesh reflects no bounce light (its surfels and the reference see albedo 0);
+  // it still blocks light and receives it. Node extras over material extras, like cast_shadows.
+  bool contribute_gi = true;
+  ReceiveGi receive_gi = ReceiveGi::kLightmap;  // kVolume and kOff also set probe_lit
   glm::mat4 world_from_mesh{1.0f};
 
   // Vertices stay 1:1 with the glTF primitive's accessors (vertex i here is vertex i
