@@ -1,8 +1,10 @@
 // `lightlink compare`: bake a scene and measure its lightmap against the path-traced
-// reference at the exact cache positions and normals (DESIGN.md sec 7): relative RMSE,
-// 95th percentile of the relative error and energy bias, for total and indirect irradiance,
-// plus error heat maps over the lightmap.
+// reference at the exact cache positions and normals (DESIGN.md sec 7, docs/quality.md):
+// relative RMSE (black references included, through an absolute error floor), 95th percentile
+// of the relative error, energy bias and leak counts, for total and indirect irradiance, over
+// all points and separately over the near-contact band; error and leak heat maps.
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
@@ -18,6 +20,7 @@
 #include "core/output/output.h"
 #include "core/precompute/precompute.h"
 #include "core/reference/compare.h"
+#include "core/reference/contact_band.h"
 #include "core/reference/reference.h"
 #include "core/relight/direct_layer.h"
 #include "core/relight/relight.h"
@@ -26,6 +29,8 @@
 
 namespace lightlink::cli {
 namespace {
+
+constexpr float kBandTexels = 2.0f;  // the near-contact band's half-width
 
 // Relative error 0 -> dark blue, 10 % -> green, >= 25 % -> red; texels not compared grey.
 Status writeHeatMap(const std::string& path, int w, int h, const std::vector<std::uint32_t>& texels,
@@ -40,6 +45,31 @@ Status writeHeatMap(const std::string& path, int w, int h, const std::vector<std
   return writePngRgb8(path, w, h, rgb, "error heat map");
 }
 
+// Leaks red, missing light blue, other near-contact points dull yellow, other compared points
+// grey; texels not compared dark.
+Status writeLeakMap(const std::string& path, int w, int h, const std::vector<std::uint32_t>& texels,
+                    const std::vector<glm::vec3>& baked, const std::vector<glm::vec3>& ref,
+                    const std::vector<std::uint8_t>& band, const reference::ErrorStats& stats,
+                    const reference::ErrorOptions& options) {
+  std::vector<std::uint8_t> rgb(std::size_t(w) * h * 3, 20);
+  const double dark = options.dark_fraction * stats.floor;
+  for (std::size_t k = 0; k < texels.size(); ++k) {
+    const double b = reference::luminance(baked[k]), r = reference::luminance(ref[k]);
+    std::array<std::uint8_t, 3> c = band[k] ? std::array<std::uint8_t, 3>{130, 120, 40} : std::array<std::uint8_t, 3>{90, 90, 90};
+    if (r < dark && b > stats.floor) c = {255, 30, 20};
+    if (b < dark && r > stats.floor) c = {30, 80, 255};
+    for (int ch = 0; ch < 3; ++ch) rgb[3 * std::size_t(texels[k]) + ch] = c[ch];
+  }
+  return writePngRgb8(path, w, h, rgb, "leak map");
+}
+
+std::vector<glm::vec3> pick(const std::vector<glm::vec3>& v, const std::vector<std::uint8_t>& mask, bool want) {
+  std::vector<glm::vec3> out;
+  for (std::size_t k = 0; k < v.size(); ++k)
+    if (bool(mask[k]) == want) out.push_back(v[k]);
+  return out;
+}
+
 }  // namespace
 
 int runCompare(const CompareArgs& args) {
@@ -48,6 +78,8 @@ int runCompare(const CompareArgs& args) {
     return reportError(kCmd, invalidInput("--against '{}': only 'reference' is known", args.against));
   if (args.max_points < 1 || args.max_points > (1 << 22))
     return reportError(kCmd, invalidInput("--max-points {} is out of range (1..4194304)", args.max_points));
+  if (!(args.error_floor > 0.0 && args.error_floor <= 10.0))
+    return reportError(kCmd, invalidInput("--error-floor {} is out of range (0..10]", args.error_floor));
   // compare's own choice: the baker runs to convergence (64 bounces, threshold 1e-4) unless
   // --bounces says otherwise, so that the error measured is the method's, not the cap's.
   relight::RelightOptions to_convergence;
@@ -88,12 +120,22 @@ int runCompare(const CompareArgs& args) {
   const std::size_t stride = std::max<std::size_t>(1, (valid.size() + args.max_points - 1) / args.max_points);
   std::vector<glm::vec3> pos, nrm;
   std::vector<std::uint32_t> texels;
+  std::vector<float> band_radius;
+  std::vector<std::uint8_t> pushed;
   for (std::size_t k = 0; k < valid.size(); k += stride) {
-    pos.push_back(lm.position[valid[k]]);
-    nrm.push_back(lm.normal[valid[k]]);
-    texels.push_back(lm.texel[valid[k]]);
+    const std::uint32_t c = valid[k];
+    pos.push_back(lm.position[c]);
+    nrm.push_back(lm.normal[c]);
+    texels.push_back(lm.texel[c]);
+    band_radius.push_back(kBandTexels * reference::texelSizeOnTriangle(scene->meshes[lm.mesh[c]], lm.triangle[c],
+                                                                       lm.width, lm.height));
+    pushed.push_back(lm.pushed[c]);
   }
   if (pos.empty()) return reportError(kCmd, invalidInput("{}: no valid lightmap cache to compare", args.scene_path));
+  // The near-contact band: another surface within two texels, or a cache the validity test
+  // moved (its texel's own point saw the back of something, so it lies at a contact).
+  std::vector<std::uint8_t> band = reference::nearContact(*accel, pos, nrm, band_radius);
+  for (std::size_t k = 0; k < band.size(); ++k) band[k] |= pushed[k];
 
   auto ref = reference::ReferenceRenderer::create(*scene, *accel, lights);
   if (!ref) return reportError(kCmd, ref.status());
@@ -121,8 +163,20 @@ int runCompare(const CompareArgs& args) {
     converged += e.converged ? 1 : 0;
   }
   ref_rel_err /= double(pos.size());
-  const auto total = reference::errorStats(b_total, r_total);
-  const auto indirect = reference::errorStats(b_ind, r_ind);
+  reference::ErrorOptions eo;
+  eo.floor_fraction = args.error_floor;
+  const auto total = reference::errorStats(b_total, r_total, eo);
+  // One floor for every figure: a fraction of the scene's mean total irradiance (the light
+  // level an error is seen against), not of the indirect's or a subset's own mean.
+  eo.floor_mean = total.mean_reference;
+  const auto indirect = reference::errorStats(b_ind, r_ind, eo);
+  auto subset = [&](const std::vector<glm::vec3>& b, const std::vector<glm::vec3>& r, bool in_band) {
+    return reference::errorStats(pick(b, band, in_band), pick(r, band, in_band), eo);
+  };
+  const auto band_total = subset(b_total, r_total, true);
+  const auto band_ind = subset(b_ind, r_ind, true);
+  const auto inner_total = subset(b_total, r_total, false);
+  const auto inner_ind = subset(b_ind, r_ind, false);
   const bool sky = lights.sky().emits();
 
   nlohmann::ordered_json report;
@@ -133,8 +187,24 @@ int runCompare(const CompareArgs& args) {
   report["reference"] = {{"target_rel_error", args.target_error},
                          {"mean_rel_std_error_total", ref_rel_err},
                          {"converged_points", converged}};
+  report["error_floor"] = {{"fraction_of_mean", args.error_floor},
+                           {"formula", "rel_error = |baked - ref| / max(ref, floor), floor = fraction_of_mean * mean(ref total), luminance"},
+                           {"floor", total.floor},
+                           {"leak", "ref < 0.1 * floor and baked > floor"},
+                           {"missing_light", "baked < 0.1 * floor and ref > floor"}};
   report["total"] = total.toJson();
   report["indirect"] = indirect.toJson();
+  report["near_contact"] = {{"definition", "another surface within 2 texel sizes of the point, or a cache moved by the "
+                                           "validity test"},
+                            {"radius_texels", kBandTexels},
+                            {"points", band_total.points},
+                            {"total", band_total.toJson()},
+                            {"indirect", band_ind.toJson()}};
+  report["interior"] = {{"points", inner_total.points}, {"total", inner_total.toJson()}, {"indirect", inner_ind.toJson()}};
+  report["leaks"] = {{"leaks", total.leaks},
+                     {"missing_light", total.missing_light},
+                     {"near_contact_leaks", band_total.leaks},
+                     {"points", total.points}};
   if (sky)
     report["note"] = "the scene has a sky: the baker's indirect SH holds the sky's direct light, the reference's "
                      "indirect does not, so only 'total' compares like with like";
@@ -147,21 +217,33 @@ int runCompare(const CompareArgs& args) {
     if (Status s = output::writeReportJson(report, (out / "compare.json").string()); !s) return reportError(kCmd, s);
     for (const auto& [name, b, r] : {std::tuple{"error_total.png", &b_total, &r_total},
                                       std::tuple{"error_indirect.png", &b_ind, &r_ind}}) {
+      const double floor = (b == &b_total ? total : indirect).floor;
       std::vector<float> rel(texels.size(), 0.0f);
-      for (std::size_t k = 0; k < texels.size(); ++k) {
-        const float rl = reference::luminance((*r)[k]);
-        rel[k] = rl > 0.0f ? std::abs(reference::luminance((*b)[k]) - rl) / rl : 0.0f;
-      }
+      for (std::size_t k = 0; k < texels.size(); ++k) rel[k] = reference::flooredRelError((*b)[k], (*r)[k], floor);
       if (Status s = writeHeatMap((out / name).string(), lm.width, lm.height, texels, rel); !s)
         return reportError(kCmd, s);
     }
+    if (Status s = writeLeakMap((out / "leaks.png").string(), lm.width, lm.height, texels, b_total, r_total, band,
+                                total, eo);
+        !s)
+      return reportError(kCmd, s);
   }
   if (!args.quiet) {
     std::string text = fmt::format("compared     {} lightmap caches against the reference (its mean rel. error {:.2f} %)\n",
                                    pos.size(), 100.0 * ref_rel_err);
+    text += fmt::format("error floor  {:.3g} x mean reference: rel. error = |b - r| / max(r, floor)\n", args.error_floor);
     for (const auto& [what, st] : {std::pair{"total", total}, std::pair{"indirect", indirect}})
-      text += fmt::format("{:<12} rel. RMSE {:.2f} %, p95 {:.2f} %, bias {:.4f} (mean baked {:.4g} vs {:.4g})\n", what,
-                          100.0 * st.rel_rmse, 100.0 * st.p95_rel_error, st.bias, st.mean_baked, st.mean_reference);
+      text += fmt::format("{:<12} rel. RMSE {:.2f} %, p95 {:.2f} %, bias {:.4f} (mean baked {:.4g} vs {:.4g}); "
+                          "lit points only {:.2f} %\n",
+                          what, 100.0 * st.rel_rmse, 100.0 * st.p95_rel_error, st.bias, st.mean_baked,
+                          st.mean_reference, 100.0 * st.lit_rel_rmse);
+    for (const auto& [what, t, i] : {std::tuple{"contact band", band_total, band_ind},
+                                     std::tuple{"interior", inner_total, inner_ind}})
+      text += fmt::format("{:<12} {} points: total rel. RMSE {:.2f} %, bias {:.4f}; indirect {:.2f} %, bias {:.4f}\n",
+                          what, t.points, 100.0 * t.rel_rmse, t.bias, 100.0 * i.rel_rmse, i.bias);
+    text += fmt::format("leaks        {} points lit where the reference is black ({} in the contact band), "
+                        "{} black where it is lit\n",
+                        total.leaks, band_total.leaks, total.missing_light);
     if (sky) text += "note         sky present: compare 'total' only\n";
     std::fwrite(text.data(), 1, text.size(), stdout);
   }

@@ -85,6 +85,7 @@ struct CompareArgs {
   int max_points = 4096;          // valid lightmap caches compared (evenly strided)
   float target_error = 0.01f;     // the reference's relative standard error per point
   double time_budget_s = 0.0;     // for the reference; 0 = none
+  double error_floor = 0.05;      // rel. error = |b - r| / max(r, error_floor * mean(r)) (docs/quality.md)
   bool quiet = false;
   bool allow_outside_scene = false;  // read files the scene names outside its folder
 };

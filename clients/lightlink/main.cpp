@@ -116,6 +116,9 @@ int main(int argc, char** argv) {
   cmp_cmd->add_option("--target-error", cmp.target_error, "Reference relative standard error per point")
       ->capture_default_str();
   cmp_cmd->add_option("--time-budget", cmp.time_budget_s, "Seconds for the reference (0 = none)");
+  cmp_cmd->add_option("--error-floor", cmp.error_floor,
+                      "Absolute error floor as a fraction of the mean reference: rel. error = |b - r| / max(r, floor)")
+      ->capture_default_str();
   cmp_cmd->add_flag("-q,--quiet", cmp.quiet, "No progress bar, no summary");
   cmp_cmd->add_flag("--allow-outside-scene", cmp.allow_outside_scene, "Read files the scene names outside its own folder (only for scenes you trust)");
 

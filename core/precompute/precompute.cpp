@@ -17,6 +17,7 @@
 
 #include <fmt/format.h>
 
+#include "core/caches/cutout_texels.h"
 #include "core/links/surfel_locator.h"
 #include "core/rt/accel.h"
 #include "core/scene/load.h"
@@ -310,6 +311,8 @@ Expected<Precomputation> run(scene::Scene& scene, const PrecomputeOptions& optio
         scene, *accel, {.resolution = p.atlas.resolution, .pages = p.atlas.pages, .validity = validity});
     if (!lm) return lm.status();
     p.lightmap = std::move(lm).value();
+    if (const std::size_t cut = caches::invalidateCutoutTexels(scene, p.lightmap); cut > 0)
+      p.notes.push_back(fmt::format("{} lightmap texels over alpha cut-outs left invalid (filled from their neighbours)", cut));
     bool dynamic = false;
     Aabb probe_lit_bounds;
     for (const auto& m : scene.meshes) dynamic |= !m.is_static;

@@ -300,7 +300,7 @@ PathSample ReferenceRenderer::Impl::trace(const glm::vec3& position, const glm::
       const float len = glm::length(interp);
       if (len > 1e-6f && std::isfinite(len)) y.ns = glm::dot(interp, y.ng) < 0.0f ? -interp / len : interp / len;
     }
-    y.albedo = scene::albedoAt(scene, mesh, h.triangle, bary);
+    y.albedo = scene::bounceAlbedoAt(scene, mesh, h.triangle, bary);
     if (isZero(y.albedo)) break;
     y.f = y.albedo * kInvPi;
     x = y;

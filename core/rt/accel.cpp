@@ -12,6 +12,8 @@
 
 #include <embree3/rtcore.h>
 
+#include "core/rt/cutout.h"
+
 #include "core/common/check.h"
 #include "core/common/multiversion.h"
 
@@ -150,6 +152,27 @@ constexpr std::size_t kStreamGroup = 64;
 // staying ~2e-6 relative, so props of a few mm still work ten metres from the origin.
 constexpr float kOffsetUlps = 16.0f;
 
+// Embree filter functions (called for every candidate hit of a mesh that has a SurfaceFilter;
+// valid[i] = 0 rejects lane i's hit and the traversal goes on).
+void cutoutFilter(const RTCFilterFunctionNArguments* args) {
+  const auto* f = static_cast<const SurfaceFilter*>(args->geometryUserPtr);
+  for (unsigned i = 0; i < args->N; ++i) {
+    if (args->valid[i] != -1) continue;
+    if (!f->opaqueAt(RTCHitN_primID(args->hit, args->N, i), RTCHitN_u(args->hit, args->N, i),
+                     RTCHitN_v(args->hit, args->N, i)))
+      args->valid[i] = 0;
+  }
+}
+
+void occlusionFilter(const RTCFilterFunctionNArguments* args) {
+  const auto* f = static_cast<const SurfaceFilter*>(args->geometryUserPtr);
+  if (!f->cast_shadows) {
+    for (unsigned i = 0; i < args->N; ++i) args->valid[i] = 0;
+    return;
+  }
+  cutoutFilter(args);
+}
+
 }  // namespace
 
 struct Accel::Impl {
@@ -165,6 +188,8 @@ struct Accel::Impl {
   float scale = 0.0f;
   float epsilon = 0.0f;
   std::size_t triangles = 0;
+  // Per filtered geometry, what its filter functions read (Embree holds raw pointers).
+  std::vector<std::unique_ptr<SurfaceFilter>> filters;
 
   void intersectPackets(std::span<const Ray> rays, std::span<Hit> hits, RTCIntersectContext& ctx) const;
   void intersectStream(std::span<const Ray> rays, std::span<Hit> hits, RTCIntersectContext& ctx) const;
@@ -233,6 +258,7 @@ Expected<Accel> Accel::build(const scene::Scene& scene, const AccelOptions& opti
   // See AccelOptions::robust: watertight hits, so closed rooms do not leak.
   rtcSetSceneFlags(rtc_scene, options.robust ? RTC_SCENE_FLAG_ROBUST : RTC_SCENE_FLAG_NONE);
 
+  std::vector<std::shared_ptr<const AlphaPlane>> alpha_planes;  // one copy per texture
   for (std::size_t m = 0; m < scene.meshes.size(); ++m) {
     const scene::MeshInstance& mesh = scene.meshes[m];
     if (options.static_only && !mesh.is_static) continue;
@@ -257,6 +283,12 @@ Expected<Accel> Accel::build(const scene::Scene& scene, const AccelOptions& opti
       vertices[3 * i + 2] = mesh.positions[i].z;
     }
     std::copy(mesh.indices.begin(), mesh.indices.end(), indices);
+    if (auto filter = SurfaceFilter::forMesh(scene, mesh, alpha_planes)) {
+      rtcSetGeometryUserData(geometry.get(), filter.get());
+      if (filter->cutout) rtcSetGeometryIntersectFilterFunction(geometry.get(), &cutoutFilter);
+      rtcSetGeometryOccludedFilterFunction(geometry.get(), &occlusionFilter);
+      impl->filters.push_back(std::move(filter));
+    }
     rtcSetGeometryBuildQuality(geometry.get(), quality);
     rtcCommitGeometry(geometry.get());
     const unsigned geom_id = rtcAttachGeometry(rtc_scene, geometry.get());

@@ -16,6 +16,10 @@
 //  - Hit::mesh indexes Scene::meshes of the scene the Accel was built from, Hit::triangle
 //    indexes that mesh's triangles (indices[3*triangle .. 3*triangle+2]); u, v are Embree's
 //    barycentrics: p = (1-u-v)*v0 + u*v1 + v*v2.
+//  - Alpha cut-outs (materials with alphaMode MASK, or BLEND traced as a mask at 0.5) are
+//    holes for every query: a hit where the base colour's alpha is below the threshold is
+//    skipped and the ray goes on. A mesh with cast_shadows == false is skipped by occluded()
+//    (shadow rays) only; intersect() still hits it (core/rt/cutout.h).
 //  - The Accel copies the geometry it needs; the Scene may be destroyed after build().
 //
 // Epsilons are relative to the size of the built geometry (DESIGN.md sec. 6: mm- and

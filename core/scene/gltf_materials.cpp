@@ -1,4 +1,5 @@
 #include "core/scene/gltf_materials.h"
+#include "core/scene/gltf_nodes.h"
 
 #include <cmath>
 #include <cstdint>
@@ -234,8 +235,37 @@ Status loadMaterials(const Context& ctx) {
     m.roughness = static_cast<float>(pbr.roughnessFactor);
     m.double_sided = gm.doubleSided;
 
-    if (gm.alphaMode == "BLEND") {
-      ctx.warn(object, "alphaMode BLEND is treated as opaque");
+    if (gm.alphaMode == "MASK") {
+      if (Status s = checkScalar(ctx, object, "alphaCutoff", gm.alphaCutoff); !s) return s;
+      m.alpha_mode = Material::AlphaMode::kMask;
+      m.alpha_cutoff = static_cast<float>(gm.alphaCutoff);
+    } else if (gm.alphaMode == "BLEND") {
+      // No ray tracer traces partial coverage deterministically for free: BLEND is cut out
+      // where it is less than half opaque (docs/scene-format.md "Alpha").
+      m.alpha_mode = Material::AlphaMode::kBlend;
+      ctx.warn(object, "alphaMode BLEND is traced as a cut-out at opacity 0.5 (no partial shadows); glass or a light "
+                       "shaft that should not block light wants extras {\"lightlink\": {\"cast_shadows\": false}}");
+    } else if (!gm.alphaMode.empty() && gm.alphaMode != "OPAQUE") {
+      ctx.warn(object, fmt::format("alphaMode '{}' is not OPAQUE, MASK or BLEND; treated as OPAQUE", gm.alphaMode));
+    }
+    if (gm.extras.IsObject() && gm.extras.Has("lightlink")) {
+      const tinygltf::Value& ours = gm.extras.Get("lightlink");
+      if (!ours.IsObject()) return ctx.invalid(object, "extras.lightlink must be an object");
+      if (ours.Has("cast_shadows")) {
+        const tinygltf::Value& flag = ours.Get("cast_shadows");
+        if (!flag.IsBool()) return ctx.invalid(object, "extras.lightlink.cast_shadows must be true or false");
+        m.cast_shadows = flag.Get<bool>();
+      }
+      if (ours.Has("contribute_gi")) {
+        const tinygltf::Value& flag = ours.Get("contribute_gi");
+        if (!flag.IsBool()) return ctx.invalid(object, "extras.lightlink.contribute_gi must be true or false");
+        m.contribute_gi = flag.Get<bool>();
+      }
+      if (ours.Has("receive_gi")) {
+        Expected<int> r = parseReceiveGi(ctx, object, ours.Get("receive_gi"));
+        if (!r) return r.status();
+        m.receive_gi = *r;
+      }
     }
   }
   return Status::ok();

@@ -99,6 +99,16 @@ Expected<glm::dmat4> localTransform(const Context& ctx, int index) {
 
 }  // namespace
 
+Expected<int> parseReceiveGi(const Context& ctx, const std::string& object, const tinygltf::Value& v) {
+  if (v.IsString()) {
+    const std::string& s = v.Get<std::string>();
+    if (s == "lightmap") return int(ReceiveGi::kLightmap);
+    if (s == "volume") return int(ReceiveGi::kVolume);
+    if (s == "off") return int(ReceiveGi::kOff);
+  }
+  return ctx.invalid(object, "extras.lightlink.receive_gi must be \"lightmap\", \"volume\" or \"off\"");
+}
+
 Expected<NodeOverrides> nodeOverrides(const Context& ctx, int index) {
   NodeOverrides out;
   const tinygltf::Value& extras = ctx.model.nodes[static_cast<std::size_t>(index)].extras;
@@ -115,6 +125,21 @@ Expected<NodeOverrides> nodeOverrides(const Context& ctx, int index) {
     const tinygltf::Value& flag = ours.Get("lightmap");
     if (!flag.IsBool()) return ctx.invalid(object, "extras.lightlink.lightmap must be true or false");
     out.lightmap = flag.Get<bool>() ? 1 : 0;
+  }
+  if (ours.Has("cast_shadows")) {
+    const tinygltf::Value& flag = ours.Get("cast_shadows");
+    if (!flag.IsBool()) return ctx.invalid(object, "extras.lightlink.cast_shadows must be true or false");
+    out.cast_shadows = flag.Get<bool>() ? 1 : 0;
+  }
+  if (ours.Has("contribute_gi")) {
+    const tinygltf::Value& flag = ours.Get("contribute_gi");
+    if (!flag.IsBool()) return ctx.invalid(object, "extras.lightlink.contribute_gi must be true or false");
+    out.contribute_gi = flag.Get<bool>() ? 1 : 0;
+  }
+  if (ours.Has("receive_gi")) {
+    Expected<int> r = parseReceiveGi(ctx, object, ours.Get("receive_gi"));
+    if (!r) return r.status();
+    out.receive_gi = *r;
   }
   if (ours.Has("lightmap_scale")) {
     const tinygltf::Value& v = ours.Get("lightmap_scale");
@@ -157,6 +182,9 @@ Expected<std::vector<PlacedNode>> placeNodes(const Context& ctx) {
     int parent;
     float parent_scale = 1.0f;
     bool parent_probe_lit = false;
+    int parent_cast_shadows = -1;
+    int parent_contribute_gi = -1;
+    int parent_receive_gi = -1;
   };
   std::vector<Pending> stack;
   for (auto it = roots.rbegin(); it != roots.rend(); ++it) {
@@ -199,6 +227,9 @@ Expected<std::vector<PlacedNode>> placeNodes(const Context& ctx) {
     const bool is_static = flags->is_static < 0 ? p.parent_static : flags->is_static == 1;
     const float lightmap_scale = flags->lightmap_scale > 0.0f ? flags->lightmap_scale : p.parent_scale;
     const bool probe_lit = flags->lightmap < 0 ? p.parent_probe_lit : flags->lightmap == 0;
+    const int cast_shadows = flags->cast_shadows < 0 ? p.parent_cast_shadows : flags->cast_shadows;
+    const int contribute_gi = flags->contribute_gi < 0 ? p.parent_contribute_gi : flags->contribute_gi;
+    const int receive_gi = flags->receive_gi < 0 ? p.parent_receive_gi : flags->receive_gi;
 
     const tinygltf::Node& node = model.nodes[static_cast<std::size_t>(p.node)];
     if (node.mesh >= 0 && static_cast<std::size_t>(node.mesh) >= model.meshes.size()) {
@@ -208,9 +239,9 @@ Expected<std::vector<PlacedNode>> placeNodes(const Context& ctx) {
     if (node.mesh >= 0 && node.skin >= 0) {
       ctx.warn(object, "skin is ignored; the mesh is placed by the node transform (bind pose)");
     }
-    placed.push_back({p.node, world, is_static, lightmap_scale, probe_lit});
+    placed.push_back({p.node, world, is_static, lightmap_scale, probe_lit, cast_shadows, contribute_gi, receive_gi});
     for (auto it = node.children.rbegin(); it != node.children.rend(); ++it) {
-      stack.push_back({*it, world, is_static, p.node, lightmap_scale, probe_lit});
+      stack.push_back({*it, world, is_static, p.node, lightmap_scale, probe_lit, cast_shadows, contribute_gi, receive_gi});
     }
   }
   return placed;

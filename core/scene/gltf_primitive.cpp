@@ -88,6 +88,16 @@ Expected<MeshInstance> buildInstance(const Context& ctx, const PlacedNode& place
   out.is_static = placed.is_static;
   out.lightmap_scale = placed.lightmap_scale;
   out.probe_lit = placed.probe_lit;
+  // Node extras (inherited) over material extras over the defaults.
+  const Material* material = prim.material < 0 ? nullptr : &ctx.scene.materials[static_cast<std::size_t>(prim.material)];
+  out.cast_shadows = placed.cast_shadows >= 0 ? placed.cast_shadows == 1 : material == nullptr || material->cast_shadows;
+  out.contribute_gi = placed.contribute_gi >= 0 ? placed.contribute_gi == 1 : material == nullptr || material->contribute_gi;
+  const int receive = placed.receive_gi >= 0                          ? placed.receive_gi
+                      : placed.probe_lit                              ? int(ReceiveGi::kVolume)
+                      : material != nullptr && material->receive_gi >= 0 ? material->receive_gi
+                                                                         : int(ReceiveGi::kLightmap);
+  out.receive_gi = static_cast<ReceiveGi>(receive);
+  out.probe_lit = out.receive_gi != ReceiveGi::kLightmap;
   out.world_from_mesh = glm::mat4(placed.world_from_node);
 
   const auto attribute = [&](const char* semantic) {

@@ -41,4 +41,22 @@ glm::vec3 emissionAt(const Scene& scene, const MeshInstance& mesh, std::uint32_t
          textureRgb(scene, mesh, m.emissive_texture, triangle, barycentric);
 }
 
+glm::vec3 bounceAlbedoAt(const Scene& scene, const MeshInstance& mesh, std::uint32_t triangle, glm::vec2 barycentric) {
+  return mesh.contribute_gi ? albedoAt(scene, mesh, triangle, barycentric) : glm::vec3(0.0f);
+}
+
+float alphaAt(const Scene& scene, const MeshInstance& mesh, std::uint32_t triangle, glm::vec2 barycentric) {
+  const Material& m = scene.materialOf(mesh);
+  const TextureRef& ref = m.base_color_texture;
+  const std::vector<glm::vec2>& uvs = ref.texcoord == 1 ? mesh.uv1 : mesh.uv0;
+  if (!ref.valid() || uvs.empty()) return m.base_color_factor.w;
+  const Texture& texture = scene.textures[static_cast<std::size_t>(ref.texture)];
+  return m.base_color_factor.w * texture.sampleSrgb(texcoordAt(mesh, ref.texcoord, triangle, barycentric)).w;
+}
+
+bool cutOutAt(const Scene& scene, const MeshInstance& mesh, std::uint32_t triangle, glm::vec2 barycentric) {
+  const Material& m = scene.materialOf(mesh);
+  return m.hasCutout() && alphaAt(scene, mesh, triangle, barycentric) < m.cutoutThreshold();
+}
+
 }  // namespace lightlink::scene

@@ -28,4 +28,14 @@ glm::vec3 albedoAt(const Scene& scene, const MeshInstance& mesh, std::uint32_t t
 glm::vec3 emissionAt(const Scene& scene, const MeshInstance& mesh, std::uint32_t triangle,
                      glm::vec2 barycentric);
 
+// Base-colour alpha: baseColorFactor.a * baseColorTexture.a (linear), and whether the point
+// is cut out: the material is MASK or BLEND and the alpha is below its threshold (the test
+// the ray tracer applies to every hit, core/rt/cutout.h).
+// Albedo for light transport: albedoAt, or 0 for a mesh that contributes no GI
+// (MeshInstance::contribute_gi), so it reflects no bounce light. Display uses albedoAt.
+glm::vec3 bounceAlbedoAt(const Scene& scene, const MeshInstance& mesh, std::uint32_t triangle, glm::vec2 barycentric);
+
+float alphaAt(const Scene& scene, const MeshInstance& mesh, std::uint32_t triangle, glm::vec2 barycentric);
+bool cutOutAt(const Scene& scene, const MeshInstance& mesh, std::uint32_t triangle, glm::vec2 barycentric);
+
 }  // namespace lightlink::scene

@@ -55,12 +55,35 @@ struct Material {
   float metallic = 1.0f;              // glTF defaults
   float roughness = 1.0f;
   bool double_sided = false;
+  // glTF alphaMode. kMask: the surface is cut out (no ray hits it) where base-colour alpha
+  // (factor * texture) < alpha_cutoff. kBlend: traced as a mask at 0.5 (opaque where the
+  // opacity is at least one half), docs/scene-format.md "Alpha".
+  enum class AlphaMode { kOpaque, kMask, kBlend };
+  AlphaMode alpha_mode = AlphaMode::kOpaque;
+  float alpha_cutoff = 0.5f;  // glTF alphaCutoff (MASK only)
+  // extras {"lightlink": {"cast_shadows": false}}: shadow rays pass through the surface;
+  // a node's own flag overrides it (MeshInstance::cast_shadows).
+  bool cast_shadows = true;
+  // extras.lightlink.contribute_gi: false = reflects no bounce light onto other surfaces.
+  bool contribute_gi = true;
+  // extras.lightlink.receive_gi, when set (ReceiveGi), else -1: where the mesh's indirect
+  // light comes from. A node's own value wins.
+  int receive_gi = -1;
+
+  bool hasCutout() const { return alpha_mode != AlphaMode::kOpaque; }
+  // The alpha below which the surface is cut out.
+  float cutoutThreshold() const { return alpha_mode == AlphaMode::kMask ? alpha_cutoff : 0.5f; }
 
   bool isEmissive() const {
     return emissive_strength > 0.0f &&
            (emissive_factor.x > 0.0f || emissive_factor.y > 0.0f || emissive_factor.z > 0.0f);
   }
 };
+
+// Where a static mesh's indirect light comes from (extras.lightlink.receive_gi): its lightmap,
+// the irradiance volume ("volume", as "lightmap": false), or nowhere ("off": baked like
+// "volume", and listed so that the engine shades it without baked indirect light).
+enum class ReceiveGi { kLightmap = 0, kVolume = 1, kOff = 2 };
 
 // One triangle primitive placed in the world by one node.
 struct MeshInstance {
@@ -77,6 +100,13 @@ struct MeshInstance {
   // node extras {"lightlink": {"lightmap": false}}, or by the unwrap for objects too small
   // for the lightmap (every chart under 2x2 texels). Such a mesh has no uv1.
   bool probe_lit = false;
+  // False: shadow rays (direct light) pass through this mesh; other rays still hit it. From
+  // node extras {"lightlink": {"cast_shadows": b}} (inherited), else the material's.
+  bool cast_shadows = true;
+  // False: the mesh reflects no bounce light (its surfels and the reference see albedo 0);
+  // it still blocks light and receives it. Node extras over material extras, like cast_shadows.
+  bool contribute_gi = true;
+  ReceiveGi receive_gi = ReceiveGi::kLightmap;  // kVolume and kOff also set probe_lit
   glm::mat4 world_from_mesh{1.0f};
 
   // Vertices stay 1:1 with the glTF primitive's accessors (vertex i here is vertex i

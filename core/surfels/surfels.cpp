@@ -252,7 +252,7 @@ Expected<Surfels> placeSurfels(const scene::Scene& scene, const SurfelOptions& o
       out.position[j] = surface.pointAt(t, b);
       out.normal[j] = normal;
       out.area[j] = area_m2;
-      out.albedo[j] = scene::albedoAt(scene, mesh, mt, b);
+      out.albedo[j] = scene::bounceAlbedoAt(scene, mesh, mt, b);
       out.emission[j] = scene::emissionAt(scene, mesh, mt, b);
       out.lightmap_uv[j] = mesh.hasLightmapUv() ? scene::texcoordAt(mesh, 1, mt, b) : glm::vec2(-1.0f);
       out.mesh[j] = surface.mesh[t];

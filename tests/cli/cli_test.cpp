@@ -60,6 +60,21 @@ TEST(Inspect, DemoSceneJsonCounts) {
   EXPECT_TRUE(j["lightmap_uv"]["unwrap_needed"].get<bool>());
 }
 
+TEST(Inspect, ShowsAlphaCutoutsAndInstancesThatCastNoShadows) {
+  const auto scene = testing::sourceDir() / "tests/data/alpha/alpha_cards.gltf";
+  const auto r = runShell(kCli + " inspect --json " + scene.string());
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  const auto j = nlohmann::json::parse(r.output);
+  EXPECT_EQ(j["alpha"]["mask_materials"], 1);
+  EXPECT_EQ(j["alpha"]["blend_materials"], 1);
+  EXPECT_EQ(j["alpha"]["cutout_mesh_instances"], 2);
+  EXPECT_EQ(j["cast_shadows_false"]["mesh_instances"], 1);
+  EXPECT_EQ(j["cast_shadows_false"]["names"], nlohmann::json::array({"glass_sheet/0"}));
+  const auto text = runShell(kCli + " inspect " + scene.string());
+  EXPECT_NE(text.output.find("1 MASK, 1 BLEND"), std::string::npos) << text.output;
+  EXPECT_NE(text.output.find("cast no shadows: glass_sheet/0"), std::string::npos) << text.output;
+}
+
 TEST(Inspect, TextSummaryNamesTheEssentials) {
   const auto r = runShell(kCli + " inspect " + demoScene().string());
   ASSERT_EQ(r.exit_code, 0) << r.output;
@@ -278,8 +293,22 @@ TEST(Compare, MeasuresTheBakeAgainstTheReference) {
   }
   EXPECT_TRUE(std::filesystem::exists(out / "error_total.png"));
   EXPECT_TRUE(std::filesystem::exists(out / "error_indirect.png"));
+  // Issue 46: the near-contact band (the box's wall/floor/ceiling lines) and the interior are
+  // reported apart, leaks counted, and a leak map written.
+  EXPECT_EQ(j["error_floor"]["fraction_of_mean"].get<double>(), 0.05);
+  const int band = j["near_contact"]["points"].get<int>(), inner = j["interior"]["points"].get<int>();
+  EXPECT_GT(band, 0);
+  EXPECT_GT(inner, 0);
+  EXPECT_EQ(band + inner, 40);
+  EXPECT_GT(j["near_contact"]["total"]["mean_reference"].get<double>(), 0.0);
+  EXPECT_TRUE(j["leaks"].contains("leaks") && j["leaks"].contains("missing_light")) << j["leaks"].dump();
+  EXPECT_TRUE(j["total"].contains("lit_rel_rmse"));
+  EXPECT_TRUE(std::filesystem::exists(out / "leaks.png"));
   const auto bad = runShell(kCli + " compare " + demoScene().string() + " --against guesswork -q");
   EXPECT_EQ(bad.exit_code, cli::kExitBadInput) << bad.output;
+  const auto bad_floor = runShell(kCli + " compare " + demoScene().string() + " --error-floor 0 -q");
+  EXPECT_EQ(bad_floor.exit_code, cli::kExitBadInput) << bad_floor.output;
+  EXPECT_NE(bad_floor.output.find("--error-floor"), std::string::npos) << bad_floor.output;
 }
 
 TEST(Bake, BadLightSetAndPresetAreBadInput) {

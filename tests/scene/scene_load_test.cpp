@@ -384,6 +384,98 @@ TEST(SceneLoad, LightmapScaleAndProbeLitFlagsAreInheritedUnlessOverridden) {
   }
 }
 
+TEST(SceneLoad, AlphaModesAndCastShadowsFlags) {
+  // Issue 46: MASK (with its cutoff) and BLEND are read, not ignored; cast_shadows comes from
+  // the node (inherited) over the material's extras.
+  TempDir dir;
+  GltfBuilder b;
+  b.json()["materials"] = nlohmann::json::array(
+      {{{"name", "leaf"}, {"alphaMode", "MASK"}, {"alphaCutoff", 0.3}},
+       {{"name", "glass"}, {"alphaMode", "BLEND"}, {"extras", {{"lightlink", {{"cast_shadows", false}}}}}},
+       {{"name", "wall"}}});
+  auto mesh_with = [&](int material) {
+    const int acc = b.addVec3(unitTriangle());
+    const std::vector<std::uint16_t> idx = {0, 1, 2};
+    const int ia = b.addIndicesU16(idx);
+    return b.addMesh({{"attributes", {{"POSITION", acc}}}, {"indices", ia}, {"material", material}});
+  };
+  const int leaf = mesh_with(0), glass = mesh_with(1), wall = mesh_with(2);
+  const int n_leaf = b.addNode({{"mesh", leaf}});
+  const int n_glass = b.addNode({{"mesh", glass}});
+  const int n_glass_on = b.addNode({{"mesh", glass}, {"extras", {{"lightlink", {{"cast_shadows", true}}}}}});
+  const int n_parent = b.addNode({{"mesh", wall}, {"extras", {{"lightlink", {{"cast_shadows", false}}}}}});
+  const int n_child = b.addNode({{"mesh", wall}}, false);
+  b.addChild(n_parent, n_child);
+  const Scene scene = loadOk(b.writeGltf(dir / "t.gltf"));
+  ASSERT_EQ(scene.materials.size(), 3u);
+  EXPECT_EQ(scene.materials[0].alpha_mode, Material::AlphaMode::kMask);
+  EXPECT_FLOAT_EQ(scene.materials[0].alpha_cutoff, 0.3f);
+  EXPECT_FLOAT_EQ(scene.materials[0].cutoutThreshold(), 0.3f);
+  EXPECT_EQ(scene.materials[1].alpha_mode, Material::AlphaMode::kBlend);
+  EXPECT_FLOAT_EQ(scene.materials[1].cutoutThreshold(), 0.5f);
+  EXPECT_FALSE(scene.materials[1].cast_shadows);
+  EXPECT_EQ(scene.materials[2].alpha_mode, Material::AlphaMode::kOpaque);
+  for (const MeshInstance& m : scene.meshes) {
+    const bool casts = m.gltf_node == n_leaf || m.gltf_node == n_glass_on;
+    EXPECT_EQ(m.cast_shadows, casts) << "node " << m.gltf_node;
+  }
+  EXPECT_EQ(scene.meshes.size(), 5u);
+  (void)n_glass;
+  (void)n_child;
+  GltfBuilder c;
+  const int m = c.addTriangles(unitTriangle(), {0, 1, 2});
+  c.json()["materials"] = nlohmann::json::array({{{"name", "Veil"}, {"extras", {{"lightlink", {{"cast_shadows", 0}}}}}}});
+  c.json()["meshes"][m]["primitives"][0]["material"] = 0;
+  c.addNode({{"mesh", m}});
+  const Expected<Scene> r = loadGltf(c.writeGltf(dir / "bad.gltf"));
+  ASSERT_FALSE(r);
+  EXPECT_NE(r.status().message().find("Veil"), std::string::npos) << r.status().message();
+  EXPECT_NE(r.status().message().find("cast_shadows"), std::string::npos) << r.status().message();
+}
+
+TEST(SceneLoad, ContributeAndReceiveGiFlags) {
+  TempDir dir;
+  GltfBuilder b;
+  b.json()["materials"] = nlohmann::json::array(
+      {{{"name", "screen"}, {"extras", {{"lightlink", {{"contribute_gi", false}, {"receive_gi", "off"}}}}}},
+       {{"name", "wall"}}});
+  auto mesh_with = [&](int material) {
+    const int acc = b.addVec3(unitTriangle());
+    const std::vector<std::uint16_t> idx = {0, 1, 2};
+    const int ia = b.addIndicesU16(idx);
+    return b.addMesh({{"attributes", {{"POSITION", acc}}}, {"indices", ia}, {"material", material}});
+  };
+  const int screen = mesh_with(0), wall = mesh_with(1);
+  const int n_screen = b.addNode({{"mesh", screen}});
+  const int n_screen_lit = b.addNode(
+      {{"mesh", screen}, {"extras", {{"lightlink", {{"contribute_gi", true}, {"receive_gi", "lightmap"}}}}}});
+  const int n_wall = b.addNode({{"mesh", wall}});
+  const int n_parent = b.addNode({{"mesh", wall}, {"extras", {{"lightlink", {{"receive_gi", "volume"}}}}}});
+  const int n_child = b.addNode({{"mesh", wall}}, false);
+  b.addChild(n_parent, n_child);
+  const int n_probe = b.addNode({{"mesh", wall}, {"extras", {{"lightlink", {{"lightmap", false}}}}}});
+  const Scene scene = loadOk(b.writeGltf(dir / "t.gltf"));
+  ASSERT_EQ(scene.meshes.size(), 6u);
+  for (const MeshInstance& m : scene.meshes) {
+    const int n = m.gltf_node;
+    EXPECT_EQ(m.contribute_gi, n != n_screen) << "node " << n;
+    const ReceiveGi expect = n == n_screen                     ? ReceiveGi::kOff
+                             : n == n_parent || n == n_child || n == n_probe ? ReceiveGi::kVolume
+                                                                             : ReceiveGi::kLightmap;
+    EXPECT_EQ(m.receive_gi, expect) << "node " << n;
+    EXPECT_EQ(m.probe_lit, expect != ReceiveGi::kLightmap) << "node " << n;
+  }
+  (void)n_screen_lit;
+  (void)n_wall;
+  GltfBuilder c;
+  const int m = c.addTriangles(unitTriangle(), {0, 1, 2});
+  c.addNode({{"mesh", m}, {"name", "Statue"}, {"extras", {{"lightlink", {{"receive_gi", "sometimes"}}}}}});
+  const Expected<Scene> r = loadGltf(c.writeGltf(dir / "bad.gltf"));
+  ASSERT_FALSE(r);
+  EXPECT_NE(r.status().message().find("Statue"), std::string::npos) << r.status().message();
+  EXPECT_NE(r.status().message().find("receive_gi"), std::string::npos) << r.status().message();
+}
+
 TEST(SceneLoad, DegenerateTrianglesAreDroppedCountedAndWarnedOncePerMesh) {
   TempDir dir;
   GltfBuilder b;
