@@ -37,20 +37,4 @@ if [ "$tile" -gt 1 ]; then
   "$bin" "$scenes/sauerbraten_forge_obj/forge.obj" --preset medium --lights "$lights/forge.json" --tile "$tile" \
     --repeats 3 --json "$out/forge_x${tile}_medium.json" >/dev/null
 fi
-python3 - "$out" <<'PY'
-import json, glob, os, sys
-out = sys.argv[1]
-rows = ["| level | preset | triangles | texel size | pages | charts | lightmap caches | probe-lit objects | grid caches "
-        "| load s | unwrap s | caches s | links s | precompute s | peak RSS MiB | relight, 1 bounce (warm) ms |",
-        "|" + "---|" * 16]
-for f in sorted(glob.glob(os.path.join(out, "*.json"))):
-    d = json.load(open(f))
-    s = d["stages"]
-    name = os.path.basename(d["scene"]).rsplit(".", 1)[0] + (f" x{d['tile']}x{d['tile']}" if d["tile"] > 1 else "")
-    rows.append(f"| {name} | {d['preset']} | {d['triangles']:,} | {d['texel_size']:.3g} | {d['pages']} x {d['page']}² "
-                f"| {d['charts']:,} | {d['lightmap_caches']:,} | {d['probe_lit_objects']} | {d['grid_caches']:,} "
-                f"| {d['load_seconds']:.2f} | {s['unwrap']:.1f} | {s['caches']:.1f} | {s['links']:.1f} | {s['total']:.1f} "
-                f"| {d['peak_rss_mib']:.0f} | {d['relight_one_bounce_ms']:.1f} |")
-open(os.path.join(out, "levels.md"), "w").write("\n".join(rows) + "\n")
-print("\n".join(rows))
-PY
+python3 "$here/levels_table.py" "$out"

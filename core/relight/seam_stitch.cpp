@@ -8,6 +8,7 @@
 
 #include <Eigen/SparseCholesky>
 #include <Eigen/SparseCore>
+#include <tbb/parallel_for.h>
 
 namespace lightlink::relight {
 
@@ -155,7 +156,12 @@ void SeamStitch::apply(float* data, std::size_t stride, SeamStats* stats, std::s
     stats->edges = edges_, stats->samples = rows, stats->texels = n;
     stats->jump_before = jump(rhs.col(Eigen::Index(measure)));
   }
-  const Eigen::MatrixXd x = solver_->ldlt.solve(rhs);
+  // Channels are independent solves against one factorisation: in parallel, each column
+  // written by one task, so the result does not depend on the thread count.
+  Eigen::MatrixXd x(n, stride);
+  tbb::parallel_for(std::size_t(0), stride, [&](std::size_t c) {
+    x.col(Eigen::Index(c)) = solver_->ldlt.solve(rhs.col(Eigen::Index(c)));
+  });
   for (std::size_t v = 0; v < n; ++v)
     for (std::size_t c = 0; c < stride; ++c) data[texel_[v] * stride + c] = float(x(Eigen::Index(v), Eigen::Index(c)));
   if (stats) stats->jump_after = jump(x.col(Eigen::Index(measure)));
