@@ -99,7 +99,8 @@ struct PrecomputeOptions {
 // change: readers accept both). Part of the cache key, so a daemon's cache directory never
 // reuses an artifact an older generator made. 2: owner rasters and 32-bit ray jitter in
 // link generation. 3: link rays from one base pattern randomised per cache (LinkRays).
-// 4: alpha cut-outs and cast_shadows honoured by every ray, texels over cut-outs invalid;
+// 4: alpha cut-outs and cast_shadows honoured by every ray, texels over cut-outs invalid,
+// no surfels in cut-outs;
 // caches placed within their texel's footprint.
 inline constexpr int kGeneratorRevision = 4;
 

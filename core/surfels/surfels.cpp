@@ -261,6 +261,29 @@ Expected<Surfels> placeSurfels(const scene::Scene& scene, const SurfelOptions& o
     }
   });
   if (stopRequested(options.progress)) return cancelled("surfels: cancelled");
+  // Alpha cut-outs: a surfel in a hole would stand for surface no ray can hit and reflect
+  // light from it. Dropped, the others keep their slice, so the surfels' area is the opaque
+  // area (holes make up their share of the uniformly placed points).
+  bool any_cutout = false;
+  for (const auto& mesh : scene.meshes)
+    any_cutout |= mesh.is_static && mesh.material >= 0 &&
+                  scene.materials[std::size_t(mesh.material)].hasCutout();
+  if (any_cutout) {
+    std::vector<std::uint8_t> keep(n, 1);
+    tbb::parallel_for(tbb::blocked_range<std::uint32_t>(0, n), [&](const auto& r) {
+      for (std::uint32_t j = r.begin(); j < r.end(); ++j)
+        keep[j] = !scene::cutOutAt(scene, scene.meshes[out.mesh[j]], out.triangle[j], out.barycentric[j]);
+    });
+    std::size_t m = 0;  // compacted in place, in placement order
+    for (std::uint32_t j = 0; j < n; ++j) {
+      if (!keep[j]) continue;
+      out.position[m] = out.position[j], out.normal[m] = out.normal[j], out.area[m] = out.area[j];
+      out.albedo[m] = out.albedo[j], out.emission[m] = out.emission[j], out.lightmap_uv[m] = out.lightmap_uv[j];
+      out.mesh[m] = out.mesh[j], out.triangle[m] = out.triangle[j], out.barycentric[m] = out.barycentric[j];
+      ++m;
+    }
+    out.resize(m);
+  }
   return out;
 }
 

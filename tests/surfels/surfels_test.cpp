@@ -12,7 +12,10 @@
 #include <gtest/gtest.h>
 #include <tbb/global_control.h>
 
+#include "core/scene/load.h"
+#include "core/scene/material_eval.h"
 #include "core/surfels/surface.h"
+#include "tests/common/testing.h"
 #include "tests/surfels/test_scenes.h"
 
 namespace lightlink::surfels {
@@ -315,6 +318,45 @@ TEST(StaticSurface, AdjacencyWeldsSplitVerticesAndStopsAtCreases) {
   moveOnSurface(*surface, t, uv, glm::vec3(2.0f, 0.0f, 0.0f), 0.99f);
   EXPECT_EQ(t, 0u);
   EXPECT_NEAR(surface->pointAt(t, uv).x, 1.0f, 1e-6f);
+}
+
+}  // namespace
+}  // namespace lightlink::surfels
+
+namespace lightlink::surfels {
+namespace {
+
+// Issue 46: a MASK cut-out has no surfels in its holes (no ray can hit them; a surfel there
+// would reflect light from surface that is not there), and the rest keep their area slice,
+// so the card's surfels cover its opaque half. tests/data/alpha/alpha_cards.gltf: an 8 x 8
+// checker card, half of its squares cut out.
+TEST(Surfels, NoneInAlphaCutOuts) {
+  auto scene = scene::loadScene((lightlink::testing::sourceDir() / "tests/data/alpha/alpha_cards.gltf").string());
+  ASSERT_TRUE(scene) << scene.status().toString();
+  SurfelOptions o;
+  o.count = 8192;
+  auto s = placeSurfels(*scene, o);
+  ASSERT_TRUE(s) << s.status().toString();
+  std::uint32_t card = 0;
+  while (card < scene->meshes.size() && scene->meshes[card].name.rfind("checker_card", 0) != 0) ++card;
+  ASSERT_LT(card, scene->meshes.size());
+  double card_area = 0.0;
+  const auto& m = scene->meshes[card];
+  for (std::size_t t = 0; t < m.triangleCount(); ++t) {
+    const glm::vec3 a = m.positions[m.indices[3 * t]], b = m.positions[m.indices[3 * t + 1]],
+                    c = m.positions[m.indices[3 * t + 2]];
+    card_area += 0.5 * glm::length(glm::cross(b - a, c - a));
+  }
+  double on_card = 0.0;
+  std::size_t in_holes = 0;
+  for (std::size_t j = 0; j < s->size(); ++j) {
+    if (s->mesh[j] != card) continue;
+    on_card += s->area[j];
+    in_holes += scene::cutOutAt(*scene, m, s->triangle[j], s->barycentric[j]);
+  }
+  EXPECT_EQ(in_holes, 0u);
+  EXPECT_LT(s->size(), std::size_t(o.count));  // the holes' surfels are gone
+  EXPECT_NEAR(on_card / card_area, 0.5, 0.08) << "surfel area on the card / its area";
 }
 
 }  // namespace
