@@ -42,6 +42,10 @@ struct LightmapCacheOptions {
   int resolution = 0;  // page width = height in texels (the unwrap's resolution)
   int pages = 1;       // pages stacked along v: the atlas is resolution x (pages * resolution)
   ValidityOptions validity;
+  // A texel whose centre fails validity searches its footprint for a valid point (caches);
+  // false: it is invalid at once and filled from its neighbours (the direct layer's texels,
+  // a quarter of a cache's size or less, where the search would cost more than it gives).
+  bool footprint_search = true;
 };
 
 // Structure of arrays, one entry per cache; caches are ordered by texel index (row-major),

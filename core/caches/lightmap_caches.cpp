@@ -221,6 +221,10 @@ Expected<LightmapCaches> placeLightmapCaches(const scene::Scene& scene, const rt
   tbb::parallel_for(std::size_t(0), n, [&](std::size_t i) {
     if (stopRequested(progress)) return;
     if (backfaceFraction(scene, accel, out.position[i], out.normal[i], options.validity) <= max_back) return;
+    if (!options.footprint_search) {
+      out.valid[i] = 0;
+      return;
+    }
     // The centre sees back faces (it lies on an edge, a contact line or under a card): look
     // for the valid point of the texel's own footprint nearest its centre, as Bakery and
     // Unity's progressive lightmapper do per texel. The cache never leaves its texel.

@@ -182,7 +182,7 @@ Expected<PrecomputeOptions> preset(std::string_view name) {
     o.bands = 3;
     o.rays = 2048;
     o.texel_budget = 131072;
-    o.direct_scale = 4;
+    o.direct_scale = 2;
   } else {
     return invalidInput("--preset '{}' must be draft, medium or high", name);
   }
@@ -370,12 +370,15 @@ Expected<Precomputation> run(scene::Scene& scene, const PrecomputeOptions& optio
           std::uint64_t(p.lightmap.height) * options.direct_scale));
     if (scale > 1) {
       s = stage("direct_texels", [&]() -> Status {
-        // A quarter of the caches' validity rays: a direct texel only needs to know whether
-        // it lies inside geometry (no links read its hemisphere), and there are K^2 as many.
+        // A quarter of the caches' validity rays and no footprint search: a direct texel only
+        // needs to know whether it lies inside geometry (no links read its hemisphere), a
+        // failed one is filled from its neighbours, and there are K^2 as many.
         caches::ValidityOptions dv = validity;
         dv.rays = std::max(8, options.validity_rays / 4);
         auto dt = caches::placeLightmapCaches(
-            scene, *accel, {.resolution = p.atlas.resolution * scale, .pages = p.atlas.pages, .validity = dv});
+            scene, *accel,
+            {.resolution = p.atlas.resolution * scale, .pages = p.atlas.pages, .validity = dv,
+             .footprint_search = false});
         if (!dt) return dt.status();
         p.direct_texels = std::move(dt).value();
         p.direct_fill = caches::planLightmapFill(p.direct_texels);
