@@ -2,29 +2,15 @@
 
 #include <cmath>
 
+#include "core/scene/texture_wrap.h"
+
 namespace lightlink::rt {
 namespace {
 
-constexpr int kRepeat = 10497;
-constexpr int kMirroredRepeat = 33648;
-
-// Texture::sampleSrgb's wrap rules (core/scene/texture.cpp), which core/rt cannot link.
-float foldCoordinate(float u, int wrap) {
-  if (!std::isfinite(u)) return 0.0f;
-  if (wrap == kRepeat) return u - std::floor(u);
-  if (wrap == kMirroredRepeat) return u - 2.0f * std::floor(0.5f * u);
-  return std::fmin(std::fmax(u, -1.0f), 2.0f);
-}
-
-int wrapTexel(int i, int n, int wrap) {
-  if (wrap == kRepeat) return ((i % n) + n) % n;
-  if (wrap == kMirroredRepeat) {
-    const int period = 2 * n;
-    const int k = ((i % period) + period) % period;
-    return k < n ? k : period - 1 - k;
-  }
-  return i < 0 ? 0 : (i >= n ? n - 1 : i);
-}
+using scene::wrap::foldCoordinate;
+using scene::wrap::kMirroredRepeat;
+using scene::wrap::kRepeat;
+using scene::wrap::wrapTexel;
 
 }  // namespace
 

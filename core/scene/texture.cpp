@@ -2,12 +2,15 @@
 #include <cmath>
 
 #include "core/scene/scene.h"
+#include "core/scene/texture_wrap.h"
 
 namespace lightlink::scene {
 namespace {
 
-constexpr int kRepeat = 10497;
-constexpr int kMirroredRepeat = 33648;  // anything else is CLAMP_TO_EDGE (33071)
+using wrap::foldCoordinate;
+using wrap::kMirroredRepeat;
+using wrap::kRepeat;
+using wrap::wrapTexel;
 
 // sRGB EOTF (IEC 61966-2-1) for the 256 8-bit codes.
 const std::array<float, 256>& srgbToLinearTable() {
@@ -21,25 +24,6 @@ const std::array<float, 256>& srgbToLinearTable() {
     return t;
   }();
   return table;
-}
-
-// Folds a texture coordinate into the range the wrap mode maps onto [0, 1] before it
-// is scaled to texels, so huge UVs cannot overflow the integer texel index.
-float foldCoordinate(float u, int wrap) {
-  if (!std::isfinite(u)) return 0.0f;
-  if (wrap == kRepeat) return u - std::floor(u);
-  if (wrap == kMirroredRepeat) return u - 2.0f * std::floor(0.5f * u);  // [0, 2)
-  return std::fmin(std::fmax(u, -1.0f), 2.0f);
-}
-
-int wrapTexel(int i, int n, int wrap) {
-  if (wrap == kRepeat) return ((i % n) + n) % n;
-  if (wrap == kMirroredRepeat) {
-    const int period = 2 * n;
-    const int k = ((i % period) + period) % period;
-    return k < n ? k : period - 1 - k;
-  }
-  return i < 0 ? 0 : (i >= n ? n - 1 : i);
 }
 
 }  // namespace
