@@ -155,20 +155,8 @@ void DirectLayer::compute(const LightSet& lights, const RelightOptions& o, const
     res.counts.emitter_triangles = s.emitter_triangles;
   } else {
     const detail::EmitterSampler sampler(scene_, accel_, lights.emissive());
-    s.emitter.assign(n, glm::vec3(0.0f));
-    std::vector<std::size_t> chunk_rays((n + detail::kCacheChunk - 1) / detail::kCacheChunk, 0);
-    detail::forChunks(n, detail::kCacheChunk, [&](std::size_t chunk, std::size_t begin, std::size_t end) {
-      detail::EmitterSampler::Scratch scratch;
-      std::size_t rays = 0;
-      for (std::size_t c = begin; c < end; ++c) {
-        if (!dt.valid[c]) continue;
-        // Seeded by the texel, as the caches' emitter direct is: independent of order and split.
-        const std::uint64_t seed = mixBits(0x6c6c656d69747465ULL ^ (std::uint64_t(dt.texel[c]) | (1ULL << 40)));
-        s.emitter[c] = sampler.irradiance(dt.position[c], dt.normal[c], o.emitter_samples, seed, scratch, rays);
-      }
-      chunk_rays[chunk] = rays;
-    });
-    for (std::size_t r : chunk_rays) res.counts.shadow_rays += r;
+    // Salted so the layer's texels do not repeat the caches' noise pattern.
+    detail::sampleEmitters(sampler, dt, o.emitter_samples, std::uint64_t(1) << 40, s.emitter, res.counts.shadow_rays);
     s.emitter_valid = true;
     s.emitter_overrides = lights.emissive();
     s.emitter_samples = o.emitter_samples;

@@ -5,6 +5,7 @@
 #include <cmath>
 #include <utility>
 
+#include "core/common/sampling.h"
 #include "core/scene/light_eval.h"
 
 namespace lightlink::relight::detail {
@@ -79,6 +80,24 @@ void shadowedLight(const rt::Accel& accel, const scene::Light& light, std::span<
   for (std::size_t c : chunk_rays) rays += c;
 }
 
+
+void sampleEmitters(const EmitterSampler& sampler, const caches::LightmapCaches& points, int samples,
+                    std::uint64_t salt, std::vector<glm::vec3>& out, std::size_t& rays) {
+  const std::size_t n = points.size();
+  out.assign(n, glm::vec3(0.0f));
+  std::vector<std::size_t> chunk_rays((n + kCacheChunk - 1) / kCacheChunk, 0);
+  forChunks(n, kCacheChunk, [&](std::size_t chunk, std::size_t begin, std::size_t end) {
+    EmitterSampler::Scratch scratch;
+    std::size_t r = 0;
+    for (std::size_t c = begin; c < end; ++c) {
+      if (!points.valid[c]) continue;
+      const std::uint64_t seed = mixBits(0x6c6c656d69747465ULL ^ (std::uint64_t(points.texel[c]) | salt));
+      out[c] = sampler.irradiance(points.position[c], points.normal[c], samples, seed, scratch, r);
+    }
+    chunk_rays[chunk] = r;
+  });
+  for (std::size_t r : chunk_rays) rays += r;
+}
 
 std::vector<std::uint8_t> hasValue(const std::vector<std::uint8_t>& valid, const caches::FillPlan& fill) {
   std::vector<std::uint8_t> v(valid);

@@ -14,6 +14,7 @@
 #include <tbb/parallel_for.h>
 
 #include "core/caches/caches.h"
+#include "core/relight/emitter_direct.h"
 #include "core/relight/light_set.h"
 #include "core/rt/accel.h"
 #include "core/scene/scene.h"
@@ -52,6 +53,13 @@ void shadowedLight(const rt::Accel& accel, const scene::Light& light, std::span<
                    std::span<const glm::vec3> normal, std::span<const std::uint8_t> valid,
                    const std::vector<std::uint32_t>* subset, std::vector<glm::vec3>& out, std::size_t& rays,
                    rt::Coherence coherence);
+
+// The emitters' direct irradiance at every valid point (0 at invalid ones), `samples` shadow
+// rays each, seeded by the point's texel or'ed with `salt` (so a texel's noise depends on
+// neither the point order nor the split, and two layers of the same atlas differ); adds
+// the rays traced to `rays`.
+void sampleEmitters(const EmitterSampler& sampler, const caches::LightmapCaches& points, int samples,
+                    std::uint64_t salt, std::vector<glm::vec3>& out, std::size_t& rays);
 
 // Per point: 1 when it holds a value after `fill` (valid, or a fill target with sources).
 std::vector<std::uint8_t> hasValue(const std::vector<std::uint8_t>& valid, const caches::FillPlan& fill);

@@ -544,21 +544,7 @@ void Relighter::Impl::bakedDirect(const scene::Light& light, std::vector<glm::ve
 void Relighter::Impl::emitterDirect(const LightSet& lights, int samples, RelightCounts& counts) {
   const detail::EmitterSampler sampler(scene, accel, lights.emissive());
   counts.emitter_triangles = sampler.triangleCount();
-  const std::size_t n = p.lightmap.size();
-  emitter_cache.assign(n, glm::vec3(0.0f));
-  std::vector<std::size_t> chunk_rays((n + kCacheChunk - 1) / kCacheChunk, 0);
-  forChunks(n, kCacheChunk, [&](std::size_t chunk, std::size_t begin, std::size_t end) {
-    detail::EmitterSampler::Scratch scratch;
-    std::size_t rays = 0;
-    for (std::size_t c = begin; c < end; ++c) {
-      if (!p.lightmap.valid[c]) continue;
-      // Seeded by the texel, so a texel's noise does not depend on the cache order or split.
-      const std::uint64_t seed = mixBits(0x6c6c656d69747465ULL ^ p.lightmap.texel[c]);
-      emitter_cache[c] = sampler.irradiance(p.lightmap.position[c], p.lightmap.normal[c], samples, seed, scratch, rays);
-    }
-    chunk_rays[chunk] = rays;
-  });
-  for (std::size_t r : chunk_rays) counts.shadow_rays += r;
+  detail::sampleEmitters(sampler, p.lightmap, samples, 0, emitter_cache, counts.shadow_rays);
 }
 
 void Relighter::surfelEmitterIrradiance(const LightSet& lights, std::vector<glm::vec3>& out) const {
