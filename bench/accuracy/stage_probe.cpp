@@ -198,7 +198,7 @@ int main(int argc, char** argv) {
         if (!h.hit()) continue;
         const bool back = h.backFacing(rays[i].dir);
         if (back && !scene->materialOf(scene->meshes[h.mesh]).double_sided) continue;
-        const std::uint32_t o = locator.ownerOfHit(h.mesh, h.triangle, h.u, h.v, rays[i].origin + h.t * rays[i].dir,
+        const std::uint32_t o = locator.ownerOfHit(locator.sideMesh(h.mesh, back), h.triangle, h.u, h.v, rays[i].origin + h.t * rays[i].dir,
                                                    back ? -h.ng : h.ng);
         if (o != links::kNoSurfel) seen[o] = 1;
       }
@@ -335,7 +335,7 @@ int main(int argc, char** argv) {
       const glm::vec3 hp = r.origin + h.t * r.dir;
       const glm::vec3 ng = glm::normalize(back ? -h.ng : h.ng);
       const float cos_t = std::max(0.0f, glm::dot(r.dir, n));
-      const std::uint32_t owner = locator.ownerOfHit(h.mesh, h.triangle, h.u, h.v, hp, ng);
+      const std::uint32_t owner = locator.ownerOfHit(locator.sideMesh(h.mesh, back), h.triangle, h.u, h.v, hp, ng);
       if (owner != links::kNoSurfel) {
         const glm::vec3 b = baked->surfel_radiosity[owner];
         leaf_cos += b / kPi * cos_t * w;

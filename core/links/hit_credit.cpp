@@ -33,7 +33,7 @@ void classify(const rt::RayFan& fan, const rt::HitArrays& hits, const std::uint3
       slot[i] = kBlocked;
       continue;
     }
-    const std::uint32_t k = locator.rasterSlot(mesh, hits.triangle[i], hits.u[i], hits.v[i]);
+    const std::uint32_t k = locator.rasterSlot(locator.sideMesh(mesh, back), hits.triangle[i], hits.u[i], hits.v[i]);
     slot[i] = k == kNoSurfel ? kAskLocator : k;
     if (k != kNoSurfel) __builtin_prefetch(locator.slotAddress(k));
   }
@@ -59,8 +59,9 @@ void credit(const rt::RayFan& fan, const rt::HitArrays& hits, const SurfelLocato
       // unnormalised: the locator only needs it when it falls back to its grid).
       const glm::vec3 dir(fan.dir_x[i], fan.dir_y[i], fan.dir_z[i]);
       const glm::vec3 ng(hits.ng_x[i], hits.ng_y[i], hits.ng_z[i]);
-      owner = locator.ownerOfHit(hits.mesh[i], hits.triangle[i], hits.u[i], hits.v[i], fan.origin + hits.t[i] * dir,
-                                 rt::backFacing(ng, dir) ? -ng : ng);
+      const bool back = rt::backFacing(ng, dir);
+      owner = locator.ownerOfHit(locator.sideMesh(hits.mesh[i], back), hits.triangle[i], hits.u[i], hits.v[i],
+                                 fan.origin + hits.t[i] * dir, back ? -ng : ng);
     }
     if (owner == kNoSurfel) {
       ++unowned;
@@ -141,9 +142,11 @@ LL_AVX512_FN HitCredit creditAvx512(const rt::RayFan& fan, const rt::HitArrays& 
     __mmask16 blocked = 0;
     if (back != 0) blocked = _mm512_mask_cmpeq_epi32_mask(back, _mm512_mask_i32gather_epi32(zero, back, mesh, ds, 4), zero);
     const __mmask16 live = hit & static_cast<__mmask16>(~blocked);
-    const __mmask16 mesh_ok = _mm512_mask_cmplt_epu32_mask(live, mesh, _mm512_set1_epi32(static_cast<int>(mesh_limit)));
-    const __m512i base = few_meshes ? _mm512_maskz_permutexvar_epi32(mesh_ok, mesh, mesh_first_table)
-                                    : _mm512_mask_i32gather_epi32(zero, mesh_ok, mesh, mesh_first, 4);
+    // A live back hit is on a double-sided mesh: its back side's tables (SurfelLocator::sideMesh).
+    const __m512i side = _mm512_mask_add_epi32(mesh, back & live, mesh, _mm512_set1_epi32(static_cast<int>(tab.mesh_count)));
+    const __mmask16 mesh_ok = _mm512_mask_cmplt_epu32_mask(live, side, _mm512_set1_epi32(static_cast<int>(mesh_limit)));
+    const __m512i base = few_meshes ? _mm512_maskz_permutexvar_epi32(mesh_ok, side, mesh_first_table)
+                                    : _mm512_mask_i32gather_epi32(zero, mesh_ok, side, mesh_first, 4);
     const __m512i tri = _mm512_add_epi32(base, _mm512_maskz_loadu_epi32(mesh_ok, hits.triangle + i0));
     const __mmask16 tri_ok = _mm512_mask_cmplt_epu32_mask(mesh_ok, tri, _mm512_set1_epi32(static_cast<int>(triangles)));
     __m512i code = _mm512_mask_blend_epi32(tri_ok, _mm512_set1_epi32(static_cast<int>(kAskLocator)), tri);

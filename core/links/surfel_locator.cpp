@@ -65,16 +65,42 @@ SurfelLocator::SurfelLocator(const surfels::Surfels& surfels, const scene::Scene
 
 void SurfelLocator::buildTriangleTables(const surfels::Surfels& surfels, const scene::Scene& scene) {
   const std::size_t meshes = scene.meshes.size();
-  mesh_first_.assign(meshes + 1, 0);
-  for (std::size_t m = 0; m < meshes; ++m)
-    mesh_first_[m + 1] = mesh_first_[m] + static_cast<std::uint32_t>(scene.meshes[m].triangleCount());
+  mesh_count_ = static_cast<std::uint32_t>(meshes);
+  // Side meshes: [0, meshes) the front sides, [meshes, 2 meshes) the back sides, which only a
+  // double-sided mesh has triangles in.
+  const std::size_t sides = 2 * meshes;
+  auto realMesh = [&](std::size_t vm) { return vm < meshes ? vm : vm - meshes; };
+  std::vector<std::uint8_t> two_sided(meshes, 0);
+  for (std::size_t m = 0; m < meshes; ++m) two_sided[m] = scene.materialOf(scene.meshes[m]).double_sided ? 1 : 0;
+  mesh_first_.assign(sides + 1, 0);
+  for (std::size_t vm = 0; vm < sides; ++vm) {
+    const std::size_t m = realMesh(vm);
+    const bool has = vm < meshes || two_sided[m];
+    mesh_first_[vm + 1] = mesh_first_[vm] + (has ? static_cast<std::uint32_t>(scene.meshes[m].triangleCount()) : 0u);
+  }
+  auto triangleNormal = [&](std::size_t m, std::uint32_t tri) {
+    const auto& mesh = scene.meshes[m];
+    const glm::vec3 p0 = mesh.positions[mesh.indices[3 * std::size_t(tri)]],
+                    p1 = mesh.positions[mesh.indices[3 * std::size_t(tri) + 1]],
+                    p2 = mesh.positions[mesh.indices[3 * std::size_t(tri) + 2]];
+    return glm::cross(p1 - p0, p2 - p0);
+  };
+  const std::size_t n = surfels.size();
+  // Each surfel's side mesh: a double-sided mesh's surfels facing against their triangle's
+  // winding normal stand for its back (surfels.h).
+  std::vector<std::uint32_t> side_mesh(n, kNoSurfel);
+  for (std::size_t i = 0; i < n; ++i) {
+    const std::uint32_t m = surfels.mesh[i];
+    if (m >= meshes || surfels.triangle[i] >= scene.meshes[m].triangleCount()) continue;
+    const bool back = two_sided[m] && glm::dot(surfels.normal[i], triangleNormal(m, surfels.triangle[i])) < 0.0f;
+    side_mesh[i] = back ? m + static_cast<std::uint32_t>(meshes) : m;
+  }
   const std::uint32_t tris = mesh_first_.back();
   // Per triangle: how many surfels lie on it, and (for one) which.
   std::vector<std::uint32_t> count(tris, 0), only(tris, kNoSurfel);
-  const std::size_t n = surfels.size();
   for (std::size_t i = 0; i < n; ++i) {
-    if (surfels.mesh[i] >= meshes) continue;
-    const std::uint32_t t = mesh_first_[surfels.mesh[i]] + surfels.triangle[i];
+    if (side_mesh[i] == kNoSurfel) continue;
+    const std::uint32_t t = mesh_first_[side_mesh[i]] + surfels.triangle[i];
     ++count[t];
     only[t] = static_cast<std::uint32_t>(i);
   }
@@ -82,16 +108,16 @@ void SurfelLocator::buildTriangleTables(const surfels::Surfels& surfels, const s
   big_of_tri_.assign(tris, kNoSurfel);
   std::vector<std::uint32_t> cell_count;
   std::vector<std::uint32_t> big_mesh, big_triangle;
-  for (std::size_t m = 0; m < meshes; ++m) {
-    for (std::uint32_t tri = 0; tri < scene.meshes[m].triangleCount(); ++tri) {
-      const std::uint32_t t = mesh_first_[m] + tri;
+  for (std::size_t vm = 0; vm < sides; ++vm) {
+    for (std::uint32_t tri = 0; tri < mesh_first_[vm + 1] - mesh_first_[vm]; ++tri) {
+      const std::uint32_t t = mesh_first_[vm] + tri;
       if (count[t] <= 1) continue;
       BigTriangle big;
       big.g = static_cast<std::uint32_t>(std::ceil(std::sqrt(double(count[t]))));
       big.first_cell = static_cast<std::uint32_t>(cell_count.size());
       big_of_tri_[t] = static_cast<std::uint32_t>(big_.size());
       big_.push_back(big);
-      big_mesh.push_back(static_cast<std::uint32_t>(m));
+      big_mesh.push_back(static_cast<std::uint32_t>(realMesh(vm)));
       big_triangle.push_back(tri);
       cell_count.resize(cell_count.size() + std::size_t(big.g) * big.g, 0);
     }
@@ -104,8 +130,8 @@ void SurfelLocator::buildTriangleTables(const surfels::Surfels& surfels, const s
   };
   std::vector<std::uint32_t> big_cell_of(n, kNoSurfel);
   for (std::size_t i = 0; i < n; ++i) {
-    if (surfels.mesh[i] >= meshes) continue;
-    const std::uint32_t t = mesh_first_[surfels.mesh[i]] + surfels.triangle[i];
+    if (side_mesh[i] == kNoSurfel) continue;
+    const std::uint32_t t = mesh_first_[side_mesh[i]] + surfels.triangle[i];
     if (big_of_tri_[t] == kNoSurfel) continue;
     big_cell_of[i] = cellOfBary(big_[big_of_tri_[t]], surfels.barycentric[i]);
     ++cell_count[big_cell_of[i]];
@@ -127,10 +153,10 @@ void SurfelLocator::buildTriangleTables(const surfels::Surfels& surfels, const s
   // small triangle's surfel. A triangle too small to hold one of its own (its area went into
   // a neighbour's slice) is represented by the surfel nearest to its centroid.
   raster_ref_.assign(tris, RasterRef{});
-  for (std::size_t m = 0; m < meshes; ++m) {
-    const auto& mesh = scene.meshes[m];
-    for (std::uint32_t tri = 0; tri < mesh.triangleCount(); ++tri) {
-      const std::uint32_t t = mesh_first_[m] + tri;
+  for (std::size_t vm = 0; vm < sides; ++vm) {
+    const auto& mesh = scene.meshes[realMesh(vm)];
+    for (std::uint32_t tri = 0; tri < mesh_first_[vm + 1] - mesh_first_[vm]; ++tri) {
+      const std::uint32_t t = mesh_first_[vm] + tri;
       RasterRef ref;
       if (big_of_tri_[t] != kNoSurfel) {
         const BigTriangle& big = big_[big_of_tri_[t]];
@@ -143,6 +169,7 @@ void SurfelLocator::buildTriangleTables(const surfels::Surfels& surfels, const s
           glm::vec3 nrm = glm::cross(p1 - p0, p2 - p0);
           const float len = glm::length(nrm);
           nrm = len > 0.0f ? nrm / len : glm::vec3(0.0f, 0.0f, 1.0f);
+          if (vm >= meshes) nrm = -nrm;
           s = owner((p0 + p1 + p2) / 3.0f, nrm);
         }
         if (s == kNoSurfel) continue;
@@ -167,6 +194,7 @@ SurfelLocator::RasterTables SurfelLocator::rasterTables() const {
   RasterTables t;
   t.mesh_first = mesh_first_.data();
   t.mesh_first_count = static_cast<std::uint32_t>(mesh_first_.size());
+  t.mesh_count = mesh_count_;
   t.raster_ref = reinterpret_cast<const std::uint32_t*>(raster_ref_.data());
   if (raster16_.empty())
     t.raster32 = raster_.data();

@@ -3,7 +3,9 @@
 // Link generation traces rays from caches and must credit each hit to the surfel that
 // stands for that piece of surface. Surfels are (after relaxation) close to a Poisson-disc
 // set, so the owner is the nearest surfel on the same side of the same surface: the
-// nearest one whose normal agrees with the hit's shading side. A dense uniform grid over
+// nearest one whose normal agrees with the hit's shading side. A double-sided surface has
+// surfels on each side (surfels.h), and a hit on its back is owned by a back-side surfel:
+// the tables below are kept per side ("side meshes"). A dense uniform grid over
 // the surfels (cell ~2 surfel spacings, CSR layout: one offsets array, one id array) makes
 // the query a scan of 27 cells of a few surfels each, with no allocation per query. The
 // locator copies what it needs; the Surfels may go away after construction.
@@ -59,6 +61,12 @@ class SurfelLocator {
   SurfelLocator(const surfels::Surfels& surfels, const scene::Scene& scene,
                 std::size_t raster_budget = kRasterBudget, bool narrow_raster = true);
 
+  // The side mesh of a hit on mesh `mesh`: the mesh itself for its front (the side its winding
+  // normal faces), mesh + meshes for the back of a double-sided mesh, whose back-side surfels
+  // have their own rasters (a single-sided mesh's back blocks, it owns nothing). The `mesh`
+  // argument of ownerOfHit, rasterSlot and the tests' queries below is a side mesh.
+  std::uint32_t sideMesh(std::uint32_t mesh, bool back) const { return back ? mesh + mesh_count_ : mesh; }
+
   // The owner of a hit on triangle `triangle` of mesh `mesh` at p with visible-side normal n.
   // (u, v): the hit's barycentrics on that triangle (Embree's convention, as Hit::u/v).
   // Inline: it runs once per link ray, and a triangle's answer is one record and one load.
@@ -87,7 +95,7 @@ class SurfelLocator {
   }
 
   // The tables behind rasterSlot and slotOwner, for a caller that reads them for 16 hits at
-  // a time with gathers (hit_credit.cpp): rasterSlot is t = mesh_first[mesh] + triangle
+  // a time with gathers (hit_credit.cpp): rasterSlot is t = mesh_first[side mesh] + triangle
   // (valid when mesh + 1 < mesh_first_count and t < mesh_first[mesh_first_count - 1]), then
   // the triangle's raster {first, size} = raster_ref[4 t], raster_ref[4 t + 1] (first
   // kNoSurfel: none), and the slot as rasterIndex computes it (size_f = float(size),
@@ -95,6 +103,7 @@ class SurfelLocator {
   struct RasterTables {
     const std::uint32_t* mesh_first = nullptr;
     std::uint32_t mesh_first_count = 0;
+    std::uint32_t mesh_count = 0;  // scene meshes: a back hit's side mesh is mesh + mesh_count
     const std::uint32_t* raster_ref = nullptr;
     // One of the two: 16-bit cells (0xffff for kNoSurfel, and one more cell after the last,
     // so that a 4-byte load of the last cell stays inside) or 32-bit ones.
@@ -146,13 +155,14 @@ class SurfelLocator {
   // of gathering from the surfel arrays (the owner lookup runs once per link ray).
   std::vector<glm::vec3> cell_position_;
   std::vector<glm::vec3> cell_normal_;
-  // Global triangle ids: mesh_first_[mesh] + triangle.
+  // Global triangle ids: mesh_first_[side mesh] + triangle (2 meshes + 1 entries).
   std::vector<std::uint32_t> mesh_first_;
+  std::uint32_t mesh_count_ = 0;
   // (mesh, triangle) as a global id, kNoSurfel when either is out of range.
   std::uint32_t globalTriangle(std::uint32_t mesh, std::uint32_t triangle) const {
     if (mesh + 1 >= mesh_first_.size()) return kNoSurfel;
     const std::uint32_t t = mesh_first_[mesh] + triangle;
-    return t < mesh_first_.back() ? t : kNoSurfel;
+    return t < mesh_first_[mesh + 1] ? t : kNoSurfel;
   }
   // Triangles with more than one surfel ("big"): a g x g grid over (u, v) each, and its
   // (g r) x (g r) owner raster.

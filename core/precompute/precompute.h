@@ -100,9 +100,9 @@ struct PrecomputeOptions {
 // reuses an artifact an older generator made. 2: owner rasters and 32-bit ray jitter in
 // link generation. 3: link rays from one base pattern randomised per cache (LinkRays).
 // 4: alpha cut-outs and cast_shadows honoured by every ray, texels over cut-outs invalid,
-// no surfels in cut-outs;
-// caches placed within their texel's footprint.
-inline constexpr int kGeneratorRevision = 4;
+// no surfels in cut-outs; caches placed within their texel's footprint. 5: each side of a
+// double-sided surface has its own surfels.
+inline constexpr int kGeneratorRevision = 5;
 
 // Named quality presets for `lightlink bake` and the daemon: "draft", "medium" (seed 000
 // Table 2 setting 2: nS 32k, nL 128, 3 bands) and "high", chosen on the accuracy study's

@@ -94,6 +94,7 @@ Expected<StaticSurface> buildStaticSurface(const scene::Scene& scene) {
       s.e1.push_back(p1 - p0);
       s.e2.push_back(p2 - p0);
       s.normal.push_back(len > 0.0 ? glm::vec3(cross / len) : glm::vec3(0.0f));
+      s.back.push_back(0);
       s.area_prefix.push_back(s.area_prefix.back() + 0.5 * len);
       if (len <= 0.0) continue;  // degenerate: nobody walks into it
       for (std::uint32_t k = 0; k < 3; ++k) {
@@ -116,6 +117,29 @@ Expected<StaticSurface> buildStaticSurface(const scene::Scene& scene) {
         s.neighbour[3 * std::size_t(edges[i + 1].tri) + edges[i + 1].k] = std::int32_t(edges[i].tri);
       }
       i = j;
+    }
+  }
+  // The back copies of double-sided triangles, in front order.
+  const std::size_t fronts = s.size();
+  std::vector<std::int32_t> back_of(fronts, -1);
+  for (std::size_t t = 0; t < fronts; ++t) {
+    if (!scene.materialOf(scene.meshes[s.mesh[t]]).double_sided) continue;
+    back_of[t] = std::int32_t(s.size());
+    s.mesh.push_back(s.mesh[t]);
+    s.triangle.push_back(s.triangle[t]);
+    s.p0.push_back(s.p0[t]);
+    s.e1.push_back(s.e1[t]);
+    s.e2.push_back(s.e2[t]);
+    s.normal.push_back(-s.normal[t]);
+    s.back.push_back(1);
+    s.area_prefix.push_back(s.area_prefix.back() + (s.area_prefix[t + 1] - s.area_prefix[t]));
+  }
+  s.neighbour.resize(3 * s.size(), -1);
+  for (std::size_t t = 0; t < fronts; ++t) {
+    if (back_of[t] < 0) continue;
+    for (std::size_t k = 0; k < 3; ++k) {
+      const std::int32_t nb = s.neighbour[3 * t + k];  // same mesh, so double-sided too
+      s.neighbour[3 * std::size_t(back_of[t]) + k] = nb >= 0 ? back_of[std::size_t(nb)] : -1;
     }
   }
   if (!std::isfinite(s.totalArea())) return invalidInput("static geometry area is not finite");

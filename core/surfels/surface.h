@@ -8,6 +8,12 @@
 // the vertex splits glTF exporters make at UV seams and hard normals do not cut the surface;
 // an edge shared by more than two triangles (non-manifold) has no neighbour.
 //
+// A double-sided surface (glTF `doubleSided`) is two surfaces: after all front triangles, each
+// static triangle of a double-sided material appears once more as its *back* copy (same
+// corner and edges, so the same barycentrics; normal negated; neighbours are the back copies
+// of its front neighbours). Surfels placed on a back copy stand for the back side, so light
+// reflected by one side of a sheet never leaves from the other.
+//
 // Points on a triangle use Embree's barycentrics: p = (1-u-v) p0 + u p1 + v p2.
 #pragma once
 
@@ -25,7 +31,8 @@ struct StaticSurface {
   std::vector<std::uint32_t> mesh;      // index into Scene::meshes
   std::vector<std::uint32_t> triangle;  // triangle within that mesh
   std::vector<glm::vec3> p0, e1, e2;    // corner 0 and edges p1 - p0, p2 - p0 (world, metres)
-  std::vector<glm::vec3> normal;        // unit geometric normal (e1 x e2), (0,0,0) if degenerate
+  std::vector<glm::vec3> normal;        // unit geometric normal (e1 x e2, negated on a back copy), (0,0,0) if degenerate
+  std::vector<std::uint8_t> back;       // 1: the back copy of a double-sided triangle
   std::vector<double> area_prefix;      // size()+1 entries: sum of areas (m^2) of triangles < t
   // 3 per triangle: the surface triangle across the edge opposite corner k, or -1.
   std::vector<std::int32_t> neighbour;

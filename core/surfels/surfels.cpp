@@ -249,6 +249,13 @@ Expected<Surfels> placeSurfels(const scene::Scene& scene, const SurfelOptions& o
         const float len = glm::length(interp);
         if (len > 1e-6f && std::isfinite(len)) normal = interp / len;
       }
+      // A double-sided surface's surfels face their own side (the back copy's normal is
+      // negated), whichever way its vertex normals point: the owner lookup tells the two
+      // sides apart by this orientation (links/surfel_locator.h).
+      if (scene.materialOf(mesh).double_sided) {
+        const float side = glm::dot(normal, surface.normal[t]);
+        if (side < 1e-3f) normal = side < -1e-3f ? -normal : surface.normal[t];
+      }
       out.position[j] = surface.pointAt(t, b);
       out.normal[j] = normal;
       out.area[j] = area_m2;

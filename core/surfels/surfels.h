@@ -13,6 +13,11 @@
 // (normal, albedo, emission, lightmap UV) are evaluated at the final position, textures
 // included.
 //
+// A double-sided material's triangles are on that line twice, once per side (surface.h): each
+// side gets its own surfels, with normals facing that side (a back-side surfel's normal points
+// against its triangle's winding normal), so the two sides are lit, reflect and are found by
+// link rays separately; nS counts both sides.
+//
 // Dynamic meshes (MeshInstance::is_static == false) get no surfels. A scene without static
 // area gives an empty set, not an error. Results are identical for any TBB thread count.
 #pragma once

@@ -186,21 +186,26 @@ TEST(CachePlacement, ContactTexelsOfAClosedRoomMatchTheReference) {
   EXPECT_GT(corner, 0);
 }
 
-// A lit single-sided card 2 mm above a floor, facing up or down, a point light above: the
-// floor under the card is in the card's shadow and sees only the card's underside, so it
-// gets (almost) nothing. A floor cache moved out from under the card reads the lit floor.
-class CardOverFloor : public ::testing::TestWithParam<bool> {};
+// A lit card 2 mm above a floor, a point light above: single-sided facing up or down, or
+// double-sided. The floor under the card is in the card's shadow and sees only the card's
+// underside, so it gets (almost) nothing. A floor cache moved out from under the card reads
+// the lit floor; a double-sided card whose underside is owned by its lit top surfels (one
+// surfel per place for both sides) passes the top's light through.
+enum class Card { kFacingUp, kFacingDown, kDoubleSided };
+class CardOverFloor : public ::testing::TestWithParam<Card> {};
 
 TEST_P(CardOverFloor, FloorUnderTheCardStaysDark) {
-  const bool card_faces_up = GetParam();
+  const Card card = GetParam();
   scene::Scene s;
   const int grey = addMaterial(s, glm::vec3(0.5f));
+  const int two_sided = addMaterial(s, glm::vec3(0.5f), glm::vec3(0.0f), /*double_sided=*/true);
   addQuad(s, {-1.5f, 0, 1.5f}, {1.5f, 0, 1.5f}, {1.5f, 0, -1.5f}, {-1.5f, 0, -1.5f}, grey);
   constexpr float kHalf = 0.4f, kGap = 0.002f;
-  if (card_faces_up)
-    addQuad(s, {-kHalf, kGap, kHalf}, {kHalf, kGap, kHalf}, {kHalf, kGap, -kHalf}, {-kHalf, kGap, -kHalf}, grey);
-  else
+  if (card == Card::kFacingDown)
     addQuad(s, {-kHalf, kGap, -kHalf}, {kHalf, kGap, -kHalf}, {kHalf, kGap, kHalf}, {-kHalf, kGap, kHalf}, grey);
+  else
+    addQuad(s, {-kHalf, kGap, kHalf}, {kHalf, kGap, kHalf}, {kHalf, kGap, -kHalf}, {-kHalf, kGap, -kHalf},
+            card == Card::kDoubleSided ? two_sided : grey);
   auto b = Baked::make(std::move(s), placementOptions());
   ASSERT_TRUE(b);
   constexpr float kIntensity = 10.0f, kHeight = 1.5f;
@@ -227,9 +232,11 @@ TEST_P(CardOverFloor, FloorUnderTheCardStaysDark) {
                           << " of the lit side's irradiance";
 }
 
-INSTANTIATE_TEST_SUITE_P(SingleSided, CardOverFloor, ::testing::Values(true, false),
-                         [](const ::testing::TestParamInfo<bool>& info) {
-                           return std::string(info.param ? "FacingUp" : "FacingDown");
+INSTANTIATE_TEST_SUITE_P(Sides, CardOverFloor, ::testing::Values(Card::kFacingUp, Card::kFacingDown, Card::kDoubleSided),
+                         [](const ::testing::TestParamInfo<Card>& info) {
+                           return std::string(info.param == Card::kFacingUp     ? "SingleSidedFacingUp"
+                                              : info.param == Card::kFacingDown ? "SingleSidedFacingDown"
+                                                                                : "DoubleSided");
                          });
 
 }  // namespace

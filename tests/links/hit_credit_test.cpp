@@ -73,7 +73,7 @@ Outcome creditedRayByRay(const rt::RayFan& fan, const rt::HitArrays& hits, const
       ++o.credit.back_hits;
       continue;
     }
-    const std::uint32_t owner = locator.ownerOfHit(hits.mesh[i], hits.triangle[i], hits.u[i], hits.v[i],
+    const std::uint32_t owner = locator.ownerOfHit(locator.sideMesh(hits.mesh[i], back), hits.triangle[i], hits.u[i], hits.v[i],
                                                    fan.origin + hits.t[i] * dir, back ? -ng : ng);
     if (owner == kNoSurfel) {
       ++o.credit.unowned;

@@ -246,6 +246,43 @@ TEST(SurfelLocator, SmallTrianglesAnswerFromTheirOneCellRasters) {
   EXPECT_GT(own, 1000u);  // the triangles that hold their own surfel
 }
 
+// A double-sided sheet over a floor: a hit on the sheet's underside is owned by a surfel of
+// the underside (facing down), one on its top by a surfel of the top, on big and on small
+// triangles alike; the floor is single-sided and has no back side to own.
+TEST(SurfelLocator, EachSideOfADoubleSidedSheetOwnsItsHits) {
+  for (const int subdivisions : {0, 3}) {
+    scene::Scene s;
+    const int plain = lightlink::testing::addMaterial(s, glm::vec3(0.5f));
+    const int sheet = lightlink::testing::addMaterial(s, glm::vec3(0.5f), glm::vec3(0.0f), /*double_sided=*/true);
+    lightlink::testing::addQuad(s, {-2, 0, 2}, {2, 0, 2}, {2, 0, -2}, {-2, 0, -2}, plain);
+    lightlink::testing::addQuad(s, {-1, 0.01f, 1}, {1, 0.01f, 1}, {1, 0.01f, -1}, {-1, 0.01f, -1}, sheet);
+    scene::subdivide(s, subdivisions);
+    lightlink::testing::finishScene(s);
+    auto placed = surfels::placeSurfels(s, {.count = 4096});
+    ASSERT_TRUE(placed) << placed.status().toString();
+    const SurfelLocator locator(*placed, s);
+    const scene::MeshInstance& mesh = s.meshes[1];
+    std::size_t checked = 0;
+    for (std::uint32_t t = 0; t < mesh.triangleCount(); ++t) {
+      for (const glm::vec2 uv : {glm::vec2(0.3f, 0.3f), glm::vec2(0.6f, 0.1f), glm::vec2(0.1f, 0.1f)}) {
+        const glm::vec3 p = (1.0f - uv.x - uv.y) * mesh.positions[mesh.indices[3 * t]] +
+                            uv.x * mesh.positions[mesh.indices[3 * t + 1]] + uv.y * mesh.positions[mesh.indices[3 * t + 2]];
+        for (const bool back : {false, true}) {
+          const glm::vec3 n(0.0f, back ? -1.0f : 1.0f, 0.0f);
+          const std::uint32_t o = locator.ownerOfHit(locator.sideMesh(1, back), t, uv.x, uv.y, p, n);
+          ASSERT_NE(o, kNoSurfel);
+          EXPECT_EQ(placed->mesh[o], 1u);
+          EXPECT_GT(glm::dot(placed->normal[o], n), 0.99f) << "triangle " << t << (back ? " back" : " front");
+          ++checked;
+        }
+      }
+    }
+    EXPECT_GT(checked, 0u);
+    // The single-sided floor has no back-side tables.
+    EXPECT_EQ(locator.rasterSlot(locator.sideMesh(0, true), 0, 0.3f, 0.3f), kNoSurfel);
+  }
+}
+
 TEST(SurfelLocator, RasterShrinksToItsMemoryBudget) {
   scene::Scene s;
   addBox(s, {0, 0, 0}, {1, 1, 1}, /*inward=*/true);

@@ -60,7 +60,7 @@ TEST(StabilityFp16, HalfLinkCoefficientsMatchTheFloatProjection) {
       if (!h.hit()) continue;
       const bool back = h.backFacing(rays[i].dir);
       if (back && !baked->scene.materialOf(baked->scene.meshes[h.mesh]).double_sided) continue;
-      owner[i] = locator.ownerOfHit(h.mesh, h.triangle, h.u, h.v, rays[i].origin + h.t * rays[i].dir,
+      owner[i] = locator.ownerOfHit(locator.sideMesh(h.mesh, back), h.triangle, h.u, h.v, rays[i].origin + h.t * rays[i].dir,
                                     back ? -h.ng : h.ng);
     }
     std::vector<float> sh_f(nc, 0.0f), sh_h(nc, 0.0f);

@@ -356,7 +356,49 @@ TEST(Surfels, NoneInAlphaCutOuts) {
   }
   EXPECT_EQ(in_holes, 0u);
   EXPECT_LT(s->size(), std::size_t(o.count));  // the holes' surfels are gone
-  EXPECT_NEAR(on_card / card_area, 0.5, 0.08) << "surfel area on the card / its area";
+  // A double-sided card is covered once per side (surface.h).
+  const double sides = scene->materialOf(m).double_sided ? 2.0 : 1.0;
+  EXPECT_NEAR(on_card / (sides * card_area), 0.5, 0.08) << "surfel area on the card / its area";
+}
+
+// A double-sided sheet is two surfaces: each side gets surfels in proportion to its area,
+// facing that side (whatever way the vertex normals point), and the total area counts both.
+TEST(Surfels, EachSideOfADoubleSidedSheetHasItsOwn) {
+  scene::Scene s;
+  scene::Material one, two;
+  one.name = "one", two.name = "two";
+  two.double_sided = true;
+  s.materials = {one, two};
+  s.meshes.push_back(quadMesh("floor", glm::vec3(-1, 0, -1), glm::vec3(0, 0, 2), glm::vec3(2, 0, 0), 4, 4, 0));
+  scene::MeshInstance sheet =
+      quadMesh("sheet", glm::vec3(-0.5f, 0.5f, -0.5f), glm::vec3(0, 0, 1), glm::vec3(1, 0, 0), 2, 2, 1);
+  for (auto& n : sheet.normals) n = -n;  // vertex normals against the winding: still two sides
+  s.meshes.push_back(sheet);
+  finishScene(s);
+  SurfelOptions o;
+  o.count = 5000;
+  const Surfels out = place(s, o);
+  ASSERT_EQ(out.size(), 5000u);
+  EXPECT_NEAR(areaSum(out), 4.0 + 2.0 * 1.0, 1e-3);  // the floor, and the sheet twice
+  std::size_t up = 0, down = 0;
+  for (std::size_t j = 0; j < out.size(); ++j) {
+    if (out.mesh[j] != 1) continue;
+    EXPECT_NEAR(std::abs(out.normal[j].y), 1.0f, 1e-5f);
+    (out.normal[j].y > 0.0f ? up : down) += 1;
+  }
+  EXPECT_NEAR(double(up) / 5000.0, 1.0 / 6.0, 0.01);
+  EXPECT_NEAR(double(down) / 5000.0, 1.0 / 6.0, 0.01);
+  const Expected<StaticSurface> surface = buildStaticSurface(s);
+  ASSERT_TRUE(surface);
+  ASSERT_EQ(surface->size(), 32u + 8u + 8u);
+  for (std::size_t t = 40; t < 48; ++t) {
+    EXPECT_TRUE(surface->back[t]);
+    EXPECT_EQ(surface->normal[t], -surface->normal[t - 8]);
+    for (int k = 0; k < 3; ++k) {
+      const std::int32_t front_nb = surface->neighbour[3 * (t - 8) + k], back_nb = surface->neighbour[3 * t + k];
+      EXPECT_EQ(back_nb, front_nb < 0 ? -1 : front_nb + 8) << t << " " << k;
+    }
+  }
 }
 
 }  // namespace
