@@ -143,6 +143,14 @@ int runBake(const BakeArgs& args) {
   if (p.has_grid) outputs.insert(outputs.end(), {"grid.exr", "grid.json", "grid.raw"});
   if (atlas.generated) outputs.push_back(gltf_name);
   report["outputs"] = outputs;
+  // Static meshes whose indirect light is not in the lightmap: from the irradiance volume,
+  // or none at all (receive_gi "off": the engine shades them without baked indirect light).
+  nlohmann::ordered_json from_volume = nlohmann::ordered_json::array(), no_gi = nlohmann::ordered_json::array();
+  for (const std::uint32_t i : atlas.probe_lit) {  // marked, or too small for the lightmap
+    const auto& m = scene.meshes[i];
+    (m.receive_gi == scene::ReceiveGi::kOff ? no_gi : from_volume).push_back(m.name);
+  }
+  report["receive_gi"] = {{"volume", std::move(from_volume)}, {"off", std::move(no_gi)}};
   if (Status s = output::writeReportJson(report, (out / "report.json").string()); !s) return reportError(kCmd, s);
 
   if (!args.quiet) {

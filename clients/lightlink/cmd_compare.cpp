@@ -91,6 +91,7 @@ int runCompare(const CompareArgs& args) {
   load.files = sceneFileAccess(args.allow_outside_scene);
   auto scene = scene::loadScene(args.scene_path, load);
   if (!scene) return reportError(kCmd, scene.status());
+  scene::applySurfaceRules(*scene, bake_options->precompute.surfaces);
   auto lights = relight::LightSet::fromScene(*scene);
   if (!args.lights_path.empty())
     if (Status s = lights.applyFile(args.lights_path); !s) return reportError(kCmd, s);

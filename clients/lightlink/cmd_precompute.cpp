@@ -74,6 +74,7 @@ int runPrecompute(const PrecomputeArgs& args) {
   const std::uint64_t rss_before_load = residentBytes();
   auto scene = scene::loadScene(args.scene_path, load);
   if (!scene) return reportError("precompute", scene.status());
+  scene::applySurfaceRules(*scene, options.surfaces);
   const double load_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - load_start).count();
   const std::uint64_t peak_after_load = peakResidentBytes();
   // Warnings are not errors (a missing texture: the factor is used), but the user hears them.

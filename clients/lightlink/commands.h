@@ -18,6 +18,7 @@ using BakeSettings = std::vector<std::pair<std::string, std::string>>;
 
 struct InspectArgs {
   std::string scene_path;
+  std::string surfaces_path;  // surface rules applied before the summary (bake's --surfaces)
   bool json = false;
   bool allow_outside_scene = false;  // read files the scene names outside its folder
 };

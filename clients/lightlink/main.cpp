@@ -1,5 +1,8 @@
 // lightlink: the command-line front end. Parsing only: every subcommand is a run*()
 // function in its own file (commands.h), so CLI11 is compiled once, here.
+#include <fstream>
+#include <iterator>
+
 #include <CLI/CLI.hpp>
 
 #include "clients/lightlink/commands.h"
@@ -9,6 +12,16 @@
 
 namespace {
 
+// The text of a --surfaces file (at most 1 MiB); CLI11 reports the error naming the option.
+std::string readSurfaceRulesFile(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  if (!in) throw CLI::ValidationError("--surfaces", "cannot open '" + path + "'");
+  std::string text((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  if (text.size() > (std::size_t(1) << 20)) throw CLI::ValidationError("--surfaces", "'" + path + "' exceeds 1 MiB");
+  // A file without an object is passed on as is: the option's parser names what is wrong.
+  return text.find('{') == std::string::npos ? path : text;
+}
+
 // Registers every bake option of the one table (core/bake/bake_options.h) as --name, in the
 // same group with the same help on every command that bakes; values are recorded in
 // command-line order and parsed, range-checked and validated by the run* function's builder.
@@ -16,7 +29,11 @@ void addBakeOptions(CLI::App* cmd, lightlink::cli::BakeSettings& settings) {
   for (const lightlink::bake::OptionInfo& o : lightlink::bake::optionTable()) {
     const std::string name(o.name);
     cmd->add_option_function<std::string>(
-           "--" + name, [&settings, name](const std::string& v) { settings.emplace_back(name, v); },
+           "--" + name,
+           [&settings, name](const std::string& v) {
+             // --surfaces names a file; the option table takes the rules' text (what OpenScene sends).
+             settings.emplace_back(name, name == "surfaces" ? readSurfaceRulesFile(v) : v);
+           },
            std::string(o.help))
         ->type_name(std::string(o.value))
         ->group("Bake options")
@@ -51,6 +68,7 @@ int main(int argc, char** argv) {
   auto* inspect_cmd = app.add_subcommand("inspect", "Load and validate a glTF scene and print a summary");
   inspect_cmd->add_option("scene", inspect.scene_path, "Scene file (.gltf, .glb, .obj or .fbx)")->required();
   inspect_cmd->add_flag("--json", inspect.json, "Print the summary as JSON");
+  inspect_cmd->add_option("--surfaces", inspect.surfaces_path, "Surface rules JSON applied first, as bake's --surfaces");
   inspect_cmd->add_flag("--allow-outside-scene", inspect.allow_outside_scene, "Read files the scene names outside its own folder (only for scenes you trust)");
 
   UnwrapArgs unwrap;

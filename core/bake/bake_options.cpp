@@ -99,6 +99,18 @@ constexpr Row kRows[] = {
        o.precompute.direct_scale = int(*x);
        return {};
      }},
+    {{"surfaces", "FILE", "Surface rules JSON: cast_shadows / contribute_gi / receive_gi by mesh or material name"},
+     [](BakeOptions& o, std::string_view v, const std::string& l) -> Status {
+       // The front end hands over the rules' text: the CLI reads the file, the daemon takes
+       // the JSON itself (it never opens a path a client names).
+       if (v.find('{') == std::string_view::npos)
+         return invalidInput("{} '{}' must be the surface rules' JSON text ({{\"version\": 1, \"surfaces\": [...]}})", l,
+                             shown(v));
+       auto r = scene::parseSurfaceRules(v, l);
+       if (!r) return r.status();
+       o.precompute.surfaces = std::move(r).value();
+       return {};
+     }},
     {{"uv", "auto|keep|generate", "An existing TEXCOORD_1: kept unless broken (auto), always kept, or regenerated"},
      [](BakeOptions& o, std::string_view v, const std::string& l) -> Status {
        auto m = choice<charts::UvMode>(v, l, std::array<std::pair<std::string_view, charts::UvMode>, 3>{

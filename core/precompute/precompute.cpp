@@ -200,7 +200,8 @@ std::string PrecomputeOptions::canonical() const {
       lightmap_resolution ? std::to_string(*lightmap_resolution) : "auto", target_resolution,
       uv_mode == charts::UvMode::kAuto ? "auto" : uv_mode == charts::UvMode::kKeep ? "keep" : "generate", validity_rays,
       direct_scale, seed,
-      kGeneratorRevision);
+      kGeneratorRevision) +
+         (surfaces.empty() ? std::string() : ";surfaces=" + surfaces.canonical());
 }
 
 std::uint64_t linkBytesEstimate(std::uint64_t caches, int max_links, int bands) {

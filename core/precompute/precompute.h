@@ -29,6 +29,7 @@
 #include "core/links/links.h"
 #include "core/scene/scene.h"
 #include "core/scene/scene_files.h"
+#include "core/scene/surface_rules.h"
 #include "core/surfels/surfels.h"
 
 namespace lightlink::precompute {
@@ -82,6 +83,9 @@ struct PrecomputeOptions {
   int direct_scale = 1;
   int validity_rays = 64;
   std::uint64_t seed = 1;
+  // Lighting flags set by a bake config over the scene file's (--surfaces): applied to the
+  // loaded scene by whoever loads it for a precompute (scene::applySurfaceRules).
+  scene::SurfaceRules surfaces;
   PrecomputeLimits limits;         // not in canonical(): budgets, not parameters of the result
 
   Status validate() const;

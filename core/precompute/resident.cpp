@@ -78,6 +78,7 @@ Expected<ResidentScene> ResidentScene::openUnguarded(const ResidentRequest& requ
     state->rss_before_load = residentBytes();
     auto scene = scene::loadScene(request.scene_path, request.load);
     if (!scene) return scene.status();
+    scene::applySurfaceRules(*scene, request.options.surfaces);
     state->scene = std::move(scene).value();
     auto key = cacheKeyFor(request.scene_path, request.options, request.load.files);
     if (!key) return key.status();

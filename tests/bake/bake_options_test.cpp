@@ -30,7 +30,8 @@ TEST(BakeOptions, MalformedAndOutOfRangeValuesNameTheOption) {
                         {"grid-spacing", "-2"}, {"link-form", "linear"},  {"uv", "reuse"},
                         {"surfels", "63"},     {"links", "4097"},         {"rays", "8"},
                         {"hierarchy", "bvh"},  {"preset", "ultra"},       {"resolution", "0"},
-                        {"texel-budget", "-3"}};
+                        {"texel-budget", "-3"},  {"surfaces", "rules.json"},
+                        {"surfaces", R"({"version": 3, "surfaces": []})"}};
   for (const auto& [name, value] : bad) {
     BakeOptionsBuilder b;
     const Status s = b.set(name, value);
@@ -135,6 +136,20 @@ TEST(BakeOptions, DocsListEveryOption) {
     const std::string row = "| `--" + std::string(o.name) + "` | " + value + " |";
     EXPECT_NE(table.find(row), std::string::npos) << "docs/cli.md \"Bake options\" lacks the row " << row;
   }
+}
+
+// Surface rules reach the cache key: the same rules written differently give one key, other
+// rules another, and no rules leave the key as it was before the option existed.
+TEST(BakeOptions, SurfaceRulesArePartOfTheCanonicalOptions) {
+  auto none = buildBakeOptions(Settings{{"preset", "draft"}});
+  auto a = buildBakeOptions(Settings{{"surfaces", R"({"version": 1, "surfaces": [{"mesh": "x", "cast_shadows": false}]})"}});
+  auto b = buildBakeOptions(Settings{{"surfaces", R"({"surfaces": [{"cast_shadows": false, "mesh": "x"}], "version": 1})"}});
+  auto c = buildBakeOptions(Settings{{"surfaces", R"({"version": 1, "surfaces": [{"mesh": "y", "cast_shadows": false}]})"}});
+  ASSERT_TRUE(none && a && b && c);
+  EXPECT_EQ(none->precompute.canonical().find("surfaces="), std::string::npos);
+  EXPECT_EQ(a->precompute.canonical(), b->precompute.canonical());
+  EXPECT_NE(a->precompute.canonical(), c->precompute.canonical());
+  EXPECT_EQ(a->precompute.surfaces.rules.size(), 1u);
 }
 
 }  // namespace

@@ -168,6 +168,40 @@ TEST(Bake, WritesEverythingThenReusesTheArtifact) {
   EXPECT_EQ(report["artifact"].get<std::string>().rfind("reused", 0), 0u) << report["artifact"];
 }
 
+// Surface rules from a bake config (--surfaces): inspect shows what they set, bake lists the
+// meshes without lightmap indirect light in report.json, and the rules are part of the
+// artifact's cache key (a bake with other rules recomputes). A bad file is bad input naming it.
+TEST(Bake, SurfaceRulesFileSetsFlagsAndReachesTheReportAndTheCacheKey) {
+  testing::TempDir dir;
+  const auto rules = dir / "surfaces.json";
+  testing::writeFile(rules, R"({"version": 1, "surfaces": [
+      {"mesh": "Blocks", "receive_gi": "off"},
+      {"material": "Red", "cast_shadows": false, "contribute_gi": false}]})");
+  const auto shown = runShell(kCli + " inspect --json --surfaces " + rules.string() + " " + demoScene().string());
+  ASSERT_EQ(shown.exit_code, 0) << shown.output;
+  const auto j = nlohmann::json::parse(shown.output);
+  EXPECT_EQ(j["cast_shadows_false"]["names"], nlohmann::json::array({"RedWall/0"}));
+  EXPECT_EQ(j["contribute_gi_false"]["names"], nlohmann::json::array({"RedWall/0"}));
+  EXPECT_EQ(j["receive_gi"]["off"], 1);
+
+  const std::string base = kCli + " bake " + demoScene().string() + " -o " + (dir / "out").string() +
+                           " --preset draft --bounces 2 -q";
+  ASSERT_EQ(runShell(base).exit_code, 0);
+  const auto with_rules = runShell(base + " --surfaces " + rules.string());
+  ASSERT_EQ(with_rules.exit_code, 0) << with_rules.output;
+  const auto report = nlohmann::json::parse(readAll(dir / "out" / "report.json"));
+  EXPECT_EQ(report["artifact"].get<std::string>().rfind("computed", 0), 0u) << report["artifact"];
+  EXPECT_EQ(report["receive_gi"]["off"], nlohmann::json::array({"Blocks/0"}));
+
+  testing::writeFile(dir / "bad.json", R"({"version": 1, "surfaces": [{"mesh": "Blocks", "receive_gi": "never"}]})");
+  const auto bad = runShell(base + " --surfaces " + (dir / "bad.json").string());
+  EXPECT_EQ(bad.exit_code, cli::kExitBadInput) << bad.output;
+  EXPECT_NE(bad.output.find("surfaces[0].receive_gi"), std::string::npos) << bad.output;
+  const auto missing = runShell(base + " --surfaces " + (dir / "missing.json").string());
+  EXPECT_NE(missing.exit_code, 0);
+  EXPECT_NE(missing.output.find("missing.json"), std::string::npos) << missing.output;
+}
+
 // The cache bake writes is private (0700 / 0600 whatever the umask), and a FIFO planted
 // under the artifact's name is refused without blocking: the bake recomputes and replaces
 // it. `timeout` bounds the run: before the fix the bake hung on opening the FIFO.
