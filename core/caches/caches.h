@@ -95,8 +95,12 @@ Expected<GridCaches> placeGridCaches(const scene::Scene& scene, const rt::Accel&
 
 // Fraction of `rays` stratified directions (hemisphere around `normal`, or the whole
 // sphere when `normal` is zero) that hit a back face of a single-sided material.
+// `contact_m` > 0: the back of a double-sided surface nearer than that counts too: the ray
+// started on or behind that surface (a cache on the contact line of two double-sided walls,
+// where half the hemisphere lies outside the room), which seeing a sheet's back from a real
+// distance (a floor under a double-sided rug) is not.
 float backfaceFraction(const scene::Scene& scene, const rt::Accel& accel, const glm::vec3& p,
-                       const glm::vec3& normal, const ValidityOptions& options);
+                       const glm::vec3& normal, const ValidityOptions& options, float contact_m = 0.0f);
 
 // What a validity probe saw: the fraction of its rays that hit a back face of a single-sided
 // material, and the fraction that hit one closer than `near_m` (unit-length directions).
@@ -105,7 +109,8 @@ struct BackfaceProbe {
   float near_fraction = 0.0f;
 };
 BackfaceProbe probeBackfaces(const scene::Scene& scene, const rt::Accel& accel, const glm::vec3& p,
-                             const glm::vec3& normal, const ValidityOptions& options, float near_m);
+                             const glm::vec3& normal, const ValidityOptions& options, float near_m,
+                             float contact_m = 0.0f);
 
 // How every cache that has no value of its own gets one after relighting: target caches
 // are filled in order, each from the average of its sources (valid caches or targets

@@ -114,6 +114,10 @@ constexpr float kEdgeInset = 0.0625f;
 // Share of the back faces a texel sees that must lie within a texel for it to count as
 // covered by a sheet rather than inside geometry.
 constexpr float kSheetShare = 0.75f;
+// Back faces of double-sided surfaces nearer than this (texels) count against a cache: the
+// ray started on that surface. Below the 1/16-texel edge inset, and below a 2 mm rug's gap
+// at 5 cm texels, which is a surface seen from a real distance.
+constexpr float kContactTexels = 1.0f / 32.0f;
 
 struct FootprintPoint {
   float d2 = 0.0f;  // squared distance to the texel centre, texels
@@ -218,9 +222,24 @@ Expected<LightmapCaches> placeLightmapCaches(const scene::Scene& scene, const rt
   out.pushed.assign(n, 0);
   const float max_back = options.validity.max_backface_fraction;
   const Progress* progress = options.validity.progress;
+  // World size of a texel on cache i's triangle.
+  const auto texelMetres = [&](std::size_t i) {
+    const auto& mesh = scene.meshes[out.mesh[i]];
+    const std::uint32_t* idx = &mesh.indices[3 * out.triangle[i]];
+    const glm::vec3 p0 = mesh.positions[idx[0]], p1 = mesh.positions[idx[1]], p2 = mesh.positions[idx[2]];
+    glm::vec2 t[3];
+    for (int k = 0; k < 3; ++k) t[k] = mesh.uv1[idx[k]] * atlas;
+    const float texel_area = std::abs(cross2(t[1] - t[0], t[2] - t[0]));
+    const float world_area = glm::length(glm::cross(p1 - p0, p2 - p0));
+    return std::sqrt(world_area / std::max(texel_area, 1e-12f));
+  };
   tbb::parallel_for(std::size_t(0), n, [&](std::size_t i) {
     if (stopRequested(progress)) return;
-    if (backfaceFraction(scene, accel, out.position[i], out.normal[i], options.validity) <= max_back) return;
+    // A double-sided wall's back seen this close means the ray started on the wall: the
+    // cache sits on a contact line (the inset footprint samples lie 1/16 texel inside).
+    const float contact_m = kContactTexels * texelMetres(i);
+    if (backfaceFraction(scene, accel, out.position[i], out.normal[i], options.validity, contact_m) <= max_back)
+      return;
     if (!options.footprint_search) {
       out.valid[i] = 0;
       return;
@@ -283,7 +302,7 @@ Expected<LightmapCaches> placeLightmapCaches(const scene::Scene& scene, const rt
       const glm::vec3 q = surfacePoint(mesh, pts[k].triangle, pts[k].bary);
       if (q == out.position[i]) continue;  // the centre, already tested
       const glm::vec3 nq = hemisphereAxis(mesh, pts[k].triangle, pts[k].bary);
-      if (backfaceFraction(scene, accel, q, nq, options.validity) <= max_back) {
+      if (backfaceFraction(scene, accel, q, nq, options.validity, contact_m) <= max_back) {
         out.position[i] = q;
         out.normal[i] = nq;
         out.triangle[i] = pts[k].triangle;
@@ -294,14 +313,9 @@ Expected<LightmapCaches> placeLightmapCaches(const scene::Scene& scene, const rt
     // No point of the footprint is valid. Back faces nearer than a texel, for most of what
     // failed, are a one-sided sheet lying on the texel (a card, a rug): the texel is a real
     // surface in the sheet's shadow and keeps its own value; otherwise it is inside geometry.
-    const std::uint32_t* idx = &mesh.indices[3 * out.triangle[i]];
-    const glm::vec3 p0 = mesh.positions[idx[0]], p1 = mesh.positions[idx[1]], p2 = mesh.positions[idx[2]];
-    glm::vec2 t[3];
-    uvTriangle(out.triangle[i], t);
-    const float texel_area = std::abs(cross2(t[1] - t[0], t[2] - t[0]));
-    const float world_area = glm::length(glm::cross(p1 - p0, p2 - p0));
-    const float texel_m = std::sqrt(world_area / std::max(texel_area, 1e-12f));
-    const BackfaceProbe probe = probeBackfaces(scene, accel, out.position[i], out.normal[i], options.validity, texel_m);
+    const float texel_m = texelMetres(i);
+    const BackfaceProbe probe =
+        probeBackfaces(scene, accel, out.position[i], out.normal[i], options.validity, texel_m, contact_m);
     const bool centre_inside = all[texel_range[i].first].score == 0.0f;  // not a grazed texel
     if (centre_inside && probe.near_fraction > max_back && probe.near_fraction >= kSheetShare * probe.fraction) return;
     out.valid[i] = 0;

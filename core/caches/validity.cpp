@@ -6,12 +6,13 @@
 namespace lightlink::caches {
 
 float backfaceFraction(const scene::Scene& scene, const rt::Accel& accel, const glm::vec3& p,
-                       const glm::vec3& normal, const ValidityOptions& options) {
-  return probeBackfaces(scene, accel, p, normal, options, 0.0f).fraction;
+                       const glm::vec3& normal, const ValidityOptions& options, float contact_m) {
+  return probeBackfaces(scene, accel, p, normal, options, 0.0f, contact_m).fraction;
 }
 
 BackfaceProbe probeBackfaces(const scene::Scene& scene, const rt::Accel& accel, const glm::vec3& p,
-                             const glm::vec3& normal, const ValidityOptions& options, float near_m) {
+                             const glm::vec3& normal, const ValidityOptions& options, float near_m,
+                             float contact_m) {
   const bool hemisphere = glm::dot(normal, normal) > 0.0f;
   const auto strata = static_cast<std::uint32_t>(std::max(1.0, std::floor(std::sqrt(options.rays))));
   const std::uint32_t count = strata * strata;
@@ -39,8 +40,9 @@ BackfaceProbe probeBackfaces(const scene::Scene& scene, const rt::Accel& accel, 
   for (std::uint32_t i = 0; i < count; ++i) {
     const rt::Hit& h = hits[i];
     if (!h.hit() || !h.backFacing(rays[i].dir)) continue;
-    // A double-sided surface has no inside: seeing its back is seeing a surface.
-    if (scene.materialOf(scene.meshes[h.mesh]).double_sided) continue;
+    // A double-sided surface has no inside: seeing its back is seeing a surface, unless the
+    // ray starts on it (contact_m).
+    if (scene.materialOf(scene.meshes[h.mesh]).double_sided && !(h.t < contact_m)) continue;
     ++back;
     if (h.t < near_m) ++near;
   }
