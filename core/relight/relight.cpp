@@ -6,6 +6,7 @@
 #include <cmath>
 #include <cstring>
 #include <numbers>
+#include <optional>
 
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
@@ -15,6 +16,7 @@
 #include "core/relight/direct_layer.h"
 #include "core/relight/direct_points.h"
 #include "core/relight/emitter_direct.h"
+#include "core/relight/indirect_smooth.h"
 #include "core/common/sampling.h"
 #include "core/scene/light_eval.h"
 #include "core/sh/sh.h"
@@ -159,6 +161,9 @@ struct Relighter::Impl {
   // The finer direct layer when the precomputation has one: then the caches carry no direct.
   DirectLayer layer;
   SeamStitch seams;  // of the lightmap atlas
+  // The smooth_indirect filter, built on first use (its weights are ~9 entries per texel).
+  std::optional<detail::IndirectSmooth> smooth;
+  std::vector<float> smooth_scratch;
   PullAreas pull;  // leaf areas and node inverse areas of the pull (pullAreas)
 
   // Per-relight state, kept for incremental updates.
@@ -577,6 +582,28 @@ std::size_t Relighter::gridEmitterRadiance(const LightSet& lights, int bands, st
   std::size_t rays = 0;
   detail::sampleEmittersSh(sampler, m.p.grid, m.p.grid_fill, bands, kGridEmitterSamples, out, rays);
   return rays;
+}
+
+void Relighter::smoothIndirect(RelightResult& res) {
+  Impl& m = *impl_;
+  const std::size_t stride = std::size_t(3) * res.coeffCount();
+  const std::size_t texels = std::size_t(res.width) * res.height;
+  if (stride == 0 || res.lightmap_sh.size() != texels * stride || m.texel_map.begin.size() != texels + 1) return;
+  if (!m.smooth) m.smooth = detail::IndirectSmooth::build(m.p.lightmap, m.lm_has_value);
+  m.smooth->apply(res.lightmap_sh.data(), stride, m.smooth_scratch);
+  // Dilated texels average caches whose own texels were just filtered: re-derive them.
+  detail::forChunks(texels, 4096, [&](std::size_t, std::size_t begin, std::size_t end) {
+    for (std::size_t t = begin; t < end; ++t) {
+      const std::uint32_t b0 = m.texel_map.begin[t], b1 = m.texel_map.begin[t + 1];
+      if (b0 == b1 || (b1 - b0 == 1 && m.p.lightmap.texel[m.texel_map.point[b0]] == t)) continue;  // own cache
+      float* dst = res.lightmap_sh.data() + t * stride;
+      std::fill(dst, dst + stride, 0.0f);
+      for (std::uint32_t k = b0; k < b1; ++k) {
+        const float* src = res.lightmap_sh.data() + std::size_t(m.p.lightmap.texel[m.texel_map.point[k]]) * stride;
+        for (std::size_t i = 0; i < stride; ++i) dst[i] += m.texel_map.weight[k] * src[i];
+      }
+    }
+  });
 }
 
 void Relighter::Impl::setLeafFlux(std::size_t s) {
@@ -1174,6 +1201,7 @@ Status Relighter::relightInto(const LightSet& lights, const RelightOptions& o, R
     res.counts.texels = texels;
     res.counts.texels_filled = std::size_t(std::count(res.texel_valid.begin(), res.texel_valid.end(), 1));
     res.seams = {}, res.direct_seams = {};
+    if (o.smooth_indirect) smoothIndirect(res);
     if (o.stitch_seams) {
       m.seams.apply(res.lightmap_sh.data(), stride, &res.seams);
       if (coarse_direct) m.seams.apply(reinterpret_cast<float*>(res.direct.data()), 3, &res.direct_seams);

@@ -893,6 +893,7 @@ Status GpuRelighter::Impl::run(const LightSet& lights, const RelightOptions& o, 
   res.direct_width = res.width, res.direct_height = res.height;
   res.direct_valid.clear();
   res.seams = {}, res.direct_seams = {};
+  if (o.smooth_indirect) cpu->smoothIndirect(res);  // the CPU backend's filter, on the read-back texels
   if (o.stitch_seams) {
     seams.apply(res.lightmap_sh.data(), std::size_t(stride), &res.seams);
     if (!layer->active()) seams.apply(reinterpret_cast<float*>(res.direct.data()), 3, &res.direct_seams);
