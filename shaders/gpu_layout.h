@@ -65,8 +65,6 @@ LL_CONST kLfFlux = 3;        // vec4 per node
 LL_CONST kPuNodes = 0;       // ivec4 per node: left, right, floatBitsToInt(1 / area), 0
 LL_CONST kPuFlux = 1;        // vec4 per node
 LL_CONST kPuRad = 2;         // vec4 per node
-LL_CONST kPuRadEmit = 3;     // vec4 per node (FULL variant)
-LL_CONST kPuRadFull = 4;     // vec4 per node (FULL variant)
 // cache_light.comp
 LL_CONST kClOffsets = 0;     // uint, caches + 1
 LL_CONST kClNode = 1;        // uint per link

@@ -158,6 +158,13 @@ constexpr Row kRows[] = {
        o.relight.stitch_seams = *m;
        return {};
      }},
+    {{"indirect", "raw|smooth", "Indirect SH per texel as linked (raw), or averaged over its 3x3 same-plane neighbours (smooth)"},
+     [](BakeOptions& o, std::string_view v, const std::string& l) -> Status {
+       auto m = choice<bool>(v, l, std::array<std::pair<std::string_view, bool>, 2>{{{"raw", false}, {"smooth", true}}});
+       if (!m) return m.status();
+       o.relight.smooth_indirect = *m;
+       return {};
+     }},
     {{"link-form", "projected|runtime", "Link form the relight uses"},
      [](BakeOptions& o, std::string_view v, const std::string& l) -> Status {
        using relight::LinkForm;

@@ -99,6 +99,25 @@ void sampleEmitters(const EmitterSampler& sampler, const caches::LightmapCaches&
   for (std::size_t r : chunk_rays) rays += r;
 }
 
+void sampleEmittersSh(const EmitterSampler& sampler, const caches::GridCaches& grid, const caches::FillPlan& fill,
+                      int bands, int samples, std::vector<float>& out, std::size_t& rays) {
+  const std::size_t n = grid.size(), stride = std::size_t(3) * bands * bands;
+  out.assign(n * stride, 0.0f);
+  std::vector<std::size_t> chunk_rays((n + kCacheChunk - 1) / kCacheChunk, 0);
+  forChunks(n, kCacheChunk, [&](std::size_t chunk, std::size_t begin, std::size_t end) {
+    EmitterSampler::Scratch scratch;
+    std::size_t r = 0;
+    for (std::size_t c = begin; c < end; ++c) {
+      if (!grid.valid[c]) continue;
+      const std::uint64_t seed = mixBits(0x67726964656d6974ULL ^ std::uint64_t(c));
+      sampler.radianceSh(grid.position[c], bands, samples, seed, scratch, out.data() + c * stride, r);
+    }
+    chunk_rays[chunk] = r;
+  });
+  for (std::size_t r : chunk_rays) rays += r;
+  applyFill(fill, out.data(), stride);
+}
+
 std::vector<std::uint8_t> hasValue(const std::vector<std::uint8_t>& valid, const caches::FillPlan& fill) {
   std::vector<std::uint8_t> v(valid);
   for (std::size_t t = 0; t < fill.target.size(); ++t)

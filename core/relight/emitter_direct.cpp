@@ -6,6 +6,7 @@
 
 #include "core/common/sampling.h"
 #include "core/scene/material_eval.h"
+#include "core/sh/sh.h"
 
 namespace lightlink::relight::detail {
 namespace {
@@ -158,11 +159,13 @@ glm::vec3 EmitterSampler::radianceAt(std::size_t e, glm::vec2 barycentric) const
   return scene::emissionAt(scene_, scene_.meshes[mesh_[e]], triangle_[e], barycentric) * value_[e];
 }
 
-glm::vec3 EmitterSampler::irradiance(glm::vec3 position, glm::vec3 normal, int samples, std::uint64_t seed,
-                                     Scratch& scratch, std::size_t& rays) const {
-  if (cdf_.empty() || samples <= 0) return glm::vec3(0.0f);
+std::size_t EmitterSampler::sample(glm::vec3 position, const glm::vec3* normal_or_null, int samples,
+                                   std::uint64_t seed, Scratch& scratch, std::size_t& rays) const {
+  if (cdf_.empty() || samples <= 0) return 0;
+  const bool sphere = normal_or_null == nullptr;
+  const glm::vec3 normal = sphere ? glm::vec3(0.0f) : *normal_or_null;
   const std::size_t n = std::size_t(samples);
-  scratch.rays.resize(n), scratch.contrib.resize(n), scratch.blocked.resize(n);
+  scratch.rays.resize(n), scratch.contrib.resize(n), scratch.blocked.resize(n), scratch.dir.resize(n);
   std::span<const double> cdf = cdf_;
   std::span<const float> inv_pick = inv_pick_, inv_pdf_area = inv_pdf_area_;
   if (cdf_.size() <= kLocalPickMax) {
@@ -174,8 +177,8 @@ glm::vec3 EmitterSampler::irradiance(glm::vec3 position, glm::vec3 normal, int s
     double total = 0.0;
     for (std::size_t e = 0; e < m; ++e) {
       const glm::vec3 v0 = p0_[e], v1 = p0_[e] + e1_[e], v2 = p0_[e] + e2_[e];
-      const bool below = glm::dot(normal, v0 - position) <= 0.0f && glm::dot(normal, v1 - position) <= 0.0f &&
-                         glm::dot(normal, v2 - position) <= 0.0f;
+      const bool below = !sphere && glm::dot(normal, v0 - position) <= 0.0f &&
+                         glm::dot(normal, v1 - position) <= 0.0f && glm::dot(normal, v2 - position) <= 0.0f;
       const bool behind = !double_sided_[e] && glm::dot(normal_[e], position - v0) <= 0.0f;
       double w = 0.0;
       if (!below && !behind) {
@@ -186,7 +189,7 @@ glm::vec3 EmitterSampler::irradiance(glm::vec3 position, glm::vec3 normal, int s
       total += w;
       scratch.cdf[e] = total;
     }
-    if (!(total > 0.0)) return glm::vec3(0.0f);  // every emitter is below or behind x
+    if (!(total > 0.0)) return 0;  // every emitter is below or behind x
     for (std::size_t e = 0; e < m; ++e) {
       const double w = scratch.inv_pick[e];
       scratch.cdf[e] /= total;
@@ -241,7 +244,7 @@ glm::vec3 EmitterSampler::irradiance(glm::vec3 position, glm::vec3 normal, int s
           b1 /= sum, b2 /= sum;
         }
         bary = glm::vec2(float(b1), float(b2));
-        cos_r = float(glm::dot(glm::dvec3(normal), dir));
+        cos_r = sphere ? 1.0f : float(glm::dot(glm::dvec3(normal), dir));
         cos_e = -float(glm::dot(glm::dvec3(normal_[e]), dir));
         weight = cos_r * float(tri.omega_sr) * inv_pick[e];
       }
@@ -253,7 +256,7 @@ glm::vec3 EmitterSampler::irradiance(glm::vec3 position, glm::vec3 normal, int s
       const float d2 = glm::dot(w, w);
       if (!(d2 > 0.0f)) continue;
       const float inv_d = 1.0f / std::sqrt(d2);
-      cos_r = glm::dot(normal, w) * inv_d;
+      cos_r = sphere ? 1.0f : glm::dot(normal, w) * inv_d;
       cos_e = -glm::dot(normal_[e], w) * inv_d;
       weight = cos_r * std::abs(cos_e) / d2 * inv_pdf_area[e];
     }
@@ -263,20 +266,44 @@ glm::vec3 EmitterSampler::irradiance(glm::vec3 position, glm::vec3 normal, int s
     const glm::vec3 w = q - position;
     const glm::vec3 le = radianceAt(e, bary);
     if (!emits(le)) continue;
+    const glm::vec3 w_unit = glm::normalize(w);
     rt::Ray ray;
-    ray.origin = accel_.offsetOrigin(position, normal, w);
+    // A grid cache has no surface to leave: step off the point along the ray itself.
+    ray.origin = accel_.offsetOrigin(position, sphere ? w_unit : normal, w);
     ray.dir = q - ray.origin;
     // Stop short of the emitter by the ray epsilon, so the emitter does not shadow itself.
     ray.tfar = std::max(0.0f, 1.0f - accel_.rayEpsilon() / std::max(glm::length(ray.dir), 1e-30f));
     scratch.rays[count] = ray;
+    scratch.dir[count] = w_unit;
     scratch.contrib[count++] = le * weight;
   }
   accel_.occluded(std::span(scratch.rays.data(), count), std::span(scratch.blocked.data(), count));
   rays += count;
+  return count;
+}
+
+glm::vec3 EmitterSampler::irradiance(glm::vec3 position, glm::vec3 normal, int samples, std::uint64_t seed,
+                                     Scratch& scratch, std::size_t& rays) const {
+  const std::size_t count = sample(position, &normal, samples, seed, scratch, rays);
+  if (count == 0) return glm::vec3(0.0f);
   glm::vec3 sum(0.0f);  // in sample order: the same for any thread count
   for (std::size_t k = 0; k < count; ++k)
     if (!scratch.blocked[k]) sum += scratch.contrib[k];
-  return sum / float(n);
+  return sum / float(samples);
+}
+
+void EmitterSampler::radianceSh(glm::vec3 position, int bands, int samples, std::uint64_t seed, Scratch& scratch,
+                                float* out, std::size_t& rays) const {
+  const std::size_t count = sample(position, nullptr, samples, seed, scratch, rays);
+  const int nc = bands * bands;
+  const float inv_n = count ? 1.0f / float(samples) : 0.0f;
+  float y[sh::kMaxCoeffs];
+  for (std::size_t k = 0; k < count; ++k) {  // in sample order: the same for any thread count
+    if (scratch.blocked[k]) continue;
+    sh::evalBasis(bands, scratch.dir[k], y);
+    const glm::vec3 c = scratch.contrib[k] * inv_n;
+    for (int i = 0; i < nc; ++i) out[i] += c.x * y[i], out[nc + i] += c.y * y[i], out[2 * nc + i] += c.z * y[i];
+  }
 }
 
 }  // namespace lightlink::relight::detail

@@ -21,6 +21,10 @@
 // per receiver by its seed (Cranley-Patterson), so every receiver's result is a pure
 // function of (position, normal, N, seed): deterministic for any thread count. Units: L_e
 // radiance (docs/units.md), E irradiance (lux-equivalent).
+//
+// Grid caches (points in free space, no normal) take the same samples over the whole sphere
+// (no horizon, no cos_r) and project them into SH instead: L_lm += L_e V Y_lm(w) Omega_t / P(t)
+// (radianceSh), so a small lamp reaches the irradiance volume as sharply as it reaches a texel.
 #pragma once
 
 #include <cstddef>
@@ -52,6 +56,7 @@ class EmitterSampler {
   struct Scratch {
     std::vector<rt::Ray> rays;
     std::vector<glm::vec3> contrib;
+    std::vector<glm::vec3> dir;              // unit direction of each sample (radianceSh)
     std::vector<std::uint8_t> blocked;
     std::vector<double> cdf;                 // per-receiver pick (few emitters), see irradiance()
     std::vector<float> inv_pick, inv_pdf_area;
@@ -66,8 +71,20 @@ class EmitterSampler {
   // the shadow rays traced to `rays`.
   glm::vec3 irradiance(glm::vec3 position, glm::vec3 normal, int samples, std::uint64_t seed, Scratch& scratch,
                        std::size_t& rays) const;
+  // SH (`bands` bands, 3 planar channels, docs/sh.md) of the radiance arriving at `position`
+  // from the emitters over the whole sphere, with `samples` samples; *adds* to out[3 *
+  // bands^2] and the shadow rays traced to `rays`. A pure function of (position, samples,
+  // seed), like irradiance().
+  void radianceSh(glm::vec3 position, int bands, int samples, std::uint64_t seed, Scratch& scratch, float* out,
+                  std::size_t& rays) const;
 
  private:
+  // Draws the samples for a receiver with a unit `normal` (its hemisphere, weights with
+  // cos_r) or none (nullptr: the whole sphere, no cosine), traces their shadow rays and
+  // leaves L_e * weight and the direction of each of the first `count` samples in scratch,
+  // scratch.blocked marking the shadowed ones. Returns count (samples that can contribute).
+  std::size_t sample(glm::vec3 position, const glm::vec3* normal, int samples, std::uint64_t seed, Scratch& scratch,
+                     std::size_t& rays) const;
   glm::vec3 radianceAt(std::size_t e, glm::vec2 barycentric) const;
 
   const scene::Scene& scene_;

@@ -6,6 +6,7 @@
 #include <cmath>
 #include <cstring>
 #include <numbers>
+#include <optional>
 
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
@@ -15,6 +16,7 @@
 #include "core/relight/direct_layer.h"
 #include "core/relight/direct_points.h"
 #include "core/relight/emitter_direct.h"
+#include "core/relight/indirect_smooth.h"
 #include "core/common/sampling.h"
 #include "core/scene/light_eval.h"
 #include "core/sh/sh.h"
@@ -98,6 +100,7 @@ nlohmann::ordered_json RelightResult::report() const {
                  {"cache_lighting", passes.cache_lighting}, {"grid_lighting", passes.grid_lighting},
                  {"sky", passes.sky}, {"bounces", passes.bounces}, {"baked_direct", passes.baked_direct},
                  {"emissive_direct", passes.emissive_direct}, {"surfel_emitter", passes.surfel_emitter},
+                 {"grid_emitter", passes.grid_emitter},
                  {"fill", passes.fill}, {"incremental", passes.incremental},
                  {"unchanged", passes.unchanged}};
   j["counts"] = {{"surfels", counts.surfels}, {"surfels_lit", counts.surfels_lit}, {"nodes", counts.nodes},
@@ -107,6 +110,7 @@ nlohmann::ordered_json RelightResult::report() const {
                  {"shadow_rays", counts.shadow_rays}, {"emitter_triangles", counts.emitter_triangles},
                  {"emitter_direct_reused", counts.emitter_direct_reused},
                  {"surfel_emitter_reused", counts.surfel_emitter_reused},
+                 {"grid_emitter_reused", counts.grid_emitter_reused},
                  {"texels", counts.texels},
                  {"texels_filled", counts.texels_filled},
                  {"surfels_without_gather", counts.surfels_without_gather}};
@@ -157,6 +161,9 @@ struct Relighter::Impl {
   // The finer direct layer when the precomputation has one: then the caches carry no direct.
   DirectLayer layer;
   SeamStitch seams;  // of the lightmap atlas
+  // The smooth_indirect filter, built on first use (its weights are ~9 entries per texel).
+  std::optional<detail::IndirectSmooth> smooth;
+  std::vector<float> smooth_scratch;
   PullAreas pull;  // leaf areas and node inverse areas of the pull (pullAreas)
 
   // Per-relight state, kept for incremental updates.
@@ -174,10 +181,10 @@ struct Relighter::Impl {
   std::vector<BounceRecord> last_bounce_log;  // re-reported when nothing changed
   std::string last_bounce_stop;
 
-  // Surfel radiosity is kept in two parts, emitted pi * L_e and reflected rho * E, because the
-  // lightmap caches gather only the reflected part (the emitters' direct light goes to
-  // `direct` by sampling), while grid caches and bounce gathers need both.
-  bool has_emission = false;           // some surfel emits (plan.emissive of the last full relight)
+  // Surfel radiosity is kept in two parts, emitted pi * L_e and reflected rho * E, because every
+  // cache gathers only the reflected part through its links: the emitters' direct light is
+  // sampled on the emitting triangles instead (into `direct` for texels, grid_emit for grid
+  // caches), which a coarse cut node cannot blur.
   std::vector<glm::vec3> emission_b;   // pi * L_emit per surfel (after overrides)
   std::vector<glm::vec3> direct_e;     // sum of per-light E per surfel, in light order, + surfel_emit
   // The emitters' direct irradiance per surfel (empty when nothing emits), sampled on the
@@ -191,10 +198,7 @@ struct Relighter::Impl {
   std::vector<glm::vec3> b0, b;        // reflected radiosity rho * E without / with indirect
   std::vector<float> flux[3];          // reflected flux per node, planar (the pull adds channel by channel)
   std::vector<float> rad_rgbx;         // reflected node radiosity, (R, G, B, 0): what the kernels read
-  std::vector<glm::vec3> emit_flux;    // emitted flux per node (pull scratch, kept for its capacity)
-  std::vector<float> rad_emit_rgbx;    // emitted node radiosity (constant while emission is)
-  std::vector<float> rad_full_rgbx;    // reflected + emitted: what grid caches read
-  std::vector<float> lm_sh, grid_sh;   // per cache, 3 * nc
+  std::vector<float> lm_sh, grid_sh;   // per cache, 3 * nc: reflected light and sky (links)
   std::vector<glm::vec3> cache_direct; // per lightmap cache
   std::vector<glm::vec3> emitter_cache;  // emitter direct E per lightmap cache; empty when not baked
   // What emitter_cache was computed for: it depends only on the static scene, the emissive
@@ -204,6 +208,13 @@ struct Relighter::Impl {
   std::vector<EmissiveOverride> emitter_overrides;
   int emitter_samples = 0;
   std::size_t emitter_triangles = 0;
+  // The emitters' radiance SH per grid cache (3 * nc each, filled; empty when nothing emits),
+  // added to grid_sh in the output only, so bounce gathers from the grid see reflected light
+  // as they do from the lightmap. Depends on the emission state and the band count alone.
+  std::vector<float> grid_emit;
+  bool grid_emit_valid = false;
+  std::vector<EmissiveOverride> grid_emit_overrides;
+  int grid_emit_bands = 0;
   std::vector<float> sky_matrix[3];    // nc_out x nc_links per channel
 
   // Inverted index node -> caches (lazily built, for incremental relights).
@@ -225,9 +236,6 @@ struct Relighter::Impl {
   void emitterDirect(const LightSet& lights, int samples, RelightCounts& counts);
   void setLeafFlux(std::size_t s);
   void pullAll();
-  void pullEmission();
-  void sumFullRadiosity(const std::vector<std::uint32_t>* nodes_subset);
-  const float* gridRadiosity() const { return has_emission ? rad_full_rgbx.data() : rad_rgbx.data(); }
   void lightCaches(const links::LinksView& view, std::vector<float>& out, const std::vector<std::uint8_t>& valid,
                    const std::vector<std::uint32_t>* subset, int bands, LinkForm form, bool sky, const float* rad);
   void buildSkyMatrix(const Sky& sky, int bands_out, int bands_links);
@@ -247,7 +255,7 @@ void Relighter::invalidate(Forget what) {
   impl_->last_valid = false;
   impl_->layer.invalidate(what == Forget::kEverything);
   if (what == Forget::kEverything)
-    impl_->emitter_valid = false, impl_->surfel_emit_valid = false;
+    impl_->emitter_valid = false, impl_->surfel_emit_valid = false, impl_->grid_emit_valid = false;
 }
 
 Expected<PullAreas> pullAreas(const precompute::Precomputation& p) {
@@ -566,30 +574,36 @@ void Relighter::surfelEmitterIrradiance(const LightSet& lights, std::vector<glm:
   });
 }
 
-void Relighter::Impl::pullEmission() {
-  // Emitted flux up the tree once per emission state; reflected flux is pulled per bounce.
-  const auto& t = p.tree;
-  const std::size_t nodes = t.nodeCount();
-  std::vector<glm::vec3>& fl = emit_flux;
-  fl.assign(nodes, glm::vec3(0.0f));
-  for (std::size_t s = 0; s < p.surfels.size(); ++s) fl[t.leaf_of_surfel[s]] = emission_b[s] * pull.surfel[s];
-  rad_emit_rgbx.assign(4 * nodes, 0.0f);
-  for (std::size_t n = nodes; n-- > 0;) {
-    if (t.left[n] >= 0) fl[n] = fl[t.left[n]] + fl[t.right[n]];
-    const float inv_area = pull.inv_node[n];
-    for (int ch = 0; ch < 3; ++ch) rad_emit_rgbx[4 * n + ch] = fl[n][ch] * inv_area;
-  }
+std::size_t Relighter::gridEmitterRadiance(const LightSet& lights, int bands, std::vector<float>& out) const {
+  const Impl& m = *impl_;
+  out.clear();
+  if (!m.p.has_grid || m.p.grid.size() == 0 || !detail::anyEmitter(m.scene, lights.emissive())) return 0;
+  const detail::EmitterSampler sampler(m.scene, m.accel, lights.emissive());
+  std::size_t rays = 0;
+  detail::sampleEmittersSh(sampler, m.p.grid, m.p.grid_fill, bands, kGridEmitterSamples, out, rays);
+  return rays;
 }
 
-void Relighter::Impl::sumFullRadiosity(const std::vector<std::uint32_t>* nodes_subset) {
-  if (!has_emission) return;
-  rad_full_rgbx.resize(rad_rgbx.size());
-  if (nodes_subset) {
-    for (std::uint32_t n : *nodes_subset)
-      for (int k = 0; k < 4; ++k) rad_full_rgbx[4 * n + k] = rad_rgbx[4 * n + k] + rad_emit_rgbx[4 * n + k];
-  } else {
-    for (std::size_t i = 0; i < rad_rgbx.size(); ++i) rad_full_rgbx[i] = rad_rgbx[i] + rad_emit_rgbx[i];
-  }
+void Relighter::smoothIndirect(RelightResult& res) {
+  Impl& m = *impl_;
+  const std::size_t stride = std::size_t(3) * res.coeffCount();
+  const std::size_t texels = std::size_t(res.width) * res.height;
+  if (stride == 0 || res.lightmap_sh.size() != texels * stride || m.texel_map.begin.size() != texels + 1) return;
+  if (!m.smooth) m.smooth = detail::IndirectSmooth::build(m.p.lightmap, m.lm_has_value);
+  m.smooth->apply(res.lightmap_sh.data(), stride, m.smooth_scratch);
+  // Dilated texels average caches whose own texels were just filtered: re-derive them.
+  detail::forChunks(texels, 4096, [&](std::size_t, std::size_t begin, std::size_t end) {
+    for (std::size_t t = begin; t < end; ++t) {
+      const std::uint32_t b0 = m.texel_map.begin[t], b1 = m.texel_map.begin[t + 1];
+      if (b0 == b1 || (b1 - b0 == 1 && m.p.lightmap.texel[m.texel_map.point[b0]] == t)) continue;  // own cache
+      float* dst = res.lightmap_sh.data() + t * stride;
+      std::fill(dst, dst + stride, 0.0f);
+      for (std::uint32_t k = b0; k < b1; ++k) {
+        const float* src = res.lightmap_sh.data() + std::size_t(m.p.lightmap.texel[m.texel_map.point[k]]) * stride;
+        for (std::size_t i = 0; i < stride; ++i) dst[i] += m.texel_map.weight[k] * src[i];
+      }
+    }
+  });
 }
 
 void Relighter::Impl::setLeafFlux(std::size_t s) {
@@ -875,7 +889,6 @@ Status Relighter::relightInto(const LightSet& lights, const RelightOptions& o, R
     timed("pull", [&] {
       if (dense) {
         m.pullAll();
-        m.sumFullRadiosity(nullptr);
         res.counts.nodes_pulled = nodes;
         res.passes.pulls = 1;
         return;
@@ -894,7 +907,6 @@ Status Relighter::relightInto(const LightSet& lights, const RelightOptions& o, R
         const float inv_area = m.pull.inv_node[n];
         for (int ch = 0; ch < 3; ++ch) m.rad_rgbx[4 * n + ch] = m.flux[ch][n] * inv_area;
       }
-      m.sumFullRadiosity(&changed_nodes);
       res.counts.nodes_pulled = changed_nodes.size();
       res.passes.pulls = 1;
     });
@@ -926,7 +938,7 @@ Status Relighter::relightInto(const LightSet& lights, const RelightOptions& o, R
         const auto g_list =
             dense ? std::vector<std::uint32_t>{} : affected(m.grid_inv_begin, m.grid_inv, m.grid_links.cacheCount());
         m.lightCaches(m.grid_links, m.grid_sh, m.p.grid.valid, dense ? nullptr : &g_list, bands, o.link_form, plan.sky,
-                      m.gridRadiosity());
+                      m.rad_rgbx.data());
         res.counts.grid_caches_summed = dense ? m.grid_links.cacheCount() : g_list.size();
         res.passes.grid_lighting = 1;
       }
@@ -977,14 +989,11 @@ Status Relighter::relightInto(const LightSet& lights, const RelightOptions& o, R
       res.counts.surfels_lit = plan.punctual ? ns : 0;
     });
     timed("emission", [&] {
-      m.has_emission = plan.emissive;
       if (plan.emissive) {
         m.computeEmission(lights);
-        m.pullEmission();
         res.passes.emission = 1;
       } else {
         m.emission_b.assign(ns, glm::vec3(0.0f));
-        m.rad_emit_rgbx.clear(), m.rad_full_rgbx.clear();
       }
     });
     timed("surfel_emitter", [&] {
@@ -1013,7 +1022,6 @@ Status Relighter::relightInto(const LightSet& lights, const RelightOptions& o, R
       timed(pull_stage, [&] {
         for (std::size_t s = 0; s < ns; ++s) m.setLeafFlux(s);
         m.pullAll();
-        m.sumFullRadiosity(nullptr);
         res.passes.pulls++;
         res.counts.nodes_pulled = nodes;
       });
@@ -1026,7 +1034,7 @@ Status Relighter::relightInto(const LightSet& lights, const RelightOptions& o, R
         res.counts.links_read += m.lm_links.linkCount();
         if (plan.grid && (last_pass || grid_gathered)) {
           m.lightCaches(m.grid_links, m.grid_sh, m.p.grid.valid, nullptr, bands, o.link_form, plan.sky,
-                        m.gridRadiosity());
+                        m.rad_rgbx.data());
           res.passes.grid_lighting++;
           res.counts.grid_caches_summed = m.grid_links.cacheCount();
           res.counts.links_read += m.grid_links.linkCount();
@@ -1128,6 +1136,22 @@ Status Relighter::relightInto(const LightSet& lights, const RelightOptions& o, R
   }
   m.cache_direct.resize(m.p.lightmap.size(), glm::vec3(0.0f));
 
+  if (plan.grid) {
+    timed("grid_emitter", [&] {
+      // The emitters' light at the grid caches, sampled; it depends only on the emission
+      // state and the bands, so relights that change punctual lights, sky or bounces reuse it.
+      if (m.grid_emit_valid && m.grid_emit_bands == bands && sameEmissive(m.grid_emit_overrides, lights.emissive())) {
+        res.counts.grid_emitter_reused = m.grid_emit.empty() ? 0 : 1;
+        return;
+      }
+      res.counts.shadow_rays += gridEmitterRadiance(lights, bands, m.grid_emit);
+      m.grid_emit_valid = true;
+      m.grid_emit_overrides = lights.emissive();
+      m.grid_emit_bands = bands;
+      res.passes.grid_emitter = m.grid_emit.empty() ? 0 : 1;
+    });
+  }
+
   // ---- fill, texels, dilation ------------------------------------------------------------
   timed("fill_dilate", [&] {
     m.applyFill(m.p.lightmap_fill, m.lm_sh.data(), stride);
@@ -1177,11 +1201,17 @@ Status Relighter::relightInto(const LightSet& lights, const RelightOptions& o, R
     res.counts.texels = texels;
     res.counts.texels_filled = std::size_t(std::count(res.texel_valid.begin(), res.texel_valid.end(), 1));
     res.seams = {}, res.direct_seams = {};
+    if (o.smooth_indirect) smoothIndirect(res);
     if (o.stitch_seams) {
       m.seams.apply(res.lightmap_sh.data(), stride, &res.seams);
       if (coarse_direct) m.seams.apply(reinterpret_cast<float*>(res.direct.data()), 3, &res.direct_seams);
     }
-    if (plan.grid) res.grid_sh = m.grid_sh;
+    if (plan.grid) {
+      // Links' reflected light and sky, plus the emitters' sampled light (both filled).
+      res.grid_sh = m.grid_sh;
+      if (!m.grid_emit.empty())
+        for (std::size_t i = 0; i < res.grid_sh.size(); ++i) res.grid_sh[i] += m.grid_emit[i];
+    }
     res.surfel_radiosity.resize(ns);
     for (std::size_t s = 0; s < ns; ++s) res.surfel_radiosity[s] = m.b[s] + m.emission_b[s];
   });

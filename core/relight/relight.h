@@ -10,9 +10,9 @@
 //
 // Direct and indirect are disjoint in the lightmap: the lightmap caches gather only the
 // *reflected* surfel radiosity rho * E, never the emitted pi * L_e, because the emitters'
-// direct light is sampled into `direct` (docs/relight.md "Direct vs indirect"). Surfels and
-// grid caches still see emitted radiosity (surfels must reflect the emitters' light; dynamic
-// objects have no baked direct).
+// direct light is sampled into `direct` (docs/relight.md "Direct vs indirect"). Grid caches
+// also gather reflected radiosity only, and the emitters' light is sampled into their SH
+// (gridEmitterRadiance): dynamic objects have no baked direct, so grid_sh holds both.
 //
 // Units (docs/units.md): radiosity B in W/m^2-equivalent (the photometric units of the
 // lights: lux for lights in candela/lux, pi * radiance for emitters), node flux Phi = B * A,
@@ -69,6 +69,11 @@ struct RelightOptions {
   // Make texels on the two sides of smooth UV seams agree (SeamStitch), in the SH and the
   // direct light: what engines show as lines along chart borders otherwise.
   bool stitch_seams = true;
+  // Replace each texel's indirect SH by a local linear fit over its 3x3 neighbourhood on the
+  // same plane (IndirectSmooth): removes the texel-to-texel jumps of light from small, bright
+  // patches (a narrow spot light's), which the link rays' noise puts there (+-40 % between
+  // neighbours at 1024 rays), at the cost of about a texel of indirect detail. Off by default.
+  bool smooth_indirect = false;
   // When not empty (one entry per surfel, tree order): the surfels' direct irradiance (lux)
   // used instead of evaluating the punctual lights' surfel lighting, so that two backends can
   // be fed identical surfel light and compared from the pull on (tests/gpu). Such a relight
@@ -105,6 +110,7 @@ struct PassCounts {
   int baked_direct = 0;
   int emissive_direct = 0;   // emitter-sampled direct light into lightmap texels
   int surfel_emitter = 0;    // the emitters' direct light sampled at the surfels (what bounces start from)
+  int grid_emitter = 0;      // the emitters' light sampled into the grid caches' SH
   int fill = 0;
   int incremental = 0;       // 1 when this relight was incremental
   int unchanged = 0;         // 1 when the light set and options equal the last relight's: only
@@ -133,6 +139,7 @@ struct RelightCounts {
   std::size_t emitter_triangles = 0;            // triangles sampled for emitter direct light
   std::size_t emitter_direct_reused = 0;        // 1: emission unchanged, the last emitter direct reused
   std::size_t surfel_emitter_reused = 0;       // 1: emission unchanged, the surfels' emitter light reused
+  std::size_t grid_emitter_reused = 0;         // 1: emission and bands unchanged, the grid's emitter SH reused
   std::size_t texels = 0, texels_filled = 0;    // texels with a value after fill + dilation
   std::size_t surfels_without_gather = 0;       // bounces: no lightmap texel nor grid to read
 };
@@ -161,7 +168,8 @@ struct RelightResult {
   SeamStats seams, direct_seams;
   std::vector<std::uint8_t> texel_valid;    // 1 = the texel has a cache, a fill or a dilation
   // Per grid cache (GridCaches order), 3 * bands^2 floats as above; empty without a grid.
-  // All light arriving from surfaces, emitters' direct light included, and the sky.
+  // All light arriving from surfaces and the sky: reflected light through the links, and
+  // the emitters' direct light sampled on the emitting triangles (gridEmitterRadiance).
   std::vector<float> grid_sh;
   std::vector<glm::vec3> surfel_radiosity;  // final B = rho * E + pi * L_e per surfel (tree order)
   EffectsPlan plan;
@@ -244,6 +252,17 @@ class Relighter {
   // backend feeds it to its surfel lighting). Zeros when no triangle emits.
   void surfelEmitterIrradiance(const LightSet& lights, std::vector<glm::vec3>& out) const;
   static constexpr int kSurfelEmitterSamples = 16;
+  // The SH (`bands` bands, 3 * bands^2 floats per grid cache, GridCaches order, the grid's
+  // fill applied) of the radiance the emitters send each grid cache over the whole sphere,
+  // sampled on the emitting triangles with kGridEmitterSamples shadow rays per cache: what the
+  // relight adds to the links' reflected light in grid_sh (every backend adds it the same
+  // way). Empty without a grid or when no triangle emits. Returns the shadow rays traced.
+  std::size_t gridEmitterRadiance(const LightSet& lights, int bands, std::vector<float>& out) const;
+  static constexpr int kGridEmitterSamples = 64;
+  // The smooth_indirect filter applied to `res.lightmap_sh` (texels holding their own cache,
+  // then the dilated texels re-derived from them), as relightInto applies it before the seam
+  // stitch; for a backend that writes its texels elsewhere (service/gpu).
+  void smoothIndirect(RelightResult& res);
 
  private:
   struct Impl;

@@ -160,7 +160,7 @@ struct GpuRelighter::Impl {
   std::vector<std::pair<std::uint32_t, std::uint32_t>> tree_levels;  // deepest first
 
   // Programs: fixed ones at creation, band/form variants on first use.
-  GlProgram light_surfels, light_caches, leaf_flux, pull, radiosity, radiosity_full, fill, dilate, texel_pass;
+  GlProgram light_surfels, light_caches, leaf_flux, pull, radiosity, fill, dilate, texel_pass;
   std::map<std::string, GlProgram> variants;
 
   // Static buffers.
@@ -172,7 +172,7 @@ struct GpuRelighter::Impl {
   GlBuffer dummy;
 
   // Per-relight buffers.
-  GlBuffer lights_buf, views_buf, given, emission_in, b0, b, albedo_emit, flux, rad, rad_emit, rad_full, sky_matrix;
+  GlBuffer lights_buf, views_buf, given, b0, b, albedo_emit, flux, rad, sky_matrix;
   GlBuffer lm_sh, grid_sh, cache_direct, emitter_buf, partials;
   GlBuffer texel_sh, texel_direct, texel_valid;
   GlBuffer staging;
@@ -195,6 +195,12 @@ struct GpuRelighter::Impl {
   int emitter_samples = 0;
   std::size_t emitter_triangles = 0;
   std::vector<glm::vec4> emitter_cache;
+  // The emitters' SH per grid cache (the CPU relighter's gridEmitterRadiance), added to the
+  // grid's link result at readback; kept while the emission state and bands are.
+  bool grid_emit_valid = false;
+  std::vector<relight::EmissiveOverride> grid_emit_overrides;
+  int grid_emit_bands = 0;
+  std::vector<float> grid_emit;
 
   Impl(const scene::Scene& s, const rt::Accel& a, const precompute::Precomputation& pc, links::LinksView lmv,
        links::LinksView gv, const GpuOptions& o)
@@ -294,7 +300,6 @@ Status GpuRelighter::Impl::setup() {
   if (Status s = need(GlProgram::compute("leaf_flux.comp"), leaf_flux); !s) return s;
   if (Status s = need(GlProgram::compute("pull.comp"), pull); !s) return s;
   if (Status s = need(GlProgram::compute("radiosity.comp"), radiosity); !s) return s;
-  if (Status s = need(GlProgram::compute("radiosity.comp", {{"FULL", "1"}}), radiosity_full); !s) return s;
   if (Status s = need(GlProgram::compute("fill.comp"), fill); !s) return s;
   if (Status s = need(GlProgram::compute("fill.comp", {{"DILATE", "1"}}), dilate); !s) return s;
   if (Status s = need(GlProgram::compute("texels.comp"), texel_pass); !s) return s;
@@ -363,14 +368,11 @@ Status GpuRelighter::Impl::setup() {
   dummy = GlBuffer(16, nullptr);
 
   given = GlBuffer(ns * 16, nullptr);
-  emission_in = GlBuffer(ns * 16, nullptr);
   b0 = GlBuffer(ns * 16, nullptr);
   b = GlBuffer(ns * 16, nullptr);
   albedo_emit = GlBuffer(ns * 32, nullptr);
   flux = GlBuffer(nodes * 16, nullptr);
   rad = GlBuffer(nodes * 16, nullptr);
-  rad_emit = GlBuffer(nodes * 16, nullptr);
-  rad_full = GlBuffer(nodes * 16, nullptr);
   cache_direct = GlBuffer(ncache * 16, nullptr);
   emitter_buf = GlBuffer(ncache * 16, nullptr);
   partials = GlBuffer(((ns + kGatherGroup - 1) / kGatherGroup) * 8, nullptr);
@@ -461,6 +463,7 @@ void GpuRelighter::invalidate() {
   impl_->emission_valid = false;
   impl_->emitter_valid = false;
   impl_->surfel_emit_valid = false;
+  impl_->grid_emit_valid = false;
   impl_->layer->invalidate(true);
 }
 
@@ -591,7 +594,7 @@ Status GpuRelighter::Impl::run(const LightSet& lights, const RelightOptions& o, 
   debugSum("b0", b0);
   debugSum("b", b);
 
-  // ---- emission: host-side per surfel after overrides, pulled once -------------------
+  // ---- emission: host-side per surfel after overrides --------------------------------
   const bool has_emission = plan.emissive;
   if (!emission_valid || !sameEmissive(emission_overrides, lights.emissive())) {
     cpu->surfelEmission(lights, emission_b);
@@ -604,25 +607,9 @@ Status GpuRelighter::Impl::run(const LightSet& lights, const RelightOptions& o, 
     emission_valid = true;
     emission_overrides = lights.emissive();
   }
-  if (has_emission) {
-    if (Status st = gpuStage("emission", [&]() -> Status {
-          // Emitted radiosity per surfel (the odd vec4s of albedo_emit) up the tree.
-          std::vector<glm::vec4> e(ns);
-          for (std::size_t s = 0; s < ns; ++s) e[s] = glm::vec4(emission_b[s], 0.0f);
-          emission_in.upload(e.data(), e.size() * 16);
-          pullFlux(emission_in);
-          tree_nodes.bindStorage(kPuNodes);
-          flux.bindStorage(kPuFlux);
-          rad_emit.bindStorage(kPuRad);
-          radiosity.set("u_count", std::uint32_t(nodes));
-          dispatch(radiosity, nodes, 256);
-          return {};
-        });
-        !st)
-      return st;
-    debugSum("rad_emit", rad_emit);
-    res.passes.emission = 1;
-  }
+  // Every cache's links read reflected radiosity only: the emitters' light reaches the
+  // texels as sampled direct and the grid as sampled SH (added at readback).
+  if (has_emission) res.passes.emission = 1;
   if (plan.sky) {
     std::vector<float> m[3];
     cpu->skyMatrix(lights.sky(), bands, m);
@@ -641,17 +628,13 @@ Status GpuRelighter::Impl::run(const LightSet& lights, const RelightOptions& o, 
         !st)
       return st;
     if (Status st = gpuStage(rad_stage, [&] {
-          const GlProgram& pr = has_emission ? radiosity_full : radiosity;
           tree_nodes.bindStorage(kPuNodes);
           flux.bindStorage(kPuFlux);
           rad.bindStorage(kPuRad);
-          rad_emit.bindStorage(kPuRadEmit);
-          rad_full.bindStorage(kPuRadFull);
-          pr.set("u_count", std::uint32_t(nodes));
-          dispatch(pr, nodes, 256);
+          radiosity.set("u_count", std::uint32_t(nodes));
+          dispatch(radiosity, nodes, 256);
           debugSum("flux", flux);
           debugSum("rad", rad);
-          debugSum("rad_full", rad_full);
           return Status{};
         });
         !st)
@@ -666,7 +649,7 @@ Status GpuRelighter::Impl::run(const LightSet& lights, const RelightOptions& o, 
       res.counts.caches_summed = lm.caches;
       res.counts.links_read += lm.links;
       if (plan.grid) {
-        if (Status st = lightCaches(grid, has_emission ? rad_full : rad, grid_sh, bands, o.link_form, plan.sky); !st)
+        if (Status st = lightCaches(grid, rad, grid_sh, bands, o.link_form, plan.sky); !st)
           return st;
         debugSum("grid_sh", grid_sh);
         res.passes.grid_lighting++;
@@ -734,6 +717,21 @@ Status GpuRelighter::Impl::run(const LightSet& lights, const RelightOptions& o, 
         break;
       }
     }
+  }
+
+  // ---- the emitters' light at the grid caches: the CPU relighter's sampling -----------
+  if (plan.grid) {
+    const auto t0 = Clock::now();
+    if (grid_emit_valid && grid_emit_bands == bands && sameEmissive(grid_emit_overrides, lights.emissive())) {
+      res.counts.grid_emitter_reused = grid_emit.empty() ? 0 : 1;
+    } else {
+      res.counts.shadow_rays += cpu->gridEmitterRadiance(lights, bands, grid_emit);
+      grid_emit_valid = true;
+      grid_emit_overrides = lights.emissive();
+      grid_emit_bands = bands;
+      res.passes.grid_emitter = grid_emit.empty() ? 0 : 1;
+    }
+    host_stages.emplace_back("grid_emitter", secondsSince(t0));
   }
 
   // ---- baked direct at lightmap caches: GPU punctual lights + CPU emitter sampling ---
@@ -881,6 +879,8 @@ Status GpuRelighter::Impl::run(const LightSet& lights, const RelightOptions& o, 
   if (plan.grid) {
     res.grid_sh.resize(ngrid * std::size_t(stride));
     std::memcpy(res.grid_sh.data(), base + off_grid, grid_bytes);
+    if (!grid_emit.empty())
+      for (std::size_t i = 0; i < res.grid_sh.size(); ++i) res.grid_sh[i] += grid_emit[i];
   } else {
     res.grid_sh.clear();
   }
@@ -893,6 +893,7 @@ Status GpuRelighter::Impl::run(const LightSet& lights, const RelightOptions& o, 
   res.direct_width = res.width, res.direct_height = res.height;
   res.direct_valid.clear();
   res.seams = {}, res.direct_seams = {};
+  if (o.smooth_indirect) cpu->smoothIndirect(res);  // the CPU backend's filter, on the read-back texels
   if (o.stitch_seams) {
     seams.apply(res.lightmap_sh.data(), std::size_t(stride), &res.seams);
     if (!layer->active()) seams.apply(reinterpret_cast<float*>(res.direct.data()), 3, &res.direct_seams);
