@@ -105,7 +105,7 @@ struct PrecomputeOptions {
 // link generation. 3: link rays from one base pattern randomised per cache (LinkRays).
 // 4: alpha cut-outs and cast_shadows honoured by every ray, texels over cut-outs invalid,
 // no surfels in cut-outs; caches placed within their texel's footprint. 5: each side of a
-// double-sided surface has its own surfels.
+// double-sided surface has its own surfels; caches on double-sided contacts move off them.
 inline constexpr int kGeneratorRevision = 5;
 
 // Named quality presets for `lightlink bake` and the daemon: "draft", "medium" (seed 000
