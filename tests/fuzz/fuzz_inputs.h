@@ -49,7 +49,7 @@ ArtifactVerdict openArtifactBytes(std::span<const std::uint8_t> bytes);
 // A merge that applies is then relit on the fuzz scene (what `bake --lights` does next).
 struct LightSetVerdict {
   Status load;        // LightSet::load of the bytes as a file
-  Status apply;       // fuzzSceneLights().applyFile of the same file
+  Status apply;       // fuzzSceneLights().applyFile of the same file, then its emissive materials against the scene
   Status round_trip;  // kInternal when toJson/fromJson disagree or a failed merge changed the set
   bool relit = false;
   Status relight;     // relightFuzzScene(merged set), when apply succeeded
