@@ -72,6 +72,9 @@ std::vector<glm::vec3> pick(const std::vector<glm::vec3>& v, const std::vector<s
 
 }  // namespace
 
+// compare.json's "worst_points": how many.
+constexpr std::size_t kWorstPoints = 10;
+
 int runCompare(const CompareArgs& args) {
   constexpr const char* kCmd = "compare";
   if (args.against != "reference")
@@ -209,6 +212,28 @@ int runCompare(const CompareArgs& args) {
   if (sky)
     report["note"] = "the scene has a sky: the baker's indirect SH holds the sky's direct light, the reference's "
                      "indirect does not, so only 'total' compares like with like";
+  // Where to look first: the points with the largest floored total error (a leak, a cache on
+  // a contact), in world space, worst first; ties in point order.
+  {
+    std::vector<std::size_t> order(pos.size());
+    std::vector<float> err(pos.size());
+    for (std::size_t k = 0; k < pos.size(); ++k) order[k] = k, err[k] = reference::flooredRelError(b_total[k], r_total[k], total.floor);
+    const std::size_t shown = std::min<std::size_t>(kWorstPoints, order.size());
+    std::partial_sort(order.begin(), order.begin() + shown, order.end(),
+                      [&](std::size_t a, std::size_t b) { return err[a] > err[b] || (err[a] == err[b] && a < b); });
+    nlohmann::ordered_json worst = nlohmann::ordered_json::array();
+    for (std::size_t w = 0; w < shown; ++w) {
+      const std::size_t k = order[w];
+      worst.push_back({{"position", {pos[k].x, pos[k].y, pos[k].z}},
+                       {"normal", {nrm[k].x, nrm[k].y, nrm[k].z}},
+                       {"texel", {texels[k] % std::uint32_t(lm.width), texels[k] / std::uint32_t(lm.width)}},
+                       {"near_contact", band[k] != 0},
+                       {"baked", reference::luminance(b_total[k])},
+                       {"reference", reference::luminance(r_total[k])},
+                       {"rel_error", err[k]}});
+    }
+    report["worst_points"] = std::move(worst);
+  }
   report["baker"] = baked->report();
   if (!args.output_dir.empty()) {
     std::error_code ec;

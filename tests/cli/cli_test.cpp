@@ -338,6 +338,16 @@ TEST(Compare, MeasuresTheBakeAgainstTheReference) {
   EXPECT_TRUE(j["leaks"].contains("leaks") && j["leaks"].contains("missing_light")) << j["leaks"].dump();
   EXPECT_TRUE(j["total"].contains("lit_rel_rmse"));
   EXPECT_TRUE(std::filesystem::exists(out / "leaks.png"));
+  // The worst points, worst first, each placed in the world and in the lightmap.
+  const auto& worst = j["worst_points"];
+  ASSERT_EQ(worst.size(), 10u);
+  for (std::size_t k = 0; k < worst.size(); ++k) {
+    EXPECT_EQ(worst[k]["position"].size(), 3u);
+    EXPECT_EQ(worst[k]["texel"].size(), 2u);
+    if (k > 0) EXPECT_GE(worst[k - 1]["rel_error"].get<double>(), worst[k]["rel_error"].get<double>());
+  }
+  EXPECT_LE(worst[0]["rel_error"].get<double>(), j["total"]["max_rel_error"].get<double>() * 1.0001);
+  EXPECT_GE(worst[0]["rel_error"].get<double>(), j["total"]["max_rel_error"].get<double>() * 0.9999);
   const auto bad = runShell(kCli + " compare " + demoScene().string() + " --against guesswork -q");
   EXPECT_EQ(bad.exit_code, cli::kExitBadInput) << bad.output;
   const auto bad_floor = runShell(kCli + " compare " + demoScene().string() + " --error-floor 0 -q");
