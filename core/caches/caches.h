@@ -42,9 +42,11 @@ struct LightmapCacheOptions {
   int resolution = 0;  // page width = height in texels (the unwrap's resolution)
   int pages = 1;       // pages stacked along v: the atlas is resolution x (pages * resolution)
   ValidityOptions validity;
-  // A texel whose centre fails validity searches its footprint for a valid point (caches);
-  // false: it is invalid at once and filled from its neighbours (the direct layer's texels,
-  // a quarter of a cache's size or less, where the search would cost more than it gives).
+  // A texel whose centre fails validity, or lies in a sealed pocket (every validity ray
+  // stops within a texel), searches its footprint for a valid, open point (caches); false:
+  // an invalid centre is invalid at once and filled from its neighbours, a sealed one kept
+  // (the direct layer's texels, a quarter of a cache's size or less, where the search would
+  // cost more than it gives).
   bool footprint_search = true;
 };
 
@@ -59,7 +61,9 @@ struct LightmapCaches {
   std::vector<std::uint32_t> mesh;   // Scene::meshes index
   std::vector<std::uint32_t> triangle;
   std::vector<std::uint8_t> valid;   // 1 = usable, 0 = behind/inside geometry
-  std::vector<std::uint8_t> pushed;  // 1 = moved from the texel centre by the validity test
+  // 1 = moved from the texel centre by the validity test; 2 = invalid because every valid
+  // point of its footprint lies in a sealed pocket (a closed void no light reaches).
+  std::vector<std::uint8_t> pushed;
   std::vector<std::int32_t> cache_of_texel;  // width*height, -1 where no triangle covers
   std::size_t degenerate_uv_triangles = 0;   // skipped: zero area in the lightmap
 
@@ -103,10 +107,13 @@ float backfaceFraction(const scene::Scene& scene, const rt::Accel& accel, const 
                        const glm::vec3& normal, const ValidityOptions& options, float contact_m = 0.0f);
 
 // What a validity probe saw: the fraction of its rays that hit a back face of a single-sided
-// material, and the fraction that hit one closer than `near_m` (unit-length directions).
+// material, the fraction that hit one closer than `near_m` (unit-length directions), and the
+// farthest any ray went (infinity when one escaped): a point whose rays all stop within a
+// texel sits in a sealed pocket of the level, which no light reaches.
 struct BackfaceProbe {
   float fraction = 0.0f;
   float near_fraction = 0.0f;
+  float reach = 0.0f;
 };
 BackfaceProbe probeBackfaces(const scene::Scene& scene, const rt::Accel& accel, const glm::vec3& p,
                              const glm::vec3& normal, const ValidityOptions& options, float near_m,

@@ -237,16 +237,24 @@ Expected<LightmapCaches> placeLightmapCaches(const scene::Scene& scene, const rt
     if (stopRequested(progress)) return;
     // A double-sided wall's back seen this close means the ray started on the wall: the
     // cache sits on a contact line (the inset footprint samples lie 1/16 texel inside).
-    const float contact_m = kContactTexels * texelMetres(i);
-    if (backfaceFraction(scene, accel, out.position[i], out.normal[i], options.validity, contact_m) <= max_back)
-      return;
+    const float texel_m = texelMetres(i);
+    const float contact_m = kContactTexels * texel_m;
+    // A valid point whose every ray stops within a texel lies in a sealed pocket (a closed
+    // void between a level's brushes): no light reaches it and no one sees it, while the rest
+    // of its texel may be in the open. A texel with no open valid point is invalid (filled).
+    const auto sealed = [&](const BackfaceProbe& probe) { return probe.reach <= texel_m; };
+    const BackfaceProbe at_centre = probeBackfaces(scene, accel, out.position[i], out.normal[i], options.validity,
+                                                0.0f, contact_m);
+    const bool centre_valid = at_centre.fraction <= max_back;
+    if (centre_valid && (!sealed(at_centre) || !options.footprint_search)) return;
     if (!options.footprint_search) {
       out.valid[i] = 0;
       return;
     }
-    // The centre sees back faces (it lies on an edge, a contact line or under a card): look
-    // for the valid point of the texel's own footprint nearest its centre, as Bakery and
-    // Unity's progressive lightmapper do per texel. The cache never leaves its texel.
+    // The centre sees back faces (it lies on an edge, a contact line or under a card) or is
+    // sealed in: look for the valid, open point of the texel's own footprint nearest its
+    // centre, as Bakery and Unity's progressive lightmapper do per texel. The cache never
+    // leaves its texel.
     const std::uint32_t m = out.mesh[i];
     const auto& mesh = scene.meshes[m];
     std::uint32_t tris[kMaxFootprintTriangles];
@@ -298,22 +306,31 @@ Expected<LightmapCaches> placeLightmapCaches(const scene::Scene& scene, const rt
     }
     // Nearest the centre first; equal distances in sample order (stable sort): deterministic.
     std::stable_sort(pts, pts + count, [](const FootprintPoint& a, const FootprintPoint& b) { return a.d2 < b.d2; });
+    bool sealed_only = centre_valid;  // every valid point seen so far is sealed
     for (int k = 0; k < count; ++k) {
       const glm::vec3 q = surfacePoint(mesh, pts[k].triangle, pts[k].bary);
       if (q == out.position[i]) continue;  // the centre, already tested
       const glm::vec3 nq = hemisphereAxis(mesh, pts[k].triangle, pts[k].bary);
-      if (backfaceFraction(scene, accel, q, nq, options.validity, contact_m) <= max_back) {
-        out.position[i] = q;
-        out.normal[i] = nq;
-        out.triangle[i] = pts[k].triangle;
-        out.pushed[i] = 1;
-        return;
+      const BackfaceProbe probe = probeBackfaces(scene, accel, q, nq, options.validity, 0.0f, contact_m);
+      if (probe.fraction > max_back) continue;
+      if (sealed(probe)) {
+        sealed_only = true;
+        continue;
       }
+      out.position[i] = q;
+      out.normal[i] = nq;
+      out.triangle[i] = pts[k].triangle;
+      out.pushed[i] = 1;
+      return;
+    }
+    if (sealed_only) {
+      out.valid[i] = 0;
+      out.pushed[i] = 2;
+      return;
     }
     // No point of the footprint is valid. Back faces nearer than a texel, for most of what
     // failed, are a one-sided sheet lying on the texel (a card, a rug): the texel is a real
     // surface in the sheet's shadow and keeps its own value; otherwise it is inside geometry.
-    const float texel_m = texelMetres(i);
     const BackfaceProbe probe =
         probeBackfaces(scene, accel, out.position[i], out.normal[i], options.validity, texel_m, contact_m);
     const bool centre_inside = all[texel_range[i].first].score == 0.0f;  // not a grazed texel

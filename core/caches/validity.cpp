@@ -1,3 +1,5 @@
+#include <algorithm>
+#include <limits>
 #include <vector>
 
 #include "core/caches/caches.h"
@@ -37,8 +39,10 @@ BackfaceProbe probeBackfaces(const scene::Scene& scene, const rt::Accel& accel, 
   }
   accel.intersect(rays, hits, rt::Coherence::kCoherent);
   std::uint32_t back = 0, near = 0;
+  float reach = 0.0f;
   for (std::uint32_t i = 0; i < count; ++i) {
     const rt::Hit& h = hits[i];
+    reach = std::max(reach, h.hit() ? h.t : std::numeric_limits<float>::infinity());
     if (!h.hit() || !h.backFacing(rays[i].dir)) continue;
     // A double-sided surface has no inside: seeing its back is seeing a surface, unless the
     // ray starts on it (contact_m).
@@ -46,7 +50,8 @@ BackfaceProbe probeBackfaces(const scene::Scene& scene, const rt::Accel& accel, 
     ++back;
     if (h.t < near_m) ++near;
   }
-  return {static_cast<float>(back) / static_cast<float>(count), static_cast<float>(near) / static_cast<float>(count)};
+  return {static_cast<float>(back) / static_cast<float>(count), static_cast<float>(near) / static_cast<float>(count),
+          reach};
 }
 
 }  // namespace lightlink::caches

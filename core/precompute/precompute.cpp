@@ -454,6 +454,7 @@ nlohmann::ordered_json Precomputation::report() const {
                  {"lightmap_caches", lightmap.size()},
                  {"lightmap_caches_valid", lightmap.validCount()},
                  {"lightmap_caches_pushed", std::count(lightmap.pushed.begin(), lightmap.pushed.end(), 1)},
+                 {"lightmap_caches_sealed", std::count(lightmap.pushed.begin(), lightmap.pushed.end(), 2)},
                  {"direct_width", direct_texels.width},
                  {"direct_height", direct_texels.height},
                  {"direct_texels", direct_texels.size()},

@@ -106,7 +106,9 @@ struct PrecomputeOptions {
 // 4: alpha cut-outs and cast_shadows honoured by every ray, texels over cut-outs invalid,
 // no surfels in cut-outs; caches placed within their texel's footprint. 5: each side of a
 // double-sided surface has its own surfels; caches on double-sided contacts move off them.
-inline constexpr int kGeneratorRevision = 5;
+// 6: caches sealed in a pocket (every validity ray stops within a texel) move to an open
+// valid point of their footprint.
+inline constexpr int kGeneratorRevision = 6;
 
 // Named quality presets for `lightlink bake` and the daemon: "draft", "medium" (seed 000
 // Table 2 setting 2: nS 32k, nL 128, 3 bands) and "high", chosen on the accuracy study's

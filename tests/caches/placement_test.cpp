@@ -66,7 +66,8 @@ std::vector<Texel> bakeTexels(Baked& b, const LightSet& lights) {
   auto centres = placeLightmapCaches(b.scene, *b.accel,
                                      {.resolution = b.p.atlas.resolution,
                                       .pages = b.p.atlas.pages,
-                                      .validity = {.rays = 1, .max_backface_fraction = 1.0f}});
+                                      .validity = {.rays = 1, .max_backface_fraction = 1.0f},
+                                      .footprint_search = false});
   EXPECT_TRUE(centres) << centres.status().toString();
   if (!centres) return {};
   const int nc = res->coeffCount();
@@ -193,6 +194,60 @@ TEST_P(ClosedRoom, ContactTexelsMatchTheReference) {
 INSTANTIATE_TEST_SUITE_P(CachePlacement, ClosedRoom, ::testing::Bool(), [](const ::testing::TestParamInfo<bool>& info) {
   return std::string(info.param ? "DoubleSided" : "SingleSided");
 });
+
+// Sealed pockets (closed voids between a level's brushes): open-bottomed, inward-facing
+// boxes standing on a floor, so every ray from inside meets a front face and passes the
+// back-face test, but no light gets in and no one sees in. One, 20 cm wide, covers the centre
+// of a 50 cm texel whose rest is in the open: the cache moves to the open part, inside its
+// texel. Another encloses a whole small floor chart: its texel is invalid, marked sealed.
+TEST(SealedPocket, CachesLeaveClosedVoids) {
+  scene::Scene s;
+  const auto addPocket = [&](glm::vec3 lo, glm::vec3 hi) {
+    const std::size_t before = s.meshes.size();
+    addBox(s, lo, hi, /*inward=*/true);
+    s.meshes.erase(s.meshes.begin() + std::ptrdiff_t(before + 2));  // its bottom (y = lo): the floor closes it
+  };
+  // Floor 2 x 2 m on the first 4 x 4 texels of an 8 x 8 atlas: x = -1 + 4u, z = -1 + 4v.
+  addQuad(s, {-1, 0, -1}, {-1, 0, 1}, {1, 0, 1}, {1, 0, -1});
+  s.meshes.back().uv1 = {{0.0f, 0.0f}, {0.0f, 0.5f}, {0.5f, 0.5f}, {0.5f, 0.0f}};
+  constexpr int kRes = 8;
+  const glm::vec3 centre(-0.25f, 0.0f, -0.25f);  // texel (1, 1)
+  constexpr float kHalf = 0.1f, kHeight = 0.1f;
+  addPocket(centre - glm::vec3(kHalf, 0, kHalf), centre + glm::vec3(kHalf, kHeight, kHalf));
+  // A 30 cm floor chart in the middle of texel (5, 5) (75 cm texels), wholly in a pocket.
+  addQuad(s, {2.85f, 0, 2.85f}, {2.85f, 0, 3.15f}, {3.15f, 0, 3.15f}, {3.15f, 0, 2.85f});
+  constexpr float kLo = 5.3f / kRes, kHi = 5.7f / kRes;
+  s.meshes.back().uv1 = {{kLo, kLo}, {kLo, kHi}, {kHi, kHi}, {kHi, kLo}};
+  addPocket({2.85f, 0, 2.85f}, {3.15f, kHeight, 3.15f});
+  relight::testing::finish(s);
+  auto accel = rt::Accel::build(s);
+  ASSERT_TRUE(accel) << accel.status().toString();
+  auto caches = placeLightmapCaches(s, *accel, {.resolution = kRes, .validity = {.rays = 64}});
+  ASSERT_TRUE(caches) << caches.status().toString();
+
+  int checked = 0;
+  for (std::size_t c = 0; c < caches->size(); ++c) {
+    const std::uint32_t t = caches->texel[c];
+    const glm::vec3 p = caches->position[c];
+    if (t == 1 * kRes + 1) {
+      ++checked;
+      EXPECT_TRUE(caches->valid[c]);
+      EXPECT_EQ(caches->pushed[c], 1);
+      EXPECT_TRUE(std::abs(p.x - centre.x) > kHalf || std::abs(p.z - centre.z) > kHalf)
+          << "the cache stayed in the sealed pocket at " << p.x << ", " << p.z;
+      EXPECT_TRUE(p.x >= -0.5f && p.x <= 0.0f && p.z >= -0.5f && p.z <= 0.0f)
+          << "the cache left its texel: " << p.x << ", " << p.z;
+    } else if (t == 5 * kRes + 5) {
+      ++checked;
+      EXPECT_FALSE(caches->valid[c]) << "a texel wholly in a closed void is valid";
+      EXPECT_EQ(caches->pushed[c], 2);
+    } else {
+      EXPECT_TRUE(caches->valid[c]);
+      EXPECT_FALSE(caches->pushed[c]) << "texel " << t % kRes << ", " << t / kRes << " moved";
+    }
+  }
+  EXPECT_EQ(checked, 2);
+}
 
 // A lit card 2 mm above a floor, a point light above: single-sided facing up or down, or
 // double-sided. The floor under the card is in the card's shadow and sees only the card's
