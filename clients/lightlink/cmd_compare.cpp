@@ -230,6 +230,8 @@ int runCompare(const CompareArgs& args) {
                        {"near_contact", band[k] != 0},
                        {"baked", reference::luminance(b_total[k])},
                        {"reference", reference::luminance(r_total[k])},
+                       {"baked_indirect", reference::luminance(b_ind[k])},
+                       {"reference_indirect", reference::luminance(r_ind[k])},
                        {"rel_error", err[k]}});
     }
     report["worst_points"] = std::move(worst);
