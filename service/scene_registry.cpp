@@ -329,8 +329,7 @@ Expected<std::shared_ptr<SceneSession>> SceneRegistry::openResident(SessionIdent
 
   SessionOptions so;
   so.backend = backendChoiceName(request.backend(), config_.backend);
-  so.relight.max_bounces = bake_options->relight.max_bounces;
-  so.relight.link_form = bake_options->relight.link_form;
+  so.relight = bake_options->relight;  // every relight option of the one table, not a chosen few
   so.progressive = config_.progressive;
   so.journal = journal_;
   const bool reused = resident->reused();

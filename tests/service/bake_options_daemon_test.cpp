@@ -82,6 +82,39 @@ TEST(BakeOptionsEverywhere, OpenSceneRejectsUnknownAndBadOptionsNamingThem) {
   }
 }
 
+// The lightmap SH of a scene opened with `options`, at its initial version.
+std::string lightmapSh(LightlinkRpc& rpc, const std::map<std::string, std::string>& options) {
+  v1::SceneOpened opened;
+  const grpc::Status st = openScene(rpc, demoRequest(options), &opened);
+  EXPECT_TRUE(st.ok()) << st.error_message();
+  v1::RelightRequest rq;
+  rq.mutable_scene()->set_scene_id(opened.scene_id());
+  rq.mutable_scene()->set_token(opened.scene_token());
+  rq.set_version(opened.version());
+  rq.mutable_spec()->set_precision(v1::PRECISION_FLOAT);
+  auto ctx = context();
+  auto reader = rpc.Relight(ctx.get(), rq);
+  Result res;
+  std::string err;
+  EXPECT_TRUE(readOne(reader.get(), res, &err).ok()) << err;
+  return res.payloads[v1::PAYLOAD_LIGHTMAP_SH];
+}
+
+// The relight options of the one table ("bounces", "link-form", "seams", "indirect") set the
+// scene's relight; none is accepted and then dropped.
+TEST(BakeOptionsEverywhere, RelightOptionsReachTheScene) {
+  TempDir tmp;
+  DaemonProcess d(tmp / "cache", {"--backend", "cpu"});
+  ASSERT_TRUE(d.ok()) << d.error();
+  auto rpc = d.rpc();
+  const std::string raw = lightmapSh(*rpc, {{"preset", "draft"}, {"indirect", "raw"}});
+  ASSERT_FALSE(raw.empty()) << d.log();
+  // Compared as bools: a failure must not print megabytes of payload.
+  EXPECT_TRUE(lightmapSh(*rpc, {{"preset", "draft"}}) == raw) << "raw is the default";
+  EXPECT_FALSE(lightmapSh(*rpc, {{"preset", "draft"}, {"indirect", "smooth"}}) == raw) << "--indirect smooth was dropped";
+  EXPECT_FALSE(lightmapSh(*rpc, {{"preset", "draft"}, {"bounces", "0"}}) == raw) << "--bounces was dropped";
+}
+
 std::string bakeOptionsHelp(const std::string& command) {
   const CliRun r = runCli(command + " --help");
   const auto begin = r.output.find("Bake options:");
