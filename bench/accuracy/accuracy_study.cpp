@@ -43,6 +43,7 @@
 #include "bench/accuracy/rows.h"
 #include "bench/accuracy/sweep.h"
 #include "bench/rt/throughput.h"
+#include "core/common/memory.h"
 #include "core/precompute/precompute.h"
 #include "core/reference/compare.h"
 #include "core/relight/direct_layer.h"
@@ -532,5 +533,7 @@ int main(int argc, char** argv) {
   std::unique_ptr<tbb::global_control> threads;
   if (args.threads > 0)
     threads = std::make_unique<tbb::global_control>(tbb::global_control::max_allowed_parallelism, args.threads);
+  // Its precomputes reuse each other's freed link blocks (core/common/memory.h).
+  const HugeBlockCacheScope huge_blocks;
   return Study(std::move(args)).run();
 }

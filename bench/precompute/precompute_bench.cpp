@@ -30,6 +30,7 @@
 
 #include "bench/common/bench_common.h"
 #include "bench/rt/throughput.h"
+#include "core/common/memory.h"
 #include "core/links/surfel_locator.h"
 #include "core/precompute/precompute.h"
 #include "core/scene/load.h"
@@ -85,6 +86,8 @@ int main(int argc, char** argv) {
                          "[--hit-credit best|scalar]\n");
     return 1;
   }
+  // Link runs after the first reuse the pages of the one before (core/common/memory.h).
+  const HugeBlockCacheScope huge_blocks;
   auto scene = scene::loadScene(args.scene);
   if (bench::failed(scene)) return 2;
   scene::subdivide(*scene, args.subdivide);

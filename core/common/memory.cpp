@@ -68,6 +68,7 @@ struct BlockCache {
   std::mutex mutex;
   std::vector<std::pair<void*, std::size_t>> blocks;  // block, rounded bytes
   std::size_t bytes = 0;
+  int scopes = 0;  // open HugeBlockCacheScopes: blocks are kept only while one is
 
   // A kept block of exactly `rounded` bytes (the most recently kept one), or null. Only
   // equal sizes: the block comes back through freeHuge with the size asked of it, which is
@@ -86,7 +87,7 @@ struct BlockCache {
   // Keeps the block if it fits under the cap; false: the caller frees it.
   bool keep(void* p, std::size_t rounded) {
     const std::lock_guard lock(mutex);
-    if (rounded > kHugeBlockCacheBytes - bytes) return false;
+    if (scopes == 0 || rounded > kHugeBlockCacheBytes - bytes) return false;
     try {
       blocks.push_back({p, rounded});
     } catch (const std::bad_alloc&) {
@@ -97,9 +98,20 @@ struct BlockCache {
   }
   void release() {
     const std::lock_guard lock(mutex);
+    releaseLocked();
+  }
+  void releaseLocked() {
     for (const auto& [p, size] : blocks) std::free(p);
     blocks.clear();
     bytes = 0;
+  }
+  void open() {
+    const std::lock_guard lock(mutex);
+    ++scopes;
+  }
+  void close() {
+    const std::lock_guard lock(mutex);
+    if (--scopes == 0) releaseLocked();
   }
 };
 
@@ -136,5 +148,8 @@ std::size_t cachedHugeBytes() {
 }
 
 void releaseCachedHugeBlocks() { blockCache().release(); }
+
+HugeBlockCacheScope::HugeBlockCacheScope() { blockCache().open(); }
+HugeBlockCacheScope::~HugeBlockCacheScope() { blockCache().close(); }
 
 }  // namespace lightlink

@@ -1,29 +1,16 @@
 // Memory for the big arrays a stage fills once (link generation's output).
 //
-// Filling fresh memory costs one page fault per 4 KiB page the first time it is touched. On
-// the virtual machines we build and measure on that is expensive: 13 us of kernel time per
-// fault on one (a KVM guest with paravirtualised page tables); avoiding most of link
-// generation's took its stage from 0.47 to 0.31 s on CornellBox-Original (docs/results.md,
-// issue 4, tenth pass). Transparent huge pages take one fault per 2 MiB instead; where the kernel only
-// gives them to regions that ask (THP "madvise", Debian's default), these helpers ask.
-// A hint only covers the whole 2 MiB pages inside a block, and a block from malloc starts
-// anywhere: HugeVector's blocks of 2 MiB or more start on a 2 MiB boundary, so all of the
-// block can have huge pages (`lightlink precompute` of CornellBox-Original: 9,391-9,399
-// page faults before, 7,146-7,258 after, `/usr/bin/time`; docs/results.md, issue 4
-// sixteenth pass).
-// They are hints: nothing changes but the time where the kernel says no.
+// The first touch of fresh memory costs a page fault per 4 KiB page, which is expensive on
+// virtual machines. Blocks of 2 MiB or more are aligned to 2 MiB and advised to take
+// transparent huge pages (one fault per 2 MiB) where the kernel gives them on request (THP
+// "madvise", Debian's default). Hints only: where the kernel says no, only the time changes
+// (bench/precompute measures it).
 //
-// Freed huge blocks are kept (up to kHugeBlockCacheBytes in all) and handed to the next
-// allocation of their size (in whole huge pages), pages already in place. Fresh memory costs more than the
-// zeroing of its pages on the VMs we measure on: a process's first touch of 37 MiB took
-// 3.8-4.5 ms in huge pages in most processes and 9-82 ms in the others, 15-34 ms in small
-// pages (docs/data/precompute/session20_zen4/first_touch_throwaway.txt; why some processes
-// get slow memory was not measured). A process that generates links more than once
-// (precompute_bench's pairs, `lightlink compare`, the accuracy study) paid that for every
-// run: with the cache, precompute_bench's link runs after the first spent 1.0-2.0 % of their
-// wall time outside link generation's phases, against 19.0-25.7 % without
-// (CornellBox-Original, four alternated rounds; docs/results.md, issue 4 nineteenth pass). A
-// one-shot `lightlink precompute` still pays for its output's first touch.
+// Freed huge blocks are kept for the next allocation of their size while a
+// HugeBlockCacheScope is open (a precompute, a benchmark's repeated runs), and handed back to
+// the system when the last scope closes: fresh memory's first touch costs more than reusing
+// pages in place (bench/precompute's link runs), but an idle process (the daemon between
+// opens) keeps nothing.
 #pragma once
 
 #include <cstddef>
@@ -54,6 +41,16 @@ inline constexpr std::size_t kHugeBlockCacheBytes = std::size_t(512) << 20;
 // Bytes of freed huge blocks kept now; releases them all to the system.
 std::size_t cachedHugeBytes();
 void releaseCachedHugeBlocks();
+
+// While one is open (any thread), freed huge blocks are kept; when the last one closes they
+// are all released. Scopes nest.
+class HugeBlockCacheScope {
+ public:
+  HugeBlockCacheScope();
+  ~HugeBlockCacheScope();
+  HugeBlockCacheScope(const HugeBlockCacheScope&) = delete;
+  HugeBlockCacheScope& operator=(const HugeBlockCacheScope&) = delete;
+};
 
 // memcpy for a destination that will not be read soon (link generation's output, written
 // once behind the chunks that produced it): non-temporal stores where the CPU has them, so

@@ -18,6 +18,7 @@
 #include <fmt/format.h>
 
 #include "core/caches/cutout_texels.h"
+#include "core/common/memory.h"
 #include "core/links/surfel_locator.h"
 #include "core/rt/accel.h"
 #include "core/scene/load.h"
@@ -236,6 +237,8 @@ Expected<charts::UnwrapResult> unwrapFor(scene::Scene& scene, const PrecomputeOp
 
 Expected<Precomputation> run(scene::Scene& scene, const PrecomputeOptions& options, Progress* progress) {
   if (Status s = options.validate(); !s) return s;
+  // Link generation's freed output blocks are reused within the run, and released after it.
+  const HugeBlockCacheScope huge_blocks;
   NullProgress null_progress;
   Progress& sink = progress ? *progress : null_progress;
   Precomputation p;

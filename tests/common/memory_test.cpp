@@ -72,11 +72,12 @@ TEST(Memory, HugeVectorSizingWritesNothing) {
 }
 #endif
 
-// A freed huge block is kept and handed to the next request of its size in whole huge pages
-// (link generation run again in one process writes into pages already in place); a request
-// of another size gets a block of its own; and no more than kHugeBlockCacheBytes are ever
-// kept.
+// Inside a HugeBlockCacheScope, a freed huge block is kept and handed to the next request of
+// its size in whole huge pages (link generation run again in one process writes into pages
+// already in place); a request of another size gets a block of its own; and no more than
+// kHugeBlockCacheBytes are ever kept.
 TEST(Memory, FreedHugeBlocksAreReusedUnderACap) {
+  const HugeBlockCacheScope scope;
   releaseCachedHugeBlocks();
   ASSERT_EQ(cachedHugeBytes(), 0u);
   const std::size_t bytes = (std::size_t(6) << 20) + 123;
@@ -111,6 +112,24 @@ TEST(Memory, FreedHugeBlocksAreReusedUnderACap) {
   EXPECT_EQ(again.data(), first);
   releaseCachedHugeBlocks();
   EXPECT_EQ(cachedHugeBytes(), 0u);
+}
+
+// Outside any scope nothing is kept (an idle daemon holds no freed memory), and the last
+// scope to close hands back what was kept under it; scopes nest.
+TEST(Memory, FreedHugeBlocksAreReleasedWhenTheLastScopeCloses) {
+  const std::size_t bytes = std::size_t(4) << 20;
+  freeHuge(allocateHuge(bytes), bytes);
+  EXPECT_EQ(cachedHugeBytes(), 0u) << "kept with no scope open";
+  {
+    const HugeBlockCacheScope outer;
+    {
+      const HugeBlockCacheScope inner;
+      freeHuge(allocateHuge(bytes), bytes);
+      EXPECT_EQ(cachedHugeBytes(), bytes);
+    }
+    EXPECT_EQ(cachedHugeBytes(), bytes) << "released while a scope is still open";
+  }
+  EXPECT_EQ(cachedHugeBytes(), 0u) << "not released when the last scope closed";
 }
 
 // The streaming copy writes exactly [dst, dst + bytes) with src's bytes, whatever the

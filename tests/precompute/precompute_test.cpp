@@ -9,6 +9,7 @@
 #include <tbb/global_control.h>
 
 #include "core/charts/test_meshes.h"
+#include "core/common/memory.h"
 #include "core/scene/load.h"
 #include "tests/common/escaping_scenes.h"
 #include "tests/common/testing.h"
@@ -70,6 +71,20 @@ TEST(Precompute, DemoSceneProducesEveryStructure) {
   // Inside a closed-ish room most link rays hit front faces.
   const auto& s = p.lightmap_links.stats;
   EXPECT_GT(double(s.front_hits) / double(s.rays), 0.5);
+}
+
+// A daemon that opened and closed a scene keeps none of its freed link arrays: the freed-block
+// cache (core/common/memory.h) lives only while a precompute runs.
+TEST(Precompute, KeepsNoFreedMemoryOnceTheArtifactIsGone) {
+  PrecomputeOptions o = smallOptions();
+  o.target_resolution = 128;  // ~10k caches x 64 links: link arrays of several huge pages
+  o.links = 64;
+  {
+    const Precomputation p = runDemo(o);
+    EXPECT_GE(p.lightmap_links.node.size() * sizeof(std::uint32_t), kHugePageBytes);
+    EXPECT_EQ(cachedHugeBytes(), 0u) << "freed blocks kept after the precompute ended";
+  }
+  EXPECT_EQ(cachedHugeBytes(), 0u) << "the closed scene's link arrays are kept";
 }
 
 TEST(Precompute, GridIsSkippedWithoutDynamicMeshes) {
