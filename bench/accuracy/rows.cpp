@@ -7,7 +7,7 @@
 
 namespace lightlink::bench {
 
-const char* formName(relight::LinkForm f) { return f == relight::LinkForm::kProjected ? "projected" : "runtime"; }
+std::string_view formName(relight::LinkForm f) { return relight::linkFormName(f); }
 
 double netRmse(double rmse, double noise) { return std::sqrt(std::max(0.0, rmse * rmse - noise * noise)); }
 
@@ -24,7 +24,7 @@ std::string csvRow(const Row& r) {
       "{},{},{},{},{},{},{},{},{},{},{:.5g},{},{},{},{},{},{},{:.3f},{:.3f},{:.3f},{},{:.2f},{},{},{},{:.5f},{:.5f},"
       "{:.5f},{:.5f},{:.5f},{:.5f},{:.5f},{:.5f},{:.5f},{:.5f},{},{:.5f},{:.5f},{:.5f},{},{},{},{},{}\n",
       r.scene, r.factor, r.value, r.pre.surfels, r.pre.links, r.pre.bands, r.pre.rays,
-      r.pre.builder == hierarchy::Builder::kAgglomerative ? "hac" : "kd", r.pre.target_resolution,
+      hierarchy::builderName(r.pre.builder), r.pre.target_resolution,
       r.lightmap_resolution, r.texel_size_m, r.caches_valid, formName(r.rel.link_form),
       r.rel.bands ? r.rel.bands : r.pre.bands, r.rel.max_bounces, r.bounces_run, r.bounce_stop, r.precompute_s,
       r.links_s, r.relight_ms, r.links, r.links_per_cache, r.link_bytes, r.memory_bytes, r.ref_points,

@@ -6,6 +6,7 @@
 
 #include <cstddef>
 #include <string>
+#include <string_view>
 
 #include <nlohmann/json.hpp>
 
@@ -36,7 +37,7 @@ struct Row {
   bool pareto_relight = false, pareto_precompute = false;
 };
 
-const char* formName(relight::LinkForm f);
+std::string_view formName(relight::LinkForm f);
 // Indirect RMSE with the reference's own noise taken out (they add in quadrature).
 double netRmse(double rmse, double noise);
 std::string csvHeader();

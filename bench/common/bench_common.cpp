@@ -21,8 +21,12 @@ bool parsePrecomputeFlag(const std::string& flag, const char* value, precompute:
   else if (flag == "--bands") options.bands = std::stoi(value);
   else if (flag == "--rays") options.rays = std::stoi(value);
   else if (flag == "--resolution") options.lightmap_resolution = std::stoi(value);
-  else if (flag == "--hierarchy")
-    options.builder = std::strcmp(value, "fast") == 0 ? hierarchy::Builder::kKdMedian : hierarchy::Builder::kAgglomerative;
+  else if (flag == "--hierarchy") {
+    const auto it = std::find_if(hierarchy::kBuilderNames.begin(), hierarchy::kBuilderNames.end(),
+                                 [&](const auto& e) { return e.first == value; });
+    if (it == hierarchy::kBuilderNames.end()) return false;
+    options.builder = it->second;
+  }
   else return false;
   return true;
 }

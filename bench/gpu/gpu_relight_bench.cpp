@@ -210,7 +210,7 @@ int main(int argc, char** argv) {
   const std::size_t caches = d.p.lightmap.size() + (d.p.has_grid ? d.p.grid.size() : 0);
   j["relight"] = nlohmann::ordered_json::array();
   for (relight::LinkForm form : {relight::LinkForm::kProjected, relight::LinkForm::kRuntime}) {
-    const char* form_name = form == relight::LinkForm::kProjected ? "projected" : "runtime";
+    const std::string form_name(relight::linkFormName(form));
     for (int bounces : {0, 8}) {
       relight::RelightOptions o;
       o.link_form = form;

@@ -171,7 +171,7 @@ int main(int argc, char** argv) {
       total.push_back(res.totalSeconds());
     }
     nlohmann::ordered_json row;
-    row["form"] = row_spec.form == relight::LinkForm::kProjected ? "projected" : "runtime";
+    row["form"] = relight::linkFormName(row_spec.form);
     row["bands"] = row_spec.bands;
     row["bounces"] = row_spec.bounces;
     for (auto& [name, v] : stage) row["ms"][name] = median(v) * 1e3;

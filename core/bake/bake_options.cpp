@@ -167,9 +167,7 @@ constexpr Row kRows[] = {
      }},
     {{"link-form", "projected|runtime", "Link form the relight uses"},
      [](BakeOptions& o, std::string_view v, const std::string& l) -> Status {
-       using relight::LinkForm;
-       auto m = choice<LinkForm>(v, l, std::array<std::pair<std::string_view, LinkForm>, 2>{
-                                           {{"projected", LinkForm::kProjected}, {"runtime", LinkForm::kRuntime}}});
+       auto m = choice(v, l, relight::kLinkFormNames);
        if (!m) return m.status();
        o.relight.link_form = *m;
        return {};
@@ -197,9 +195,7 @@ constexpr Row kRows[] = {
      }},
     {{"hierarchy", "fast|hac", "Tree builder: fast (kd median) or hac (agglomerative)"},
      [](BakeOptions& o, std::string_view v, const std::string& l) -> Status {
-       using hierarchy::Builder;
-       auto m = choice<Builder>(v, l, std::array<std::pair<std::string_view, Builder>, 2>{
-                                          {{"fast", Builder::kKdMedian}, {"hac", Builder::kAgglomerative}}});
+       auto m = choice(v, l, hierarchy::kBuilderNames);
        if (!m) return m.status();
        o.precompute.builder = *m;
        return {};

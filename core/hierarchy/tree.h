@@ -21,7 +21,10 @@
 // thread count.
 #pragma once
 
+#include <array>
 #include <cstdint>
+#include <string_view>
+#include <utility>
 #include <vector>
 
 #include <glm/glm.hpp>
@@ -33,6 +36,15 @@
 namespace lightlink::hierarchy {
 
 enum class Builder { kKdMedian, kAgglomerative };
+// The one table of builder names: bake options, the canonical options string, reports and
+// benchmarks all spell them so.
+inline constexpr std::array<std::pair<std::string_view, Builder>, 2> kBuilderNames{
+    {{"fast", Builder::kKdMedian}, {"hac", Builder::kAgglomerative}}};
+constexpr std::string_view builderName(Builder b) {
+  for (const auto& [name, value] : kBuilderNames)
+    if (value == b) return name;
+  return "?";
+}
 
 struct TreeOptions {
   Builder builder = Builder::kAgglomerative;

@@ -75,7 +75,7 @@ Expected<WriteStats> writeExr(Planes& planes, const std::string& path, const rel
     header.insert("lightlink.version", Imf::StringAttribute(std::to_string(result.version)));
     header.insert("lightlink.scene_hash", Imf::StringAttribute(options.scene_hash));
     header.insert("lightlink.link_form",
-                  Imf::StringAttribute(result.link_form == relight::LinkForm::kProjected ? "projected" : "runtime"));
+                  Imf::StringAttribute(std::string(relight::linkFormName(result.link_form))));
     // How many direct texels per lightmap texel (1: `direct` is in the lightmap file itself).
     if (result.width > 0)
       header.insert("lightlink.direct_scale", Imf::IntAttribute(std::max(1, result.direct_width / result.width)));

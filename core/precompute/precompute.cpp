@@ -195,7 +195,7 @@ std::string PrecomputeOptions::canonical() const {
       "surfels={};links={};bands={};rays={};builder={};grid={};grid_spacing={:a};grid_resolution={};"
       "texel_size={};texel_budget={};max_atlas={};max_pages={};lightmap_resolution={};target_resolution={};uv={};"
       "validity_rays={};direct_scale={};seed={};generator={}",
-      surfels, links, bands, rays, builder == hierarchy::Builder::kAgglomerative ? "hac" : "kd",
+      surfels, links, bands, rays, hierarchy::builderName(builder),
       static_cast<int>(grid), grid_spacing_m, grid_resolution,
       texel_size_m ? fmt::format("{:a}", *texel_size_m) : "auto", texel_budget, max_atlas, max_pages,
       lightmap_resolution ? std::to_string(*lightmap_resolution) : "auto", target_resolution,

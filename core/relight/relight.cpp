@@ -92,7 +92,7 @@ nlohmann::ordered_json RelightResult::report() const {
   j["version"] = version;
   j["backend"] = backend;
   j["kernel"] = kernel;
-  j["link_form"] = link_form == LinkForm::kProjected ? "projected" : "runtime";
+  j["link_form"] = linkFormName(link_form);
   j["bands"] = bands;
   j["lightmap"] = {{"width", width}, {"height", height}};
   j["effects_plan"] = plan.toJson();

@@ -29,10 +29,13 @@
 // loop writes disjoint outputs and every sum runs in a fixed order.
 #pragma once
 
+#include <array>
 #include <cstdint>
 #include <memory>
 #include <span>
 #include <string>
+#include <string_view>
+#include <utility>
 #include <vector>
 
 #include <glm/glm.hpp>
@@ -51,6 +54,14 @@ namespace lightlink::relight {
 // kProjected: links' stored fp16 SH coefficients. kRuntime: direction + solid angle per
 // link, projected as a spherical cap at relight time (seed 000 sec 4.6), any band count.
 enum class LinkForm { kProjected, kRuntime };
+// The one table of link-form names (options, reports, EXR attributes, benchmarks).
+inline constexpr std::array<std::pair<std::string_view, LinkForm>, 2> kLinkFormNames{
+    {{"projected", LinkForm::kProjected}, {"runtime", LinkForm::kRuntime}}};
+constexpr std::string_view linkFormName(LinkForm f) {
+  for (const auto& [name, value] : kLinkFormNames)
+    if (value == f) return name;
+  return "?";
+}
 // kAuto: AVX2 + F16C kernels when the CPU has them, else scalar. kScalar forces scalar.
 enum class Kernel { kAuto, kScalar };
 
