@@ -24,7 +24,6 @@
 #include "core/reference/reference.h"
 #include "core/relight/direct_layer.h"
 #include "core/relight/relight.h"
-#include "core/sh/sh.h"
 #include "core/scene/load.h"
 
 namespace lightlink::cli {
@@ -146,7 +145,6 @@ int runCompare(const CompareArgs& args) {
   auto est = ref->irradiance({pos, nrm}, ref_options, &bar);  // reports its own progress
   if (!est) return reportError(kCmd, est.status());
 
-  const int nc = baked->coeffCount();
   // The direct light at the caches' texels (a finer direct layer box-filtered to them).
   std::vector<glm::vec3> direct;
   relight::directAtLightmapSize(*baked, direct);
@@ -154,9 +152,7 @@ int runCompare(const CompareArgs& args) {
   double ref_rel_err = 0.0;
   std::size_t converged = 0;
   for (std::size_t k = 0; k < pos.size(); ++k) {
-    const float* sh = baked->lightmap_sh.data() + std::size_t(texels[k]) * 3 * nc;
-    const glm::vec3 ind(sh::irradiance(baked->bands, sh, nrm[k]), sh::irradiance(baked->bands, sh + nc, nrm[k]),
-                        sh::irradiance(baked->bands, sh + 2 * nc, nrm[k]));
+    const glm::vec3 ind = baked->lightmapIndirect(texels[k], nrm[k]);
     b_ind.push_back(ind);
     b_total.push_back(ind + direct[texels[k]]);
     const auto& e = (*est)[k];

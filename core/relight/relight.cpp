@@ -87,6 +87,12 @@ double RelightResult::totalSeconds() const {
   return t;
 }
 
+glm::vec3 RelightResult::lightmapIndirect(std::uint32_t texel, const glm::vec3& n) const {
+  const int nc = coeffCount();
+  const float* sh = lightmap_sh.data() + std::size_t(texel) * 3 * nc;
+  return {sh::irradiance(bands, sh, n), sh::irradiance(bands, sh + nc, n), sh::irradiance(bands, sh + 2 * nc, n)};
+}
+
 nlohmann::ordered_json RelightResult::report() const {
   nlohmann::ordered_json j;
   j["version"] = version;
@@ -725,10 +731,7 @@ Status validateRequest(const LightSet& lights, const RelightOptions& o, int link
     return invalidInput("relight: emitter_samples {} not in 1..4096", o.emitter_samples);
   if (!o.surfel_irradiance.empty() && o.surfel_irradiance.size() != surfels)
     return invalidInput("relight: surfel_irradiance has {} entries for {} surfels", o.surfel_irradiance.size(), surfels);
-  for (std::size_t i = 0; i < lights.emissive().size(); ++i)
-    if (lights.emissive()[i].material >= int(materials))
-      return invalidInput("emissive[{}].material: {} is not a material of the scene ({} materials)", i,
-                          lights.emissive()[i].material, materials);
+  if (Status s = lights.checkMaterials(materials); !s) return s;
   for (std::size_t i = 0; i < lights.lights().size(); ++i)
     if (Status s = LightSet::validate(lights.lights()[i], fmt::format("lights[{}]", i)); !s) return s;
   return {};

@@ -29,18 +29,17 @@
 // loop writes disjoint outputs and every sum runs in a fixed order.
 #pragma once
 
-#include <array>
 #include <cstdint>
 #include <memory>
 #include <span>
 #include <string>
 #include <string_view>
-#include <utility>
 #include <vector>
 
 #include <glm/glm.hpp>
 #include <nlohmann/json.hpp>
 
+#include "core/common/enum_names.h"
 #include "core/common/status.h"
 #include "core/links/links.h"
 #include "core/precompute/precompute.h"
@@ -55,13 +54,9 @@ namespace lightlink::relight {
 // link, projected as a spherical cap at relight time (seed 000 sec 4.6), any band count.
 enum class LinkForm { kProjected, kRuntime };
 // The one table of link-form names (options, reports, EXR attributes, benchmarks).
-inline constexpr std::array<std::pair<std::string_view, LinkForm>, 2> kLinkFormNames{
+inline constexpr EnumNames<LinkForm, 2> kLinkFormNames{
     {{"projected", LinkForm::kProjected}, {"runtime", LinkForm::kRuntime}}};
-constexpr std::string_view linkFormName(LinkForm f) {
-  for (const auto& [name, value] : kLinkFormNames)
-    if (value == f) return name;
-  return "?";
-}
+constexpr std::string_view linkFormName(LinkForm f) { return enumName(kLinkFormNames, f); }
 // kAuto: AVX2 + F16C kernels when the CPU has them, else scalar. kScalar forces scalar.
 enum class Kernel { kAuto, kScalar };
 
@@ -192,6 +187,8 @@ struct RelightResult {
   std::vector<std::string> warnings;
 
   int coeffCount() const { return bands * bands; }
+  // The indirect irradiance (lux, RGB) of lightmap texel `texel` on a surface of unit normal n.
+  glm::vec3 lightmapIndirect(std::uint32_t texel, const glm::vec3& n) const;
   // direct_width 0 (a result assembled by hand, e.g. from the wire): the lightmap's size.
   bool directIsFiner() const { return direct_width > 0 && (direct_width != width || direct_height != height); }
   double totalSeconds() const;

@@ -15,7 +15,6 @@
 #include "core/reference/compare.h"
 #include "core/reference/reference.h"
 #include "core/relight/relight.h"
-#include "core/sh/sh.h"
 #include "tests/relight/relight_fixture.h"
 
 namespace lightlink::caches {
@@ -70,7 +69,6 @@ std::vector<Texel> bakeTexels(Baked& b, const LightSet& lights) {
                                       .footprint_search = false});
   EXPECT_TRUE(centres) << centres.status().toString();
   if (!centres) return {};
-  const int nc = res->coeffCount();
   std::vector<Texel> out;
   for (std::size_t c = 0; c < centres->size(); ++c) {
     const std::uint32_t t = centres->texel[c];
@@ -83,10 +81,7 @@ std::vector<Texel> bakeTexels(Baked& b, const LightSet& lights) {
     const glm::vec3 centroid = (mesh.positions[idx[0]] + mesh.positions[idx[1]] + mesh.positions[idx[2]]) / 3.0f;
     x.centre = centres->position[c] + 0.002f * glm::normalize(centroid - centres->position[c]);
     x.normal = centres->normal[c];
-    const float* sh = &res->lightmap_sh[std::size_t(t) * 3 * nc];
-    const glm::vec3 indirect(sh::irradiance(res->bands, sh, x.normal), sh::irradiance(res->bands, sh + nc, x.normal),
-                             sh::irradiance(res->bands, sh + 2 * nc, x.normal));
-    x.baked = reference::luminance(res->direct[t] + indirect);
+    x.baked = reference::luminance(res->direct[t] + res->lightmapIndirect(t, x.normal));
     out.push_back(x);
   }
   return out;

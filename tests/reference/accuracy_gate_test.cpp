@@ -26,7 +26,6 @@
 #include "core/relight/relight.h"
 #include "core/rt/accel.h"
 #include "core/scene/load.h"
-#include "core/sh/sh.h"
 #include "tests/common/scene_builders.h"
 #include "tests/common/testing.h"
 
@@ -86,17 +85,12 @@ Measured bakeAndMeasure(scene::Scene& s, const relight::LightSet& lights) {
   std::vector<glm::vec3> pos, nrm;
   std::vector<glm::vec3> direct;
   relight::directAtLightmapSize(*res, direct);
-  const int nc = res->coeffCount();
   for (std::size_t k = 0; k < valid.size(); k += stride) {
     const std::uint32_t c = valid[k];
     pos.push_back(lm.position[c]);
     nrm.push_back(lm.normal[c]);
     m.texel.push_back(lm.texel[c]);
-    const float* sh = res->lightmap_sh.data() + std::size_t(lm.texel[c]) * 3 * nc;
-    const glm::vec3 indirect(sh::irradiance(res->bands, sh, lm.normal[c]),
-                             sh::irradiance(res->bands, sh + nc, lm.normal[c]),
-                             sh::irradiance(res->bands, sh + 2 * nc, lm.normal[c]));
-    m.baked.push_back(indirect + direct[lm.texel[c]]);
+    m.baked.push_back(res->lightmapIndirect(lm.texel[c], lm.normal[c]) + direct[lm.texel[c]]);
   }
   auto renderer = ReferenceRenderer::create(s, *accel, lights);
   EXPECT_TRUE(renderer) << renderer.status().toString();
