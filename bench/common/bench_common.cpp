@@ -22,10 +22,9 @@ bool parsePrecomputeFlag(const std::string& flag, const char* value, precompute:
   else if (flag == "--rays") options.rays = std::stoi(value);
   else if (flag == "--resolution") options.lightmap_resolution = std::stoi(value);
   else if (flag == "--hierarchy") {
-    const auto it = std::find_if(hierarchy::kBuilderNames.begin(), hierarchy::kBuilderNames.end(),
-                                 [&](const auto& e) { return e.first == value; });
-    if (it == hierarchy::kBuilderNames.end()) return false;
-    options.builder = it->second;
+    const auto builder = enumValue(hierarchy::kBuilderNames, value);
+    if (!builder) return false;
+    options.builder = *builder;
   }
   else return false;
   return true;

@@ -40,9 +40,8 @@ Expected<float> positiveMetres(std::string_view v, const std::string& label) {
 }
 
 template <typename T, std::size_t N>
-Expected<T> choice(std::string_view v, const std::string& label, const std::array<std::pair<std::string_view, T>, N>& c) {
-  for (const auto& [name, value] : c)
-    if (v == name) return value;
+Expected<T> choice(std::string_view v, const std::string& label, const EnumNames<T, N>& c) {
+  if (const auto value = enumValue(c, v)) return *value;
   std::string names;
   for (std::size_t i = 0; i < N; ++i) names += fmt::format("{}'{}'", i == 0 ? "" : i + 1 == N ? " or " : ", ", c[i].first);
   return invalidInput("{} '{}' must be {}", label, shown(v), names);

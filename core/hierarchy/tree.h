@@ -21,14 +21,13 @@
 // thread count.
 #pragma once
 
-#include <array>
 #include <cstdint>
 #include <string_view>
-#include <utility>
 #include <vector>
 
 #include <glm/glm.hpp>
 
+#include "core/common/enum_names.h"
 #include "core/common/progress.h"
 #include "core/common/status.h"
 #include "core/surfels/surfels.h"
@@ -38,13 +37,8 @@ namespace lightlink::hierarchy {
 enum class Builder { kKdMedian, kAgglomerative };
 // The one table of builder names: bake options, the canonical options string, reports and
 // benchmarks all spell them so.
-inline constexpr std::array<std::pair<std::string_view, Builder>, 2> kBuilderNames{
-    {{"fast", Builder::kKdMedian}, {"hac", Builder::kAgglomerative}}};
-constexpr std::string_view builderName(Builder b) {
-  for (const auto& [name, value] : kBuilderNames)
-    if (value == b) return name;
-  return "?";
-}
+inline constexpr EnumNames<Builder, 2> kBuilderNames{{{"fast", Builder::kKdMedian}, {"hac", Builder::kAgglomerative}}};
+constexpr std::string_view builderName(Builder b) { return enumName(kBuilderNames, b); }
 
 struct TreeOptions {
   Builder builder = Builder::kAgglomerative;
