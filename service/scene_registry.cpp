@@ -56,12 +56,7 @@ std::string backendChoiceName(v1::Backend b, const std::string& daemon_default) 
 
 // Emissive overrides of a light-set JSON must name materials the scene has.
 Status checkMaterials(const relight::LightSet& lights, std::size_t material_count, std::string_view field) {
-  for (std::size_t i = 0; i < lights.emissive().size(); ++i) {
-    const int m = lights.emissive()[i].material;
-    if (m < 0 || static_cast<std::size_t>(m) >= material_count)
-      return invalidInput("{}: emissive[{}].material {} is not a material of the scene ({} materials)", field, i, m,
-                          material_count);
-  }
+  if (Status s = lights.checkMaterials(material_count); !s) return invalidInput("{}: {}", field, s.message());
   return {};
 }
 

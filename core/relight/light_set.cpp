@@ -239,6 +239,14 @@ Status LightSet::validate(const EmissiveOverride& e, std::string_view path) {
   return checkColor(e.value, fmt::format("{}.{}", path, e.mode == EmissiveOverride::Mode::kScale ? "scale" : "radiance"));
 }
 
+Status LightSet::checkMaterials(std::size_t material_count) const {
+  for (std::size_t i = 0; i < emissive_.size(); ++i)
+    if (emissive_[i].material < 0 || static_cast<std::size_t>(emissive_[i].material) >= material_count)
+      return invalidInput("emissive[{}].material: {} is not a material of the scene ({} materials)", i,
+                          emissive_[i].material, material_count);
+  return {};
+}
+
 Status LightSet::validate(const Sky& sky, std::string_view path) {
   if (Status s = checkColor(sky.radiance, fmt::format("{}.radiance", path)); !s) return s;
   if (sky.sh) {

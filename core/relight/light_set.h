@@ -108,6 +108,9 @@ class LightSet {
   static Status validate(const LightEntry& entry, std::string_view path);
   static Status validate(const EmissiveOverride& e, std::string_view path);
   static Status validate(const Sky& sky, std::string_view path);
+  // Every emissive override names a material of a scene with `material_count` materials (a
+  // light-set file knows no scene: checked where the set meets one).
+  Status checkMaterials(std::size_t material_count) const;
 
  private:
   std::vector<LightEntry> lights_;

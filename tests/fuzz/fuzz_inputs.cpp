@@ -197,15 +197,8 @@ LightSetVerdict loadLightSetBytes(std::span<const std::uint8_t> bytes) {
   if (!v.apply && merged.toJson() != fuzzSceneLights().toJson())
     v.round_trip = internalError("a rejected light-set merge changed the set (it must be all or nothing)");
   // A light-set file knows no scene: its emissive overrides are checked against the scene's
-  // materials where it meets one, as the daemon (checkMaterials) and the Relighter do.
-  if (v.apply)
-    for (std::size_t i = 0; i < merged.emissive().size(); ++i)
-      if (merged.emissive()[i].material < 0 ||
-          static_cast<std::size_t>(merged.emissive()[i].material) >= fuzzSceneMaterialCount()) {
-        v.apply = invalidInput("emissive[{}].material: {} is not a material of the scene ({} materials)", i,
-                               merged.emissive()[i].material, fuzzSceneMaterialCount());
-        break;
-      }
+  // materials where it meets one (LightSet::checkMaterials, as the daemon and Relighter do).
+  if (v.apply) v.apply = merged.checkMaterials(fuzzSceneMaterialCount());
   if (v.apply) {
     v.relit = true;
     v.relight = relightFuzzScene(merged);

@@ -41,11 +41,10 @@ void openScene(const v1::OpenSceneRequest& r, RequestVerdict& v) {
     v.validation = s;
     return;
   }
-  for (const auto& e : lights.emissive())
-    if (e.material < 0 || static_cast<std::size_t>(e.material) >= fuzzSceneMaterialCount()) {
-      v.validation = invalidInput("lightset_json: emissive material {} is not a material of the scene", e.material);
-      return;
-    }
+  if (Status s = lights.checkMaterials(fuzzSceneMaterialCount()); !s) {
+    v.validation = s;
+    return;
+  }
   relightAccepted(lights, v);
 }
 
