@@ -4,7 +4,7 @@
 #include <new>
 
 #include "core/relight/direct_layer.h"
-#include "service/gpu/backend_factory.h"
+#include "gpu/backend_factory.h"
 #include "service/logging.h"
 #include "service/validation.h"
 

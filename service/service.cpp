@@ -8,7 +8,7 @@
 
 #include "core/common/check.h"
 #include "service/auth.h"
-#include "service/gpu/backend_factory.h"
+#include "gpu/backend_factory.h"
 #include "service/logging.h"
 #include "service/status_map.h"
 #include "service/validation.h"

@@ -1,6 +1,6 @@
 // The GLSL sources of shaders/, embedded into the binary at build time (embed.cmake), so a
 // deployed `lightlink` or daemon needs no shader files next to it. Names are the file names
-// (naming scheme in shaders/README.md); service/gpu compiles them with GL at start-up.
+// (naming scheme in shaders/README.md); gpu compiles them with GL at start-up.
 #pragma once
 
 #include <optional>

@@ -1,5 +1,5 @@
 // One source of truth for the GPU relight's structs and binding indices, included both by
-// C++ (service/gpu) and, through the build-time include expansion, by every GLSL shader here.
+// C++ (gpu) and, through the build-time include expansion, by every GLSL shader here.
 //
 // The file is valid C++ and GLSL at once: in C++ the GLSL vector types are glm aliases and
 // every struct gets a static_assert on its std430 size, so a field added on one side only

@@ -33,7 +33,7 @@
 #include "core/precompute/precompute.h"
 #include "core/relight/backend.h"
 #include "core/scene/load.h"
-#include "service/gpu/gpu_relight.h"
+#include "gpu/gpu_relight.h"
 
 namespace {
 

@@ -17,7 +17,7 @@
 #include "core/output/output.h"
 #include "core/precompute/resident.h"
 #include "core/relight/relight.h"
-#include "service/gpu/backend_factory.h"
+#include "gpu/backend_factory.h"
 
 namespace lightlink::cli {
 namespace {

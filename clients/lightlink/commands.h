@@ -54,7 +54,7 @@ struct BakeArgs {
   BakeSettings options;            // over the medium preset
   std::string lights_path;         // light-set JSON adding to / overriding the scene's lights
   std::string cache_dir;           // artifacts by cache key; empty = <output_dir>/cache
-  std::string backend = "cpu";     // cpu | gpu | auto (service/gpu/backend_factory.h)
+  std::string backend = "cpu";     // cpu | gpu | auto (gpu/backend_factory.h)
   bool float_exr = false;
   bool no_cache = false;           // recompute even when a matching artifact exists
   bool quiet = false;

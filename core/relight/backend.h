@@ -1,5 +1,5 @@
 // RelightBackend: the one interface behind which the CPU relight (core/relight) and the GPU
-// relight (service/gpu, EGL + GL compute, shaders/) sit, so `lightlink bake --backend` and the
+// relight (gpu/, EGL + GL compute, shaders/) sit, so `lightlink bake --backend` and the
 // daemon pick one at run time and the rest of the code never knows which ran.
 //
 // A backend is bound to one resident scene (scene, accel, precomputation and link views,
@@ -7,7 +7,7 @@
 // result names the light-set version it is for and, in RelightResult::backend, the backend
 // that produced it ("cpu" or "gpu"). Backends are not thread-safe; the daemon runs one
 // relight worker per scene. The factory that can also make a GPU backend lives with the GPU
-// code (service/gpu/backend_factory.h), because core/ knows nothing of GL.
+// code (gpu/backend_factory.h), because core/ knows nothing of GL.
 #pragma once
 
 #include <memory>

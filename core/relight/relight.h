@@ -238,7 +238,7 @@ class Relighter {
   // True when this CPU runs the AVX2 + F16C kernels.
   static bool simdAvailable();
 
-  // The static tables a second backend (service/gpu) needs to reproduce this relight exactly.
+  // The static tables a second backend (gpu) needs to reproduce this relight exactly.
   // Bounce gather: surfel s reads caches cache[begin[s] .. begin[s + 1]) with weights, from
   // the grid when from_grid[s], else from the lightmap caches; has_value: the caches that
   // hold a value after the fill (valid, or filled from a valid neighbour).
@@ -269,7 +269,7 @@ class Relighter {
   static constexpr int kGridEmitterSamples = 64;
   // The smooth_indirect filter applied to `res.lightmap_sh` (texels holding their own cache,
   // then the dilated texels re-derived from them), as relightInto applies it before the seam
-  // stitch; for a backend that writes its texels elsewhere (service/gpu).
+  // stitch; for a backend that writes its texels elsewhere (gpu).
   void smoothIndirect(RelightResult& res);
 
  private:

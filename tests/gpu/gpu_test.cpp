@@ -17,9 +17,9 @@
 #include "core/precompute/precompute.h"
 #include "core/relight/backend.h"
 #include "core/scene/load.h"
-#include "service/gpu/backend_factory.h"
-#include "service/gpu/gl_objects.h"
-#include "service/gpu/gpu_relight.h"
+#include "gpu/backend_factory.h"
+#include "gpu/gl_objects.h"
+#include "gpu/gpu_relight.h"
 #include "tests/common/testing.h"
 
 namespace lightlink::gpu {

@@ -1,7 +1,7 @@
 // RAII wrappers for the GL objects the GPU relight uses (buffers, programs, textures,
 // framebuffers, timer queries), and shader compilation from the embedded sources.
 //
-// Only service/gpu includes GL; this header exposes GLuint-sized handles as unsigned so the
+// Only gpu includes GL; this header exposes GLuint-sized handles as unsigned so the
 // rest of the backend's headers stay GL-free. Objects must be created and destroyed with
 // their context current (GpuRelighter guarantees it). A program is compiled from named
 // embedded sources (shaders/embedded.h) with `#include "x"` expanded and defines inserted

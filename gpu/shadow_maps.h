@@ -16,7 +16,7 @@
 
 #include "core/common/status.h"
 #include "core/scene/scene.h"
-#include "service/gpu/gl_objects.h"
+#include "gpu/gl_objects.h"
 #include "shaders/gpu_layout.h"
 
 namespace lightlink::gpu {

@@ -1,4 +1,4 @@
-#include "service/gpu/gl_objects.h"
+#include "gpu/gl_objects.h"
 
 #define GL_GLEXT_PROTOTYPES 1
 #include <GL/glcorearb.h>

@@ -1,4 +1,4 @@
-#include "service/gpu/shadow_maps.h"
+#include "gpu/shadow_maps.h"
 
 #define GL_GLEXT_PROTOTYPES 1
 #include <GL/glcorearb.h>

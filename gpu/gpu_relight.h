@@ -28,7 +28,7 @@
 
 #include "core/common/status.h"
 #include "core/relight/relight.h"
-#include "service/gpu/egl_context.h"
+#include "gpu/egl_context.h"
 
 namespace lightlink::gpu {
 

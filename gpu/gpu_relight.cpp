@@ -1,4 +1,4 @@
-#include "service/gpu/gpu_relight.h"
+#include "gpu/gpu_relight.h"
 
 #define GL_GLEXT_PROTOTYPES 1
 #include <GL/glcorearb.h>
@@ -19,8 +19,8 @@
 #include "core/relight/direct_layer.h"
 #include "core/relight/emitter_direct.h"
 #include "core/sh/sh.h"
-#include "service/gpu/gl_objects.h"
-#include "service/gpu/shadow_maps.h"
+#include "gpu/gl_objects.h"
+#include "gpu/shadow_maps.h"
 #include "shaders/gpu_layout.h"
 
 namespace lightlink::gpu {

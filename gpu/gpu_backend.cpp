@@ -2,8 +2,8 @@
 // backend_factory.h and GpuRelighter.
 #include <mutex>
 
-#include "service/gpu/backend_factory.h"
-#include "service/gpu/gpu_relight.h"
+#include "gpu/backend_factory.h"
+#include "gpu/gpu_relight.h"
 
 namespace lightlink::gpu {
 namespace {

@@ -1,4 +1,4 @@
-#include "service/gpu/backend_factory.h"
+#include "gpu/backend_factory.h"
 
 #include <fmt/format.h>
 
