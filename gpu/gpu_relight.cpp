@@ -12,13 +12,11 @@
 #include <map>
 
 #include <fmt/format.h>
-#include <tbb/blocked_range.h>
-#include <tbb/parallel_for.h>
 
-#include "core/common/sampling.h"
-#include "core/relight/direct_layer.h"
-#include "core/relight/emitter_direct.h"
-#include "core/sh/sh.h"
+#include "core/relight/direct_points.h"
+#include "core/relight/passes.h"
+#include "core/relight/pipeline.h"
+#include "core/relight/scene_tables.h"
 #include "gpu/gl_objects.h"
 #include "gpu/shadow_maps.h"
 #include "shaders/gpu_layout.h"
@@ -29,6 +27,7 @@ using namespace glsl;
 using relight::EffectsPlan;
 using relight::LightSet;
 using relight::LinkForm;
+using relight::RelightFrame;
 using relight::RelightOptions;
 using relight::RelightResult;
 
@@ -40,17 +39,6 @@ double secondsSince(Clock::time_point t0) { return std::chrono::duration<double>
 template <typename T>
 std::vector<std::uint32_t> widen(std::span<const T> v) {
   return std::vector<std::uint32_t>(v.begin(), v.end());
-}
-
-bool lightEmits(const scene::Light& l) {
-  return l.intensity > 0.0f && (l.color.x > 0.0f || l.color.y > 0.0f || l.color.z > 0.0f);
-}
-
-bool sameEmissive(const std::vector<relight::EmissiveOverride>& a, const std::vector<relight::EmissiveOverride>& b) {
-  if (a.size() != b.size()) return false;
-  for (std::size_t i = 0; i < a.size(); ++i)
-    if (a[i].material != b[i].material || a[i].mode != b[i].mode || a[i].value != b[i].value) return false;
-  return true;
 }
 
 // A FillPlan reordered into levels: no target of a level reads a target of the same or a
@@ -141,71 +129,32 @@ GpuLinks uploadLinks(const links::LinksView& v, std::span<const std::uint8_t> va
 
 }  // namespace
 
-struct GpuRelighter::Impl {
-  const scene::Scene& scene;
-  const rt::Accel& accel;
-  const precompute::Precomputation& p;
-  links::LinksView lm_view, grid_view;
-  GpuOptions options;
-  std::unique_ptr<GlContext> ctx;
-  std::unique_ptr<relight::Relighter> cpu;  // the effects plan, gather tables, sky matrix, emission
-  // A finer direct layer is traced on the CPU (core/relight/direct_layer.h), as the CPU
-  // backend does, so both write the same direct.exr; the GPU's own direct is then unused.
-  std::unique_ptr<relight::DirectLayer> layer;
-  relight::SeamStitch seams;  // applied to the read-back texels, as the CPU backend does
-  std::unique_ptr<ShadowMaps> shadows;
-  GpuTimers timers;
+// The GPU backend's relight passes (relight::RelightPasses): everything per relight stays on
+// the GPU; only what RelightResult carries is read back, in texels().
+class GpuPasses final : public relight::RelightPasses {
+ public:
+  GpuPasses(const relight::SceneTables& t, const GpuOptions& o)
+      : t_(t), scene(t.scene), p(t.p), options(o) {}
+  ~GpuPasses() override {
+    if (staging_ptr) glUnmapNamedBuffer(staging.id());
+  }
+  Status setup();
 
-  std::size_t ns = 0, nodes = 0, ncache = 0, ngrid = 0, texels = 0;
-  std::vector<std::pair<std::uint32_t, std::uint32_t>> tree_levels;  // deepest first
+  std::string_view backend() const override { return "gpu"; }
+  std::string kernelName(const RelightOptions&) const override { return fmt::format("glsl-lanes{}", options.lanes); }
+  Status begin(const RelightFrame& f) override;
+  Status setEmission(std::span<const glm::vec3> emission_b, std::uint64_t generation) override;
+  Status surfelDirect(const RelightFrame& f, std::span<const glm::vec3> surfel_emit, RelightResult& res) override;
+  Status pullAndLight(const RelightFrame& f, const std::string& prefix, bool grid, RelightResult& res) override;
+  Status gather(const RelightFrame& f, int bounce, bool fill_grid, RelightResult& res) override;
+  Expected<relight::BounceSums> bounceSums() override;
+  bool sumsLag() const override { return true; }
+  Status cacheDirect(const RelightFrame& f, const relight::EmitterTexels& emitter, RelightResult& res) override;
+  Status texels(const RelightFrame& f, RelightResult& res) override;
 
-  // Programs: fixed ones at creation, band/form variants on first use.
-  GlProgram light_surfels, light_caches, leaf_flux, pull, radiosity, fill, dilate, texel_pass;
-  std::map<std::string, GlProgram> variants;
+  Expected<double> measureStream(std::size_t bytes, bool copy, int repeats);
 
-  // Static buffers.
-  GlBuffer surfel_pos, surfel_normal, surfel_albedo, surfel_area, surfel_leaf, surfel_normal_area, tree_nodes;
-  GlBuffer cache_pos, cache_normal, cache_valid, cache_of_texel, lm_has_value;
-  GlBuffer gather_begin, gather_cache, gather_weight, gather_from_grid;
-  GpuLinks lm, grid;
-  GpuFill lm_fill, grid_fill, dilation;
-  GlBuffer dummy;
-
-  // Per-relight buffers.
-  GlBuffer lights_buf, views_buf, given, b0, b, albedo_emit, flux, rad, sky_matrix;
-  GlBuffer lm_sh, grid_sh, cache_direct, emitter_buf, partials;
-  GlBuffer texel_sh, texel_direct, texel_valid;
-  GlBuffer staging;
-  void* staging_ptr = nullptr;
-  std::size_t staging_bytes = 0;
-  int sized_stride = 0;
-
-  // Emission state on the host (uploaded when it changes).
-  bool emission_valid = false;
-  std::vector<relight::EmissiveOverride> emission_overrides;
-  std::vector<glm::vec3> emission_b;
-  // The emitters' direct light at the surfels (the CPU relighter's sampling, so both backends
-  // light surfels with identical values), reused while emission is unchanged.
-  bool surfel_emit_valid = false;
-  std::vector<relight::EmissiveOverride> surfel_emit_overrides;
-  std::vector<glm::vec3> surfel_emit;
-  // Emitter direct light per lightmap cache (CPU code), reused while emission is unchanged.
-  bool emitter_valid = false;
-  std::vector<relight::EmissiveOverride> emitter_overrides;
-  int emitter_samples = 0;
-  std::size_t emitter_triangles = 0;
-  std::vector<glm::vec4> emitter_cache;
-  // The emitters' SH per grid cache (the CPU relighter's gridEmitterRadiance), added to the
-  // grid's link result at readback; kept while the emission state and bands are.
-  bool grid_emit_valid = false;
-  std::vector<relight::EmissiveOverride> grid_emit_overrides;
-  int grid_emit_bands = 0;
-  std::vector<float> grid_emit;
-
-  Impl(const scene::Scene& s, const rt::Accel& a, const precompute::Precomputation& pc, links::LinksView lmv,
-       links::LinksView gv, const GpuOptions& o)
-      : scene(s), accel(a), p(pc), lm_view(lmv), grid_view(gv), options(o) {}
-
+ private:
   Expected<const GlProgram*> variant(const std::string& shader, const std::vector<ShaderDefine>& defines) {
     std::string key = shader;
     for (const auto& d : defines) key += fmt::format(" {}={}", d.name, d.value);
@@ -236,60 +185,63 @@ struct GpuRelighter::Impl {
     glMemoryBarrier(GL_SHADER_STORAGE_BARRIER_BIT);
   }
 
+  template <class F>
+  Status stage(std::string name, F&& body) {
+    timers.begin(std::move(name));
+    Status st = body();
+    timers.end();
+    return st;
+  }
+
   void ensureBuffers(int stride);
-  Status setup();
+  Status prepareLights(const RelightFrame& f);
   void pullFlux(const GlBuffer& radiosity_in);
   Status lightCaches(const GpuLinks& links, const GlBuffer& node_rad, const GlBuffer& out, int bands, LinkForm form,
                      bool sky);
   void applyFill(const GpuFill& f, const GlBuffer& data, int stride);
-  Status run(const LightSet& lights, const RelightOptions& o, RelightResult& res);
+  void readBack(const RelightFrame& f, RelightResult& res);
+
+  const relight::SceneTables& t_;
+  const scene::Scene& scene;
+  const precompute::Precomputation& p;
+  GpuOptions options;
+  std::unique_ptr<ShadowMaps> shadows;
+  GpuTimers timers;
+
+  std::size_t ns = 0, nodes = 0, ncache = 0, ngrid = 0, texels_ = 0;
+  std::vector<std::pair<std::uint32_t, std::uint32_t>> tree_levels;  // deepest first
+
+  // Programs: fixed ones at creation, band/form variants on first use.
+  GlProgram light_surfels, light_caches, leaf_flux, pull, radiosity, fill, dilate, texel_pass;
+  std::map<std::string, GlProgram> variants;
+
+  // Static buffers.
+  GlBuffer surfel_pos, surfel_normal, surfel_albedo, surfel_area, surfel_leaf, surfel_normal_area, tree_nodes;
+  GlBuffer cache_pos, cache_normal, cache_valid, cache_of_texel, lm_has_value;
+  GlBuffer gather_begin, gather_cache, gather_weight, gather_from_grid;
+  GpuLinks lm, grid;
+  GpuFill lm_fill, grid_fill, dilation;
+  GlBuffer dummy;
+
+  // Per-relight buffers.
+  GlBuffer lights_buf, views_buf, given, b0, b, albedo_emit, flux, rad, sky_matrix;
+  GlBuffer lm_sh, grid_sh, cache_direct, emitter_buf, partials;
+  GlBuffer texel_sh, texel_direct, texel_valid;
+  GlBuffer staging;
+  void* staging_ptr = nullptr;
+  std::size_t staging_bytes = 0;
+  int sized_stride = 0;
+
+  // Per relight: lights uploaded and shadow maps rendered (once, on first need).
+  bool lights_ready = false;
+  std::vector<std::uint8_t> emits;  // per light: non-zero power
+  std::vector<std::pair<std::string, double>> host_stages;  // CPU-side stages, host seconds
+  GLsync bounce_fence = nullptr;    // the last gather's sums, copied to staging
+  // What the GPU holds (generations of the pipeline's EmissionState products).
+  std::uint64_t emission_generation = ~std::uint64_t(0), emitter_generation = ~std::uint64_t(0);
 };
 
-GpuRelighter::GpuRelighter(std::unique_ptr<Impl> impl) : impl_(std::move(impl)) {}
-
-GpuRelighter::~GpuRelighter() {
-  if (!impl_ || !impl_->ctx) return;
-  // GL objects die with the context current; the context itself last, once released.
-  std::unique_ptr<GlContext> ctx = std::move(impl_->ctx);
-  {
-    GlContext::Current cur(*ctx);
-    if (impl_->staging_ptr) glUnmapNamedBuffer(impl_->staging.id());
-    impl_.reset();
-  }
-}
-
-const GlContextInfo& GpuRelighter::info() const { return impl_->ctx->info(); }
-
-Expected<std::unique_ptr<GpuRelighter>> GpuRelighter::create(const scene::Scene& scene, const rt::Accel& accel,
-                                                             const precompute::Precomputation& p,
-                                                             links::LinksView lightmap_links,
-                                                             links::LinksView grid_links, const GpuOptions& options) {
-  if (options.lanes < 1 || options.lanes > 64 || (options.lanes & (options.lanes - 1)) != 0)
-    return invalidInput("gpu: lanes {} must be a power of two in 1..64", options.lanes);
-  if (!(options.bias_scene >= 0.0f) || !(options.normal_offset_texels >= 0.0f) || !(options.slope_bias_texels >= 0.0f))
-    return invalidInput("gpu: shadow biases must be finite and >= 0");
-  auto cpu = relight::Relighter::create(scene, accel, p, lightmap_links, grid_links);
-  if (!cpu) return cpu.status();
-  auto ctx = GlContext::create();
-  if (!ctx) return ctx.status();
-  GpuOptions opts = options;
-  // Driver triage without a rebuild: LIGHTLINK_GPU_LANES overrides the threads per cache.
-  if (const char* lanes = std::getenv("LIGHTLINK_GPU_LANES")) opts.lanes = std::atoi(lanes);
-  if (opts.lanes < 1 || opts.lanes > 64 || (opts.lanes & (opts.lanes - 1)) != 0)
-    return invalidInput("gpu: lanes {} must be a power of two in 1..64", opts.lanes);
-  auto impl = std::make_unique<Impl>(scene, accel, p, lightmap_links, grid_links, opts);
-  impl->cpu = std::make_unique<relight::Relighter>(std::move(*cpu));
-  impl->layer = std::make_unique<relight::DirectLayer>(scene, accel, p);
-  impl->seams = relight::SeamStitch::build(scene, p.lightmap.width, p.lightmap.height);
-  impl->ctx = std::move(*ctx);
-  std::unique_ptr<GpuRelighter> r(new GpuRelighter(std::move(impl)));
-  GlContext::Current cur(*r->impl_->ctx);
-  if (!cur.status()) return cur.status();
-  if (Status s = r->impl_->setup(); !s) return s;
-  return r;
-}
-
-Status GpuRelighter::Impl::setup() {
+Status GpuPasses::setup() {
   auto need = [](Expected<GlProgram> e, GlProgram& out) -> Status {
     if (!e) return e.status();
     out = std::move(*e);
@@ -312,8 +264,8 @@ Status GpuRelighter::Impl::setup() {
   ns = sf.size();
   nodes = t.nodeCount();
   ncache = p.lightmap.size();
-  ngrid = p.has_grid ? grid_view.cacheCount() : 0;
-  texels = std::size_t(p.lightmap.width) * p.lightmap.height;
+  ngrid = p.has_grid ? t_.grid_links.cacheCount() : 0;
+  texels_ = std::size_t(p.lightmap.width) * p.lightmap.height;
   std::vector<glm::vec4> v4(ns);
   for (std::size_t s = 0; s < ns; ++s) v4[s] = glm::vec4(sf.position[s], 0.0f);
   surfel_pos = GlBuffer::of(v4);
@@ -325,8 +277,7 @@ Status GpuRelighter::Impl::setup() {
   surfel_albedo = GlBuffer::of(v4);
   // The pull's leaf areas and node inverse areas, as the CPU pull (relight::pullAreas:
   // surfels no cache sees add nothing to their nodes).
-  auto pull_areas = relight::pullAreas(p);
-  if (!pull_areas) return pull_areas.status();
+  const relight::PullAreas* pull_areas = &t_.pull;
   surfel_area = GlBuffer::of(pull_areas->surfel);
   surfel_leaf = GlBuffer::of(t.leaf_of_surfel);
   std::vector<glm::ivec4> tn(nodes);
@@ -346,14 +297,13 @@ Status GpuRelighter::Impl::setup() {
   cache_normal = GlBuffer::of(c4);
   cache_valid = GlBuffer::of(widen(std::span<const std::uint8_t>(p.lightmap.valid)));
   cache_of_texel = GlBuffer::of(p.lightmap.cache_of_texel);
-  const auto gt = cpu->gatherTables();
-  lm_has_value = GlBuffer::of(widen(gt.lightmap_has_value));
-  gather_begin = GlBuffer(gt.begin.size() * 4, gt.begin.data());
-  gather_cache = GlBuffer(gt.cache.size() * 4, gt.cache.data());
-  gather_weight = GlBuffer(gt.weight.size() * 4, gt.weight.data());
-  gather_from_grid = GlBuffer::of(widen(gt.from_grid));
-  lm = uploadLinks(lm_view, p.lightmap.valid);
-  if (ngrid) grid = uploadLinks(grid_view, p.grid.valid);
+  lm_has_value = GlBuffer::of(widen(std::span<const std::uint8_t>(t_.lm_has_value)));
+  gather_begin = GlBuffer::of(t_.gather_begin);
+  gather_cache = GlBuffer::of(t_.gather_cache);
+  gather_weight = GlBuffer::of(t_.gather_weight);
+  gather_from_grid = GlBuffer::of(widen(std::span<const std::uint8_t>(t_.gather_from_grid)));
+  lm = uploadLinks(t_.lm_links, p.lightmap.valid);
+  if (ngrid) grid = uploadLinks(t_.grid_links, p.grid.valid);
   auto lf = levelFill(p.lightmap_fill, "lightmap");
   if (!lf) return lf.status();
   lm_fill = std::move(*lf);
@@ -376,21 +326,21 @@ Status GpuRelighter::Impl::setup() {
   cache_direct = GlBuffer(ncache * 16, nullptr);
   emitter_buf = GlBuffer(ncache * 16, nullptr);
   partials = GlBuffer(((ns + kGatherGroup - 1) / kGatherGroup) * 8, nullptr);
-  texel_direct = GlBuffer(texels * 16, nullptr);
-  texel_valid = GlBuffer(texels * 4, nullptr);
+  texel_direct = GlBuffer(texels_ * 16, nullptr);
+  texel_valid = GlBuffer(texels_ * 4, nullptr);
   return glCheck("gpu relight setup (uploads)");
 }
 
-void GpuRelighter::Impl::ensureBuffers(int stride) {
+void GpuPasses::ensureBuffers(int stride) {
   if (stride == sized_stride) return;
   sized_stride = stride;
   const std::size_t s = std::size_t(stride) * 4;
   lm_sh = GlBuffer(ncache * s, nullptr);
   grid_sh = GlBuffer(ngrid * s, nullptr);
-  texel_sh = GlBuffer(texels * s, nullptr);
+  texel_sh = GlBuffer(texels_ * s, nullptr);
   // Staging: texel SH, texel direct, texel valid, grid SH, surfel radiosity, bounce partials.
   if (staging_ptr) glUnmapNamedBuffer(staging.id());
-  staging_bytes = texels * s + texels * 16 + texels * 4 + ngrid * s + ns * 16 + partials.bytes();
+  staging_bytes = texels_ * s + texels_ * 16 + texels_ * 4 + ngrid * s + ns * 16 + partials.bytes();
   staging = GlBuffer(staging_bytes, nullptr, GL_MAP_READ_BIT | GL_MAP_PERSISTENT_BIT | GL_MAP_COHERENT_BIT |
                                                  GL_CLIENT_STORAGE_BIT);
   staging_ptr = glMapNamedBufferRange(staging.id(), 0, GLsizeiptr(std::max<std::size_t>(staging_bytes, 16)),
@@ -398,7 +348,7 @@ void GpuRelighter::Impl::ensureBuffers(int stride) {
 }
 
 // Leaf flux from per-surfel radiosity, then the pull, level by level (deepest first).
-void GpuRelighter::Impl::pullFlux(const GlBuffer& radiosity_in) {
+void GpuPasses::pullFlux(const GlBuffer& radiosity_in) {
   radiosity_in.bindStorage(kLfRadiosity);
   surfel_area.bindStorage(kLfArea);
   surfel_leaf.bindStorage(kLfLeaf);
@@ -415,7 +365,7 @@ void GpuRelighter::Impl::pullFlux(const GlBuffer& radiosity_in) {
   }
 }
 
-Status GpuRelighter::Impl::lightCaches(const GpuLinks& links, const GlBuffer& node_rad, const GlBuffer& out,
+Status GpuPasses::lightCaches(const GpuLinks& links, const GlBuffer& node_rad, const GlBuffer& out,
                                        int bands, LinkForm form, bool sky) {
   if (links.caches == 0) return {};
   std::vector<ShaderDefine> defs = {{"BANDS", std::to_string(bands)},
@@ -441,7 +391,7 @@ Status GpuRelighter::Impl::lightCaches(const GpuLinks& links, const GlBuffer& no
   return {};
 }
 
-void GpuRelighter::Impl::applyFill(const GpuFill& f, const GlBuffer& data, int stride) {
+void GpuPasses::applyFill(const GpuFill& f, const GlBuffer& data, int stride) {
   if (f.count == 0) return;
   f.target.bindStorage(kFiTarget);
   f.begin.bindStorage(kFiBegin);
@@ -455,69 +405,39 @@ void GpuRelighter::Impl::applyFill(const GpuFill& f, const GlBuffer& data, int s
   }
 }
 
-EffectsPlan GpuRelighter::plan(const LightSet& lights, const RelightOptions& options) const {
-  return impl_->cpu->plan(lights, options);
-}
-
-void GpuRelighter::invalidate() {
-  impl_->emission_valid = false;
-  impl_->emitter_valid = false;
-  impl_->surfel_emit_valid = false;
-  impl_->grid_emit_valid = false;
-  impl_->layer->invalidate(true);
-}
-
-Status GpuRelighter::relightInto(const LightSet& lights, const RelightOptions& o, RelightResult& res) {
-  Impl& m = *impl_;
-  const int link_bands = m.lm_view.bands;
-  if (Status s = validateRequest(lights, o, link_bands, m.ns, m.scene.materials.size()); !s) return s;
-  GlContext::Current cur(*m.ctx);
-  if (!cur.status()) return cur.status();
-  Status s = m.run(lights, o, res);
-  if (s) s = glCheck("gpu relight");
-  return s;
-}
-
-Status GpuRelighter::Impl::run(const LightSet& lights, const RelightOptions& o, RelightResult& res) {
-  const int link_bands = lm_view.bands;
-  const int bands = o.bands == 0 ? link_bands : o.bands;
-  const int nc = bands * bands;
-  const int stride = 3 * nc;
-  res.timings.clear(), res.bounce_log.clear(), res.warnings.clear();
-  res.passes = {}, res.counts = {}, res.bounce_stop.clear();
-  res.backend = "gpu";
-  res.kernel = fmt::format("glsl-lanes{}", options.lanes);
-  res.version = lights.version();
-  res.link_form = o.link_form;
-  res.bands = bands;
-  res.width = p.lightmap.width;
-  res.height = p.lightmap.height;
-  res.plan = cpu->plan(lights, o);
-  const EffectsPlan& plan = res.plan;
-  res.counts.surfels = ns;
-  res.counts.nodes = nodes;
-  res.counts.caches = ncache;
-  res.counts.grid_caches = plan.grid ? ngrid : 0;
-  const auto gt = cpu->gatherTables();
-  res.counts.surfels_without_gather = gt.surfels_without_gather;
-  ensureBuffers(stride);
+Status GpuPasses::begin(const RelightFrame& f) {
+  ensureBuffers(int(f.stride));
   timers.reset();
-  std::vector<std::pair<std::string, double>> host_stages;  // CPU-side stages, host seconds
-  auto gpuStage = [&](std::string name, auto&& body) -> Status {
-    timers.begin(std::move(name));
-    Status st = body();
-    timers.end();
-    return st;
-  };
+  host_stages.clear();
+  lights_ready = false;
+  if (bounce_fence) glDeleteSync(bounce_fence), bounce_fence = nullptr;
+  return {};
+}
 
-  // ---- lights and shadow maps --------------------------------------------------------
-  const auto& L = lights.lights();
-  const bool given_e = !o.surfel_irradiance.empty();
+Status GpuPasses::setEmission(std::span<const glm::vec3> emission_b, std::uint64_t generation) {
+  if (generation == emission_generation) return {};
+  std::vector<glm::vec4> ae(2 * ns);
+  for (std::size_t s = 0; s < ns; ++s) {
+    ae[2 * s] = glm::vec4(p.surfels.albedo[s], 0.0f);
+    ae[2 * s + 1] = glm::vec4(s < emission_b.size() ? emission_b[s] : glm::vec3(0.0f), 0.0f);
+  }
+  albedo_emit.upload(ae.data(), ae.size() * 16);
+  emission_generation = generation;
+  return {};
+}
+
+// The relight's lights and, for those a pass evaluates, their shadow maps: all emitting
+// lights for the surfels (unless the surfel light is given), baked ones for the texels.
+Status GpuPasses::prepareLights(const RelightFrame& f) {
+  if (lights_ready) return {};
+  lights_ready = true;
+  const auto& L = f.lights.lights();
+  const bool given_e = !f.options.surfel_irradiance.empty();
   std::vector<GpuLight> gl(L.size());
-  std::vector<std::uint8_t> emits(L.size());
+  emits.assign(L.size(), 0);
   for (std::size_t i = 0; i < L.size(); ++i) {
     const scene::Light& l = L[i].light;
-    emits[i] = lightEmits(l);
+    emits[i] = relight::detail::lightEmits(l);
     GpuLight& g = gl[i];
     g.position_range = glm::vec4(l.position, l.range);
     g.direction_cos_outer = glm::vec4(l.direction, std::cos(l.outer_cone_angle));
@@ -528,17 +448,15 @@ Status GpuRelighter::Impl::run(const LightSet& lights, const RelightOptions& o, 
                                                                     : kLightDirectional,
                               0, 0, 0);
   }
-  // Only lights the passes evaluate need maps: all emitting ones for the surfels (unless the
-  // surfel light is given), baked ones for the texels.
   std::vector<std::uint8_t> mapped(L.size());
   for (std::size_t i = 0; i < L.size(); ++i)
-    mapped[i] = emits[i] && ((!given_e && plan.punctual) || (plan.baked_direct && L[i].baked));
+    mapped[i] = emits[i] && ((!given_e && f.plan.punctual) || (f.plan.baked_direct && f.coarse_direct && L[i].baked));
   std::vector<GpuShadowView> views;
   const bool any_mapped = std::find(mapped.begin(), mapped.end(), 1) != mapped.end();
   if (any_mapped) {
     std::vector<scene::Light> raw(L.size());
     for (std::size_t i = 0; i < L.size(); ++i) raw[i] = L[i].light;
-    if (Status st = gpuStage("shadow_maps", [&] { return shadows->render(raw, mapped, gl, views); }); !st) return st;
+    if (Status st = stage("shadow_maps", [&] { return shadows->render(raw, mapped, gl, views); }); !st) return st;
   }
   const float scene_size = std::max(scene.scale, 1e-6f);
   for (GlProgram* prog : {&light_surfels, &light_caches}) {
@@ -553,23 +471,31 @@ Status GpuRelighter::Impl::run(const LightSet& lights, const RelightOptions& o, 
     views_buf = GlBuffer(std::max<std::size_t>(views.size(), 12) * sizeof(GpuShadowView), nullptr);
   views_buf.upload(views.data(), views.size() * sizeof(GpuShadowView));
   if (any_mapped) glBindTextureUnit(kLpShadowUnit, shadows->texture());
+  return {};
+}
 
-  // ---- surfel direct radiosity b0 (and b = b0) ----------------------------------------
-  // The emitters' direct light at the surfels starts the sum the shader adds punctual lights
-  // to (the CPU relighter's surfel_emit, docs/quality.md "Where the energy went").
-  if (!surfel_emit_valid || !sameEmissive(surfel_emit_overrides, lights.emissive())) {
-    cpu->surfelEmitterIrradiance(lights, surfel_emit);
-    surfel_emit_valid = true;
-    surfel_emit_overrides = lights.emissive();
-  }
+Status GpuPasses::surfelDirect(const RelightFrame& f, std::span<const glm::vec3> surfel_emit, RelightResult& res) {
+  if (Status st = prepareLights(f); !st) return st;
+  const auto& given_e = f.options.surfel_irradiance;
+  // The emitters' direct light at the surfels starts the sum the shader adds punctual
+  // lights to (docs/quality.md "Where the energy went").
   const bool surfel_emits =
       std::any_of(surfel_emit.begin(), surfel_emit.end(), [](const glm::vec3& e) { return e != glm::vec3(0.0f); });
-  const bool use_given = given_e || surfel_emits;
-  if (Status st = gpuStage("surfel_direct", [&]() -> Status {
+  const bool use_given = !given_e.empty() || surfel_emits;
+  if (f.plan.sky) {
+    // The sky matrix is ready now (the pipeline builds it before the first cache lighting).
+    std::vector<float> all;
+    for (int ch = 0; ch < 3; ++ch) all.insert(all.end(), f.sky_matrix[ch].begin(), f.sky_matrix[ch].end());
+    if (sky_matrix.bytes() < all.size() * 4) sky_matrix = GlBuffer(all.size() * 4, nullptr);
+    sky_matrix.upload(all.data(), all.size() * 4);
+  }
+  if (Status st = stage("surfel_direct", [&]() -> Status {
         if (use_given) {
           std::vector<glm::vec4> e(ns);
           for (std::size_t s = 0; s < ns; ++s)
-            e[s] = glm::vec4((given_e ? o.surfel_irradiance[s] : glm::vec3(0.0f)) + surfel_emit[s], 0.0f);
+            e[s] = glm::vec4((given_e.empty() ? glm::vec3(0.0f) : given_e[s]) +
+                                 (s < surfel_emit.size() ? surfel_emit[s] : glm::vec3(0.0f)),
+                             0.0f);
           given.upload(e.data(), e.size() * 16);
         }
         surfel_pos.bindStorage(kLpPositions);
@@ -582,199 +508,122 @@ Status GpuRelighter::Impl::run(const LightSet& lights, const RelightOptions& o, 
         b0.bindStorage(kLpOut);
         b.bindStorage(kLpOut2);
         light_surfels.set("u_count", std::uint32_t(ns));
-        light_surfels.set("u_light_count", given_e || !plan.punctual ? 0 : int(L.size()));
+        light_surfels.set("u_light_count", !given_e.empty() || !f.plan.punctual ? 0 : int(f.lights.lights().size()));
         light_surfels.set("u_use_given", use_given ? 1 : 0);
         dispatch(light_surfels, ns, 64);
         return {};
       });
       !st)
     return st;
-  res.counts.surfels_lit = plan.punctual ? ns : 0;
-  res.passes.surfel_direct = plan.punctual ? 1 : 0;
+  res.counts.surfels_lit = f.plan.punctual ? ns : 0;
+  res.passes.surfel_direct = f.plan.punctual ? 1 : 0;
   debugSum("b0", b0);
-  debugSum("b", b);
+  return {};
+}
 
-  // ---- emission: host-side per surfel after overrides --------------------------------
-  const bool has_emission = plan.emissive;
-  if (!emission_valid || !sameEmissive(emission_overrides, lights.emissive())) {
-    cpu->surfelEmission(lights, emission_b);
-    std::vector<glm::vec4> ae(2 * ns);
-    for (std::size_t s = 0; s < ns; ++s) {
-      ae[2 * s] = glm::vec4(p.surfels.albedo[s], 0.0f);
-      ae[2 * s + 1] = glm::vec4(has_emission ? emission_b[s] : glm::vec3(0.0f), 0.0f);
-    }
-    albedo_emit.upload(ae.data(), ae.size() * 16);
-    emission_valid = true;
-    emission_overrides = lights.emissive();
-  }
-  // Every cache's links read reflected radiosity only: the emitters' light reaches the
-  // texels as sampled direct and the grid as sampled SH (added at readback).
-  if (has_emission) res.passes.emission = 1;
-  if (plan.sky) {
-    std::vector<float> m[3];
-    cpu->skyMatrix(lights.sky(), bands, m);
-    std::vector<float> all;
-    for (auto& ch : m) all.insert(all.end(), ch.begin(), ch.end());
-    if (sky_matrix.bytes() < all.size() * 4) sky_matrix = GlBuffer(all.size() * 4, nullptr);
-    sky_matrix.upload(all.data(), all.size() * 4);
-  }
-
-  auto pullAndLight = [&](const std::string& pull_stage, const std::string& rad_stage,
-                          const std::string& cache_stage) -> Status {
-    if (Status st = gpuStage(pull_stage, [&] {
-          pullFlux(b);
-          return Status{};
-        });
-        !st)
-      return st;
-    if (Status st = gpuStage(rad_stage, [&] {
-          tree_nodes.bindStorage(kPuNodes);
-          flux.bindStorage(kPuFlux);
-          rad.bindStorage(kPuRad);
-          radiosity.set("u_count", std::uint32_t(nodes));
-          dispatch(radiosity, nodes, 256);
-          debugSum("flux", flux);
-          debugSum("rad", rad);
-          return Status{};
-        });
-        !st)
-      return st;
-    res.passes.pulls++;
-    res.counts.nodes_pulled = nodes;
-    return gpuStage(cache_stage, [&]() -> Status {
-      if (Status st = lightCaches(lm, rad, lm_sh, bands, o.link_form, plan.sky); !st) return st;
-      debugSum("lm_sh", lm_sh);
-      res.passes.cache_lighting++;
-      res.passes.sky += plan.sky ? 1 : 0;
-      res.counts.caches_summed = lm.caches;
-      res.counts.links_read += lm.links;
-      if (plan.grid) {
-        if (Status st = lightCaches(grid, rad, grid_sh, bands, o.link_form, plan.sky); !st)
-          return st;
-        debugSum("grid_sh", grid_sh);
-        res.passes.grid_lighting++;
-        res.counts.grid_caches_summed = grid.caches;
-        res.counts.links_read += grid.links;
-      }
-      return {};
-    });
-  };
-  if (Status st = pullAndLight("pull", "node_radiosity", "cache_lighting"); !st) return st;
-  // The emitters' light reached the surfels as direct light (surfel_emit): the bounces
-  // gather reflected light only, as on the CPU.
-
-  if (!(plan.punctual || plan.emissive || plan.sky)) res.bounce_stop = "no light";
-  else if (o.max_bounces == 0) res.bounce_stop = "disabled";
-  else res.bounce_stop = "cap";
-  const std::size_t groups = (ns + kGatherGroup - 1) / kGatherGroup;
-  const std::size_t partials_offset = staging_bytes - partials.bytes();
-  if (plan.bounces) {
-    auto gather = variant("gather.comp", {{"BANDS", std::to_string(bands)}});
-    if (!gather) return gather.status();
-    const GlProgram& gp = **gather;
-    for (int k = 1; k <= plan.max_bounces; ++k) {
-      const auto t0 = Clock::now();
-      if (Status st = gpuStage(fmt::format("bounce{}_gather", k), [&]() -> Status {
-            applyFill(lm_fill, lm_sh, stride);
-            if (plan.grid) applyFill(grid_fill, grid_sh, stride);
-            gather_begin.bindStorage(kGaBegin);
-            gather_cache.bindStorage(kGaCache);
-            gather_weight.bindStorage(kGaWeight);
-            gather_from_grid.bindStorage(kGaFromGrid);
-            lm_sh.bindStorage(kGaLightmapSh);
-            (plan.grid ? grid_sh : dummy).bindStorage(kGaGridSh);
-            surfel_normal_area.bindStorage(kGaSurfel);
-            albedo_emit.bindStorage(kGaAlbedoEmit);
-            b0.bindStorage(kGaB0);
-            b.bindStorage(kGaB);
-            partials.bindStorage(kGaPartials);
-            gp.set("u_count", std::uint32_t(ns));
-            dispatch(gp, ns, kGatherGroup);
-            return {};
-          });
-          !st)
-        return st;
-      // The stop test's two sums travel behind a fence while the GPU pulls and lights.
-      glMemoryBarrier(GL_BUFFER_UPDATE_BARRIER_BIT | GL_CLIENT_MAPPED_BUFFER_BARRIER_BIT);
-      glCopyNamedBufferSubData(partials.id(), staging.id(), 0, GLintptr(partials_offset), GLsizeiptr(groups * 8));
-      GLsync fence = glFenceSync(GL_SYNC_GPU_COMMANDS_COMPLETE, 0);
-      Status st = pullAndLight(fmt::format("bounce{}_pull", k), fmt::format("bounce{}_node_radiosity", k),
-                               fmt::format("bounce{}_cache_lighting", k));
-      if (!st) {
-        glDeleteSync(fence);
-        return st;
-      }
-      const GLenum w = glClientWaitSync(fence, GL_SYNC_FLUSH_COMMANDS_BIT, 60'000'000'000ull);
-      glDeleteSync(fence);
-      if (w == GL_TIMEOUT_EXPIRED || w == GL_WAIT_FAILED) return internalError("gpu: bounce {} did not finish", k);
-      const auto* part = reinterpret_cast<const float*>(static_cast<const char*>(staging_ptr) + partials_offset);
-      double added = 0.0, total = 0.0;  // group order: the CPU's chunk order
-      for (std::size_t g = 0; g < groups; ++g) added += part[2 * g], total += part[2 * g + 1];
-      res.passes.bounces++;
-      res.bounce_log.push_back({k, added, total, secondsSince(t0)});
-      if (added < double(o.bounce_threshold) * total) {
-        res.bounce_stop = "threshold";
-        break;
-      }
-    }
-  }
-
-  // ---- the emitters' light at the grid caches: the CPU relighter's sampling -----------
-  if (plan.grid) {
-    const auto t0 = Clock::now();
-    if (grid_emit_valid && grid_emit_bands == bands && sameEmissive(grid_emit_overrides, lights.emissive())) {
-      res.counts.grid_emitter_reused = grid_emit.empty() ? 0 : 1;
-    } else {
-      res.counts.shadow_rays += cpu->gridEmitterRadiance(lights, bands, grid_emit);
-      grid_emit_valid = true;
-      grid_emit_overrides = lights.emissive();
-      grid_emit_bands = bands;
-      res.passes.grid_emitter = grid_emit.empty() ? 0 : 1;
-    }
-    host_stages.emplace_back("grid_emitter", secondsSince(t0));
-  }
-
-  // ---- baked direct at lightmap caches: GPU punctual lights + CPU emitter sampling ---
-  if (plan.emissive_direct) {
-    const auto t0 = Clock::now();
-    if (emitter_valid && emitter_samples == o.emitter_samples && sameEmissive(emitter_overrides, lights.emissive())) {
-      res.counts.emitter_direct_reused = 1;
-    } else {
-      const relight::detail::EmitterSampler sampler(scene, accel, lights.emissive());
-      emitter_triangles = sampler.triangleCount();
-      emitter_cache.assign(ncache, glm::vec4(0.0f));
-      constexpr std::size_t kChunk = 64;
-      const std::size_t chunks = (ncache + kChunk - 1) / kChunk;
-      std::vector<std::size_t> chunk_rays(chunks, 0);
-      tbb::parallel_for(tbb::blocked_range<std::size_t>(0, chunks, 1), [&](const tbb::blocked_range<std::size_t>& r) {
-        relight::detail::EmitterSampler::Scratch scratch;
-        for (std::size_t ch = r.begin(); ch < r.end(); ++ch) {
-          std::size_t rays = 0;
-          for (std::size_t c = ch * kChunk; c < std::min(ncache, (ch + 1) * kChunk); ++c) {
-            if (!p.lightmap.valid[c]) continue;
-            // The CPU backend's seed per texel: the same noise on both backends.
-            const std::uint64_t seed = mixBits(0x6c6c656d69747465ULL ^ p.lightmap.texel[c]);
-            emitter_cache[c] = glm::vec4(
-                sampler.irradiance(p.lightmap.position[c], p.lightmap.normal[c], o.emitter_samples, seed, scratch, rays),
-                0.0f);
-          }
-          chunk_rays[ch] = rays;
-        }
+Status GpuPasses::pullAndLight(const RelightFrame& f, const std::string& prefix, bool light_grid,
+                               RelightResult& res) {
+  if (Status st = stage(prefix + "pull", [&] {
+        pullFlux(b);
+        return Status{};
       });
-      for (std::size_t r : chunk_rays) res.counts.shadow_rays += r;
-      emitter_buf.upload(emitter_cache.data(), emitter_cache.size() * 16);
-      emitter_valid = true;
-      emitter_samples = o.emitter_samples;
-      emitter_overrides = lights.emissive();
-      res.passes.emissive_direct = 1;
+      !st)
+    return st;
+  if (Status st = stage(prefix + "node_radiosity", [&] {
+        tree_nodes.bindStorage(kPuNodes);
+        flux.bindStorage(kPuFlux);
+        rad.bindStorage(kPuRad);
+        radiosity.set("u_count", std::uint32_t(nodes));
+        dispatch(radiosity, nodes, 256);
+        debugSum("rad", rad);
+        return Status{};
+      });
+      !st)
+    return st;
+  res.passes.pulls++;
+  res.counts.nodes_pulled = nodes;
+  const int bands = f.bands;
+  return stage(prefix + "cache_lighting", [&]() -> Status {
+    if (Status st = lightCaches(lm, rad, lm_sh, bands, f.options.link_form, f.plan.sky); !st) return st;
+    debugSum("lm_sh", lm_sh);
+    res.passes.cache_lighting++;
+    res.passes.sky += f.plan.sky ? 1 : 0;
+    res.counts.caches_summed = lm.caches;
+    res.counts.links_read += lm.links;
+    if (light_grid) {
+      if (Status st = lightCaches(grid, rad, grid_sh, bands, f.options.link_form, f.plan.sky); !st) return st;
+      debugSum("grid_sh", grid_sh);
+      res.passes.grid_lighting++;
+      res.counts.grid_caches_summed = grid.caches;
+      res.counts.links_read += grid.links;
     }
-    res.counts.emitter_triangles = emitter_triangles;
-    host_stages.emplace_back("emissive_direct", secondsSince(t0));
-  } else {
-    emitter_valid = false;
+    return {};
+  });
+}
+
+Status GpuPasses::gather(const RelightFrame& f, int bounce, bool fill_grid, RelightResult&) {
+  auto program = variant("gather.comp", {{"BANDS", std::to_string(f.bands)}});
+  if (!program) return program.status();
+  const GlProgram& gp = **program;
+  const int stride = int(f.stride);
+  if (Status st = stage(fmt::format("bounce{}_gather", bounce), [&]() -> Status {
+        applyFill(lm_fill, lm_sh, stride);
+        if (fill_grid) applyFill(grid_fill, grid_sh, stride);
+        gather_begin.bindStorage(kGaBegin);
+        gather_cache.bindStorage(kGaCache);
+        gather_weight.bindStorage(kGaWeight);
+        gather_from_grid.bindStorage(kGaFromGrid);
+        lm_sh.bindStorage(kGaLightmapSh);
+        (f.plan.grid ? grid_sh : dummy).bindStorage(kGaGridSh);
+        surfel_normal_area.bindStorage(kGaSurfel);
+        albedo_emit.bindStorage(kGaAlbedoEmit);
+        b0.bindStorage(kGaB0);
+        b.bindStorage(kGaB);
+        partials.bindStorage(kGaPartials);
+        gp.set("u_count", std::uint32_t(ns));
+        dispatch(gp, ns, kGatherGroup);
+        return {};
+      });
+      !st)
+    return st;
+  // The stop test's two sums travel behind a fence while the GPU pulls and lights.
+  const std::size_t groups = (ns + kGatherGroup - 1) / kGatherGroup;
+  glMemoryBarrier(GL_BUFFER_UPDATE_BARRIER_BIT | GL_CLIENT_MAPPED_BUFFER_BARRIER_BIT);
+  glCopyNamedBufferSubData(partials.id(), staging.id(), 0, GLintptr(staging_bytes - partials.bytes()),
+                           GLsizeiptr(groups * 8));
+  if (bounce_fence) glDeleteSync(bounce_fence);
+  bounce_fence = glFenceSync(GL_SYNC_GPU_COMMANDS_COMPLETE, 0);
+  return {};
+}
+
+Expected<relight::BounceSums> GpuPasses::bounceSums() {
+  if (!bounce_fence) return internalError("gpu: bounce sums asked for before a gather");
+  const GLenum w = glClientWaitSync(bounce_fence, GL_SYNC_FLUSH_COMMANDS_BIT, 60'000'000'000ull);
+  glDeleteSync(bounce_fence);
+  bounce_fence = nullptr;
+  if (w == GL_TIMEOUT_EXPIRED || w == GL_WAIT_FAILED) return internalError("gpu: a bounce did not finish");
+  const std::size_t groups = (ns + kGatherGroup - 1) / kGatherGroup;
+  const auto* part =
+      reinterpret_cast<const float*>(static_cast<const char*>(staging_ptr) + (staging_bytes - partials.bytes()));
+  relight::BounceSums sums;  // group order: the CPU's chunk order
+  for (std::size_t g = 0; g < groups; ++g) sums.added += part[2 * g], sums.total += part[2 * g + 1];
+  return sums;
+}
+
+Status GpuPasses::cacheDirect(const RelightFrame& f, const relight::EmitterTexels& emitter, RelightResult& res) {
+  const bool baked = f.plan.baked_direct && f.coarse_direct;
+  const bool emitted = !emitter.value.empty();
+  if (emitted && emitter.generation != emitter_generation) {
+    std::vector<glm::vec4> e(ncache);
+    for (std::size_t c = 0; c < ncache && c < emitter.value.size(); ++c) e[c] = glm::vec4(emitter.value[c], 0.0f);
+    emitter_buf.upload(e.data(), e.size() * 16);
+    emitter_generation = emitter.generation;
   }
-  if (Status st = gpuStage("baked_direct", [&]() -> Status {
-        if (!plan.baked_direct && !plan.emissive_direct) {
+  if (baked)
+    if (Status st = prepareLights(f); !st) return st;
+  const auto& L = f.lights.lights();
+  if (Status st = stage("baked_direct", [&]() -> Status {
+        if (!baked && !emitted) {
           cache_direct.zero();
           return {};
         }
@@ -784,24 +633,28 @@ Status GpuRelighter::Impl::run(const LightSet& lights, const RelightOptions& o, 
         views_buf.bindStorage(kLpViews);
         cache_valid.bindStorage(kLpValid);
         dummy.bindStorage(kLpAlbedo);
-        (plan.emissive_direct ? emitter_buf : dummy).bindStorage(kLpGiven);
+        (emitted ? emitter_buf : dummy).bindStorage(kLpGiven);
         cache_direct.bindStorage(kLpOut);
         dummy.bindStorage(kLpOut2);
         light_caches.set("u_count", std::uint32_t(ncache));
-        light_caches.set("u_light_count", plan.baked_direct ? int(L.size()) : 0);
-        light_caches.set("u_use_given", plan.emissive_direct ? 1 : 0);
+        light_caches.set("u_light_count", baked ? int(L.size()) : 0);
+        light_caches.set("u_use_given", emitted ? 1 : 0);
         dispatch(light_caches, ncache, 64);
         return {};
       });
       !st)
     return st;
-  for (std::size_t i = 0; i < L.size(); ++i) res.passes.baked_direct += plan.baked_direct && L[i].baked && emits[i];
+  if (baked)
+    for (std::size_t i = 0; i < L.size(); ++i) res.passes.baked_direct += L[i].baked && emits[i];
+  return {};
+}
 
-  // ---- fill, texels, dilation -----------------------------------------------------------
-  if (Status st = gpuStage("fill_dilate", [&]() -> Status {
+Status GpuPasses::texels(const RelightFrame& f, RelightResult& res) {
+  const int stride = int(f.stride);
+  if (Status st = stage("fill_dilate", [&]() -> Status {
         applyFill(lm_fill, lm_sh, stride);
         applyFill(lm_fill, cache_direct, 4);
-        if (plan.grid) applyFill(grid_fill, grid_sh, stride);
+        if (f.plan.grid) applyFill(grid_fill, grid_sh, stride);
         cache_of_texel.bindStorage(kTxCacheOfTexel);
         lm_has_value.bindStorage(kTxHasValue);
         lm_sh.bindStorage(kTxCacheSh);
@@ -809,9 +662,9 @@ Status GpuRelighter::Impl::run(const LightSet& lights, const RelightOptions& o, 
         texel_sh.bindStorage(kTxTexelSh);
         texel_direct.bindStorage(kTxTexelDirect);
         texel_valid.bindStorage(kTxTexelValid);
-        texel_pass.set("u_count", std::uint32_t(texels));
+        texel_pass.set("u_count", std::uint32_t(texels_));
         texel_pass.set("u_stride", std::uint32_t(stride));
-        dispatch(texel_pass, texels, 64);
+        dispatch(texel_pass, texels_, 64);
         if (dilation.count) {
           dilation.target.bindStorage(kFiTarget);
           dilation.begin.bindStorage(kFiBegin);
@@ -831,88 +684,142 @@ Status GpuRelighter::Impl::run(const LightSet& lights, const RelightOptions& o, 
       !st)
     return st;
   res.passes.fill = 1;
+  readBack(f, res);
+  for (auto& [name, sec] : timers.resolve()) res.timings.push_back({name, sec});
+  for (auto& [name, sec] : host_stages) res.timings.push_back({name, sec});
+  return glCheck("gpu relight");
+}
 
-  // ---- readback: one copy into the mapped staging buffer, one fence ---------------------
+// One copy of everything RelightResult carries into the mapped staging buffer, one fence.
+void GpuPasses::readBack(const RelightFrame& f, RelightResult& res) {
   const auto t_read = Clock::now();
-  const std::size_t sh_bytes = texels * std::size_t(stride) * 4;
-  const std::size_t grid_bytes = plan.grid ? ngrid * std::size_t(stride) * 4 : 0;
-  std::size_t off = 0;
-  const std::size_t off_sh = off;
-  off += texels * std::size_t(stride) * 4;
-  const std::size_t off_dir = off;
-  off += texels * 16;
-  const std::size_t off_valid = off;
-  off += texels * 4;
-  const std::size_t off_grid = off;
-  off += ngrid * std::size_t(stride) * 4;
-  const std::size_t off_b = off;
+  const std::size_t stride = f.stride;
+  const std::size_t sh_bytes = texels_ * stride * 4;
+  const std::size_t grid_bytes = f.plan.grid ? ngrid * stride * 4 : 0;
+  const std::size_t off_sh = 0, off_dir = off_sh + sh_bytes, off_valid = off_dir + texels_ * 16;
+  const std::size_t off_grid = off_valid + texels_ * 4, off_b = off_grid + ngrid * stride * 4;
   timers.begin("readback_copy");
   glMemoryBarrier(GL_BUFFER_UPDATE_BARRIER_BIT | GL_CLIENT_MAPPED_BUFFER_BARRIER_BIT);
   auto copy = [&](const GlBuffer& src, std::size_t dst_off, std::size_t bytes) {
     if (bytes) glCopyNamedBufferSubData(src.id(), staging.id(), 0, GLintptr(dst_off), GLsizeiptr(bytes));
   };
   copy(texel_sh, off_sh, sh_bytes);
-  copy(texel_direct, off_dir, texels * 16);
-  copy(texel_valid, off_valid, texels * 4);
+  copy(texel_direct, off_dir, texels_ * 16);
+  copy(texel_valid, off_valid, texels_ * 4);
   copy(grid_sh, off_grid, grid_bytes);
   copy(b, off_b, ns * 16);
   timers.end();
   GLsync fence = glFenceSync(GL_SYNC_GPU_COMMANDS_COMPLETE, 0);
   const GLenum w = glClientWaitSync(fence, GL_SYNC_FLUSH_COMMANDS_BIT, 120'000'000'000ull);
   glDeleteSync(fence);
-  if (w == GL_TIMEOUT_EXPIRED || w == GL_WAIT_FAILED) return internalError("gpu: relight did not finish");
+  if (w == GL_TIMEOUT_EXPIRED || w == GL_WAIT_FAILED) {
+    res.warnings.push_back("gpu: the readback did not finish");
+    return;
+  }
   const char* base = static_cast<const char*>(staging_ptr);
-  res.lightmap_sh.resize(texels * std::size_t(stride));
+  res.lightmap_sh.resize(texels_ * stride);
   std::memcpy(res.lightmap_sh.data(), base + off_sh, sh_bytes);
-  res.direct.resize(texels);
-  res.texel_valid.resize(texels);
+  if (f.coarse_direct) {
+    res.direct.resize(texels_);
+    res.direct_width = res.width, res.direct_height = res.height;
+    res.direct_valid.clear();
+  }
+  res.texel_valid.resize(texels_);
   const auto* dir4 = reinterpret_cast<const glm::vec4*>(base + off_dir);
   const auto* valid4 = reinterpret_cast<const std::uint32_t*>(base + off_valid);
   std::size_t filled = 0;
-  for (std::size_t t = 0; t < texels; ++t) {
-    res.direct[t] = glm::vec3(dir4[t]);
+  for (std::size_t t = 0; t < texels_; ++t) {
+    if (f.coarse_direct) res.direct[t] = glm::vec3(dir4[t]);
     res.texel_valid[t] = valid4[t] ? 1 : 0;
     filled += res.texel_valid[t];
   }
-  res.counts.texels = texels;
+  res.counts.texels = texels_;
   res.counts.texels_filled = filled;
-  if (plan.grid) {
-    res.grid_sh.resize(ngrid * std::size_t(stride));
+  if (f.plan.grid) {
+    res.grid_sh.resize(ngrid * stride);
     std::memcpy(res.grid_sh.data(), base + off_grid, grid_bytes);
-    if (!grid_emit.empty())
-      for (std::size_t i = 0; i < res.grid_sh.size(); ++i) res.grid_sh[i] += grid_emit[i];
   } else {
     res.grid_sh.clear();
   }
   res.surfel_radiosity.resize(ns);
   const auto* b4 = reinterpret_cast<const glm::vec4*>(base + off_b);
-  for (std::size_t s = 0; s < ns; ++s)
-    res.surfel_radiosity[s] = glm::vec3(b4[s]) + (has_emission ? emission_b[s] : glm::vec3(0.0f));
+  for (std::size_t s = 0; s < ns; ++s) res.surfel_radiosity[s] = glm::vec3(b4[s]);
   host_stages.emplace_back("readback", secondsSince(t_read));
+}
 
-  res.direct_width = res.width, res.direct_height = res.height;
-  res.direct_valid.clear();
-  res.seams = {}, res.direct_seams = {};
-  if (o.smooth_indirect) cpu->smoothIndirect(res);  // the CPU backend's filter, on the read-back texels
-  if (o.stitch_seams) {
-    seams.apply(res.lightmap_sh.data(), std::size_t(stride), &res.seams);
-    if (!layer->active()) seams.apply(reinterpret_cast<float*>(res.direct.data()), 3, &res.direct_seams);
+// ---- GpuRelighter: the relight pipeline with the GPU passes ----------------------------------
+
+struct GpuRelighter::Impl {
+  std::unique_ptr<GlContext> ctx;
+  std::unique_ptr<relight::SceneTables> tables;
+  GpuPasses* passes = nullptr;  // owned by the pipeline
+  std::unique_ptr<relight::RelightPipeline> pipeline;
+};
+
+GpuRelighter::GpuRelighter(std::unique_ptr<Impl> impl) : impl_(std::move(impl)) {}
+
+GpuRelighter::~GpuRelighter() {
+  if (!impl_ || !impl_->ctx) return;
+  // GL objects die with the context current; the context itself last, once released.
+  std::unique_ptr<GlContext> ctx = std::move(impl_->ctx);
+  {
+    GlContext::Current cur(*ctx);
+    impl_.reset();
   }
-  for (auto& [name, sec] : timers.resolve()) res.timings.push_back({name, sec});
-  for (auto& [name, sec] : host_stages) res.timings.push_back({name, sec});
-  if (layer->active()) layer->compute(lights, o, plan, res);
-  if (gt.surfels_without_gather > 0 && plan.bounces)
-    res.warnings.push_back(fmt::format("{} surfels have no lightmap texel or grid cache to gather bounces from",
-                                       gt.surfels_without_gather));
-  return {};
+}
+
+const GlContextInfo& GpuRelighter::info() const { return impl_->ctx->info(); }
+
+Expected<std::unique_ptr<GpuRelighter>> GpuRelighter::create(const scene::Scene& scene, const rt::Accel& accel,
+                                                             const precompute::Precomputation& p,
+                                                             links::LinksView lightmap_links,
+                                                             links::LinksView grid_links, const GpuOptions& options) {
+  GpuOptions opts = options;
+  // Driver triage without a rebuild: LIGHTLINK_GPU_LANES overrides the threads per cache.
+  if (const char* lanes = std::getenv("LIGHTLINK_GPU_LANES")) opts.lanes = std::atoi(lanes);
+  if (opts.lanes < 1 || opts.lanes > 64 || (opts.lanes & (opts.lanes - 1)) != 0)
+    return invalidInput("gpu: lanes {} must be a power of two in 1..64", opts.lanes);
+  if (!(opts.bias_scene >= 0.0f) || !(opts.normal_offset_texels >= 0.0f) || !(opts.slope_bias_texels >= 0.0f))
+    return invalidInput("gpu: shadow biases must be finite and >= 0");
+  auto tables = relight::SceneTables::build(scene, accel, p, lightmap_links, grid_links);
+  if (!tables) return tables.status();
+  auto ctx = GlContext::create();
+  if (!ctx) return ctx.status();
+  auto impl = std::make_unique<Impl>();
+  impl->ctx = std::move(*ctx);
+  impl->tables = std::make_unique<relight::SceneTables>(std::move(*tables));
+  std::unique_ptr<GpuRelighter> r(new GpuRelighter(std::move(impl)));
+  Impl& m = *r->impl_;
+  GlContext::Current cur(*m.ctx);
+  if (!cur.status()) return cur.status();
+  auto passes = std::make_unique<GpuPasses>(*m.tables, opts);
+  if (Status s = passes->setup(); !s) return s;
+  m.passes = passes.get();
+  m.pipeline = std::make_unique<relight::RelightPipeline>(*m.tables, std::move(passes));
+  return r;
+}
+
+EffectsPlan GpuRelighter::plan(const LightSet& lights, const RelightOptions& options) const {
+  return impl_->pipeline->plan(lights, options);
+}
+
+void GpuRelighter::invalidate() { impl_->pipeline->invalidate(true); }
+
+Status GpuRelighter::relightInto(const LightSet& lights, const RelightOptions& o, RelightResult& res) {
+  GlContext::Current cur(*impl_->ctx);
+  if (!cur.status()) return cur.status();
+  return impl_->pipeline->relightInto(lights, o, res);
 }
 
 Expected<double> GpuRelighter::measureStream(std::size_t bytes, bool copy, int repeats) {
-  Impl& m = *impl_;
-  GlContext::Current cur(*m.ctx);
+  GlContext::Current cur(*impl_->ctx);
   if (!cur.status()) return cur.status();
+  return impl_->passes->measureStream(bytes, copy, repeats);
+}
+
+Expected<double> GpuPasses::measureStream(std::size_t bytes, bool copy, int repeats) {
   bytes = std::max<std::size_t>(bytes / 16 * 16, 16);
-  auto prog = m.variant("bandwidth.comp", copy ? std::vector<ShaderDefine>{{"COPY", "1"}} : std::vector<ShaderDefine>{});
+  auto prog = variant("bandwidth.comp", copy ? std::vector<ShaderDefine>{{"COPY", "1"}} : std::vector<ShaderDefine>{});
   if (!prog) return prog.status();
   GlBuffer src(bytes, nullptr), dst(copy ? bytes : 1 << 20, nullptr);
   src.bindStorage(kBwSource);
@@ -923,12 +830,12 @@ Expected<double> GpuRelighter::measureStream(std::size_t bytes, bool copy, int r
   const GLuint groups = GLuint(std::min<std::size_t>(std::max<std::size_t>(bytes / 16 / 256 / 8, 1), 65535));
   std::vector<double> t;
   for (int r = 0; r <= repeats; ++r) {
-    m.timers.reset();
-    m.timers.begin("stream");
+    timers.reset();
+    timers.begin("stream");
     glDispatchCompute(groups, 1, 1);
     glMemoryBarrier(GL_SHADER_STORAGE_BARRIER_BIT);
-    m.timers.end();
-    const auto res = m.timers.resolve();
+    timers.end();
+    const auto res = timers.resolve();
     if (r > 0) t.push_back(res[0].second);  // the first is a warm-up
   }
   if (Status s = glCheck("bandwidth kernel"); !s) return s;

@@ -1,24 +1,24 @@
-// GpuRelighter: the relight of core/relight (seed 000 sec 3) as OpenGL 4.5 compute passes on
-// a headless EGL context (DESIGN.md sec 10; docs/gpu.md).
+// GpuRelighter: the relight of core/relight (seed 000 sec 3) with OpenGL 4.5 compute passes
+// on a headless EGL context (DESIGN.md sec 10; docs/gpu.md): the one relight pipeline
+// (core/relight/pipeline.h) running the GPU's passes (GpuPasses, behind RelightPasses).
 //
 //   lights --shadow maps (raster)--> light_points.comp: surfel direct radiosity b0
 //          --leaf_flux + pull.comp per tree level + radiosity.comp--> node radiosity
 //          --cache_light.comp (projected fp16 or runtime links, + sky)--> cache SH
 //          --[fill.comp, gather.comp: bounce, repeat pull + cache lighting]--
-//          --light_points.comp (baked lights at lightmap caches) + emitter direct (CPU)-->
+//          --light_points.comp (baked lights at lightmap caches + the emitters' direct)-->
 //          --fill.comp, texels.comp, fill.comp (dilation)--> read back into RelightResult
 //
 // Everything static (surfels, tree, links as stored in the artifact, gather tables, fill
 // plans, the scene's triangles for shadow maps) is uploaded once at creation; everything per
 // relight stays on the GPU, and only what RelightResult carries is read back, through one
-// persistently mapped staging buffer and a fence. The bounce stop test needs two numbers
-// per bounce: they are copied to the staging buffer behind a fence while the GPU goes on
-// with that bounce's pull and cache lighting, so the host waits only for work it issued
-// anyway. Differences from the CPU: shadow maps instead of ray-traced shadows for punctual
-// lights (measured in tests/gpu and bench/gpu), fp32 sums in a different order, no
-// incremental relight (every relight is full). The emitters' direct light per texel (area
-// sampling with ray-traced soft shadows) runs on the CPU code and is reused while the
-// emission does not change, exactly as the CPU backend reuses it.
+// persistently mapped staging buffer and a fence. The bounce stop test's two sums are copied
+// to the staging buffer behind a fence while the GPU goes on with that bounce's pull and
+// cache lighting, so the host waits only for work it issued anyway. Differences from the
+// CPU: shadow maps instead of ray-traced shadows for punctual lights (measured in tests/gpu
+// and bench/gpu), fp32 sums in a different order, no incremental relight of one changed
+// light (a full relight instead). The emitters' sampled light comes from the pipeline, as
+// on the CPU, and is uploaded when it changes.
 #pragma once
 
 #include <memory>

@@ -1,4 +1,7 @@
-// Relighter: the per-light-change half of seed 000 (sec 3, 3.1, 3.2), on the CPU.
+// Relighter: the per-light-change half of seed 000 (sec 3, 3.1, 3.2), on the CPU — the one
+// relight pipeline (pipeline.h) running the CPU backend's passes (cpu_passes.h); the GPU
+// backend (gpu/gpu_relight.h) runs the same pipeline with its own passes. This header also
+// holds the types every backend shares: options, effects plan, counts and the result.
 //
 //   LightSet --(a) surfel direct light (shadow rays) + emission--> surfel radiosity B
 //            --(b) pull: flux up the tree, node radiosity B_node = Phi_node / A_node
@@ -12,7 +15,7 @@
 // *reflected* surfel radiosity rho * E, never the emitted pi * L_e, because the emitters'
 // direct light is sampled into `direct` (docs/relight.md "Direct vs indirect"). Grid caches
 // also gather reflected radiosity only, and the emitters' light is sampled into their SH
-// (gridEmitterRadiance): dynamic objects have no baked direct, so grid_sh holds both.
+// (EmissionState::updateGrid): dynamic objects have no baked direct, so grid_sh holds both.
 //
 // Units (docs/units.md): radiosity B in W/m^2-equivalent (the photometric units of the
 // lights: lux for lights in candela/lux, pi * radiance for emitters), node flux Phi = B * A,
@@ -175,7 +178,7 @@ struct RelightResult {
   std::vector<std::uint8_t> texel_valid;    // 1 = the texel has a cache, a fill or a dilation
   // Per grid cache (GridCaches order), 3 * bands^2 floats as above; empty without a grid.
   // All light arriving from surfaces and the sky: reflected light through the links, and
-  // the emitters' direct light sampled on the emitting triangles (gridEmitterRadiance).
+  // the emitters' direct light sampled on the emitting triangles (EmissionState::updateGrid).
   std::vector<float> grid_sh;
   std::vector<glm::vec3> surfel_radiosity;  // final B = rho * E + pi * L_e per surfel (tree order)
   EffectsPlan plan;
@@ -238,10 +241,9 @@ class Relighter {
   // True when this CPU runs the AVX2 + F16C kernels.
   static bool simdAvailable();
 
-  // The static tables a second backend (gpu) needs to reproduce this relight exactly.
-  // Bounce gather: surfel s reads caches cache[begin[s] .. begin[s + 1]) with weights, from
-  // the grid when from_grid[s], else from the lightmap caches; has_value: the caches that
-  // hold a value after the fill (valid, or filled from a valid neighbour).
+  // The bounce gather tables (scene_tables.h): surfel s reads caches cache[begin[s] ..
+  // begin[s + 1]) with weights, from the grid when from_grid[s], else from the lightmap
+  // caches; has_value: the caches that hold a value after the fill.
   struct GatherTables {
     std::span<const std::uint32_t> begin, cache;
     std::span<const float> weight;
@@ -249,28 +251,8 @@ class Relighter {
     std::size_t surfels_without_gather = 0;
   };
   GatherTables gatherTables() const;
-  // Per channel, the nc_out x nc_links (row-major) matrix that turns a cache's sky
-  // visibility SH into sky radiance SH, as cache lighting applies it.
-  void skyMatrix(const Sky& sky, int bands_out, std::vector<float> (&out)[3]) const;
   // Emitted radiosity pi * L_e per surfel (tree order) after the light set's overrides.
   void surfelEmission(const LightSet& lights, std::vector<glm::vec3>& out) const;
-  // The emitters' direct irradiance at every surfel (tree order, lux), sampled on the emitting
-  // triangles with kSurfelEmitterSamples shadow rays per surfel: the surfels' share of the
-  // emitters' light, added to their punctual direct light before the first pull (every
-  // backend feeds it to its surfel lighting). Zeros when no triangle emits.
-  void surfelEmitterIrradiance(const LightSet& lights, std::vector<glm::vec3>& out) const;
-  static constexpr int kSurfelEmitterSamples = 16;
-  // The SH (`bands` bands, 3 * bands^2 floats per grid cache, GridCaches order, the grid's
-  // fill applied) of the radiance the emitters send each grid cache over the whole sphere,
-  // sampled on the emitting triangles with kGridEmitterSamples shadow rays per cache: what the
-  // relight adds to the links' reflected light in grid_sh (every backend adds it the same
-  // way). Empty without a grid or when no triangle emits. Returns the shadow rays traced.
-  std::size_t gridEmitterRadiance(const LightSet& lights, int bands, std::vector<float>& out) const;
-  static constexpr int kGridEmitterSamples = 64;
-  // The smooth_indirect filter applied to `res.lightmap_sh` (texels holding their own cache,
-  // then the dilated texels re-derived from them), as relightInto applies it before the seam
-  // stitch; for a backend that writes its texels elsewhere (gpu).
-  void smoothIndirect(RelightResult& res);
 
  private:
   struct Impl;

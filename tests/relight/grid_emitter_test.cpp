@@ -2,7 +2,7 @@
 // the emitters through their links as emitted radiosity of cut nodes, where a small lamp near
 // a cache is blurred into one coarse node: 0.73 of the lamp's light against an ideal 3-band
 // projection here (0.83 with the default precompute's surfels and links). Now it is sampled on the emitting triangles and projected into the caches' SH
-// (Relighter::gridEmitterRadiance), and this test holds it to that ideal projection, computed
+// (EmissionState::updateGrid), and this test holds it to that ideal projection, computed
 // here by quadrature over the lamp.
 #include <cmath>
 #include <numbers>

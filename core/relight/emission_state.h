@@ -1,0 +1,72 @@
+// EmissionState: the light that depends on emission alone — the emitted radiosity per surfel
+// and the emitters' direct light sampled at the surfels, at the lightmap caches and at the
+// grid caches — computed when the emissive overrides (or a sample or band count) change and
+// reused while they hold. Emitter sampling is the bulk of a relight (N shadow rays per
+// texel), and an editor moving punctual lights or the sky never changes it. Owned by the
+// relight pipeline (pipeline.h) for every backend, so both backends see identical samples.
+#pragma once
+
+#include <cstdint>
+#include <span>
+#include <vector>
+
+#include <glm/glm.hpp>
+
+#include "core/relight/light_set.h"
+#include "core/relight/passes.h"
+#include "core/relight/relight.h"
+#include "core/relight/scene_tables.h"
+
+namespace lightlink::relight {
+
+// Emitted radiosity pi * L_e per surfel (tree order) after the light set's overrides.
+void surfelEmissionInto(const SceneTables& tables, const LightSet& lights, std::vector<glm::vec3>& out);
+
+class EmissionState {
+ public:
+  explicit EmissionState(const SceneTables& tables) : t_(tables) {}
+
+  // Each update*() recomputes when what it depends on changed and returns true then.
+  // pi * L_e per surfel.
+  bool updateEmission(const LightSet& lights);
+  // The emitters' direct irradiance at every surfel, kSurfelEmitterSamples shadow rays each
+  // (zeros when no triangle emits): added to the surfels' punctual light before the pull.
+  // Its rays are not counted in RelightCounts::shadow_rays (texel and grid rays are).
+  bool updateSurfels(const LightSet& lights);
+  // The emitters' direct irradiance per lightmap cache, `samples` shadow rays each.
+  bool updateTexels(const LightSet& lights, int samples, std::size_t& rays);
+  // The emitters' radiance SH per grid cache (3 * bands^2 floats each, the grid's fill
+  // applied; empty without a grid or when no triangle emits), kGridEmitterSamples rays each.
+  bool updateGrid(const LightSet& lights, int bands, std::size_t& rays);
+  // Texels take no emitter light (not baked, or a finer direct layer takes it).
+  void dropTexels();
+  void invalidate();
+
+  std::span<const glm::vec3> emission() const { return emission_; }
+  std::uint64_t emissionGeneration() const { return emission_generation_; }
+  std::span<const glm::vec3> surfels() const { return surfel_; }
+  EmitterTexels texels() const { return {texel_, texel_generation_}; }
+  const std::vector<float>& grid() const { return grid_; }
+  std::size_t emitterTriangles() const { return triangles_; }
+
+  static constexpr int kSurfelEmitterSamples = 16;
+  static constexpr int kGridEmitterSamples = 64;
+
+ private:
+  // The emission state one product was computed for.
+  struct Key {
+    bool valid = false;
+    std::vector<EmissiveOverride> overrides;
+    int count = 0;  // samples or bands
+    bool matches(const LightSet& lights, int c) const;
+    void set(const LightSet& lights, int c);
+  };
+  const SceneTables& t_;
+  Key emission_key_, surfel_key_, texel_key_, grid_key_;
+  std::vector<glm::vec3> emission_, surfel_, texel_;
+  std::vector<float> grid_;
+  std::size_t triangles_ = 0;
+  std::uint64_t emission_generation_ = 0, texel_generation_ = 0;
+};
+
+}  // namespace lightlink::relight
