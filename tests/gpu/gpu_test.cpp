@@ -296,5 +296,38 @@ TEST(GpuBake, BackendOptionReachesTheReport) {
   EXPECT_NE(out.find("--backend"), std::string::npos) << out;
 }
 
+
+// The GPU runs the one relight pipeline too: an unchanged light set rewrites only the texels
+// from the kept GPU buffers and gives the same result; a changed one is a full relight.
+TEST(GpuBackend, UnchangedLightSetRewritesOnlyTheTexels) {
+  REQUIRE_GPU();
+  const Fixture& f = demo();
+  auto gpu = makeGpuBackend(f.scene, *f.accel, f.p, f.p.lightmap_links.view(), f.p.grid_links.view());
+  ASSERT_TRUE(gpu) << gpu.status().toString();
+  relight::LightSet lights = relight::LightSet::fromScene(f.scene);
+  relight::RelightOptions o;
+  o.max_bounces = 3;
+  o.emitter_samples = 2;
+  relight::RelightResult first, again;
+  ASSERT_OK((*gpu)->relightInto(lights, o, first));
+  EXPECT_EQ(first.passes.unchanged, 0);
+  EXPECT_GT(first.passes.bounces, 0);
+  ASSERT_OK((*gpu)->relightInto(lights, o, again));
+  EXPECT_EQ(again.passes.unchanged, 1);
+  EXPECT_EQ(again.passes.cache_lighting, 0);
+  EXPECT_EQ(again.bounce_stop, first.bounce_stop);
+  EXPECT_EQ(again.lightmap_sh, first.lightmap_sh);
+  EXPECT_EQ(again.direct, first.direct);
+  EXPECT_EQ(again.grid_sh, first.grid_sh);
+  EXPECT_EQ(again.surfel_radiosity, first.surfel_radiosity);
+  relight::LightEntry moved = lights.lights().front();
+  moved.light.position += glm::vec3(0.05f, 0.0f, 0.0f) * f.scene.scale;
+  ASSERT_OK(lights.modify(moved));
+  ASSERT_OK((*gpu)->relightInto(lights, o, again));
+  EXPECT_EQ(again.passes.unchanged, 0);
+  EXPECT_EQ(again.passes.incremental, 0);  // the incremental path is the CPU's
+  EXPECT_NE(again.lightmap_sh, first.lightmap_sh);
+}
+
 }  // namespace
 }  // namespace lightlink::gpu
