@@ -118,10 +118,9 @@ int runDaemon(int argc, char** argv) {
   builder.AddListeningPort(config.listen, *creds, &port);
   // Threads the synchronous server keeps polling for calls between them. With gRPC's default
   // (2), a thread whose call ends while two others poll exits and a new one is started for
-  // the next call: in a run of service_bench with 50 long-polling clients and 100 updates
-  // the daemon's machine made 4293 clone3 and 3691 munmap calls, against 128 and 245 with
-  // this setting, and the 50-client latency fell (docs/results.md, issue 7, shared-memory
-  // pass). An idle poller costs a thread stack.
+  // the next call: with 50 long-polling clients the daemon spends its cores creating and
+  // destroying threads (clone3 and munmap calls in a run of service_bench), and the
+  // 50-client latency rises. An idle poller costs a thread stack.
   builder.SetSyncServerOption(grpc::ServerBuilder::SyncServerOption::MAX_POLLERS, 128);
   builder.SetMaxReceiveMessageSize(static_cast<int>(config.max_receive_bytes));
   builder.SetMaxSendMessageSize(static_cast<int>(config.max_send_bytes));

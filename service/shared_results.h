@@ -3,8 +3,8 @@
 // delivery").
 //
 // Fifty game clients polling one 1 MB lightmap over loopback TCP move 50 MB per version
-// through the kernel twice (send and receive copies) and through 100 threads' wake-ups; on
-// 2 cores that was 20-32 ms (p50) per version beyond the relight (docs/results.md, issue 7). A
+// through the kernel twice (send and receive copies) and through 100 threads' wake-ups: tens
+// of ms per version beyond the relight on 2 cores (bench/service, 50 clients). A
 // client on the same machine can instead read the bytes the daemon wrote once: the daemon
 // writes a result's chunk messages for a spec to one immutable file, per result and spec, and
 // answers each asking client with a header naming it. The file holds exactly the chunk

@@ -1,13 +1,13 @@
 // WireMessage: a lightlink.v1.ResultMessage that is already serialized, sent as it is.
 //
 // A result goes to every client that polls, asks or streams. Built as a protobuf message
-// per client, each send copied the payload twice (into the message, then into gRPC's
-// slices): with 50 clients polling a 1 MB lightmap, 14 % of all cycles in a perf profile of
-// bench/service (docs/results.md, issue 7 third pass). Instead a result's messages are
+// per client, each send would copy the payload twice (into the message, then into gRPC's
+// slices), a large share of the daemon's cycles with 50 clients polling a 1 MB lightmap
+// (a perf profile of bench/service). Instead a result's messages are
 // serialized once per (snapshot, spec) into grpc::ByteBuffers (Snapshot::wire) and every
 // send passes a reference to the same slices: no copy and no serialization per client. The
 // bytes on the wire are exactly the serialized ResultMessage, so any client parses them as
-// before.
+// it would a message built per send.
 //
 // gRPC picks a message type's (de)serialization through grpc::SerializationTraits; the
 // handlers that send WireMessages are registered with that type (LightlinkService, split

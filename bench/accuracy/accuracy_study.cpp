@@ -1,4 +1,4 @@
-// accuracy_study: what accuracy costs in time and memory (issue 6, DESIGN.md sec 7).
+// accuracy_study: what accuracy costs in time and memory (DESIGN.md sec 7, docs/quality.md).
 //
 // For every scene given and every point of the sweep (bench/accuracy/sweep.h): precompute
 // (timed), relight (median of --repeats full relights), and compare the baked irradiance

@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# The accuracy-vs-time study in one command (issue 6; docs/quality.md).
+# The accuracy-vs-time study in one command (docs/quality.md).
 #
 #   bench/accuracy/run.sh [--reduced] --bin BUILD/bench/accuracy/accuracy_study \
 #       --scenes DIR_WITH_SHARED_SCENES --out OUT_DIR [--cornell clients/demo/cornell_box.gltf] [-- STUDY_ARGS...]

@@ -1,4 +1,4 @@
-// stage_probe: where the baker's first-bounce energy goes, stage by stage (issue 6).
+// stage_probe: where the baker's first-bounce energy goes, stage by stage (docs/quality.md "Where the energy went").
 //
 // For a scene and a punctual light set, bake with no bounce feedback (max_bounces 0: the
 // lightmap SH holds light reflected once, from surfels lit directly) and compare, at evenly

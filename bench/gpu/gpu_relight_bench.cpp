@@ -1,4 +1,4 @@
-// gpu_relight_bench: issue 8's figures in one run (docs/gpu.md, docs/results.md).
+// gpu_relight_bench: the GPU relight figures in one run (docs/gpu.md, docs/results.md).
 //
 //  1. Relight breakdown on the GPU at a precompute preset ("medium" by default, seed 000
 //     Table 2 setting 2) on one scene: median GPU time per stage from GL timer queries

@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# The "Game levels" figures of docs/results.md in one command (issue 45):
+# The "Game levels" figures of docs/results.md in one command:
 #
 #   bench/levels/run.sh --bin BUILD/bench/levels/level_bench --scenes DIR_WITH_SHARED_SCENES --out OUT_DIR
 #       [--presets "draft medium high"] [--tile N]

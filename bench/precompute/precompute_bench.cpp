@@ -1,4 +1,4 @@
-// precompute_bench: issue 4's figures in one run per scene.
+// precompute_bench: docs/results.md "Precompute" figures in one run per scene.
 //
 //  - time per precompute stage and memory per structure (seed 000 Table 4);
 //  - link generation throughput as a ratio to raw Embree throughput on the *same rays*

@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# The "Every shared scene" figures of docs/quality.md in one command (issue 46):
+# The "Every shared scene" figures of docs/quality.md in one command:
 #
 #   bench/quality/run.sh --bin BUILD/clients/lightlink --scenes DIR_WITH_SHARED_SCENES --out OUT_DIR
 #       [--preset medium] [--max-points 2000] [--target-error 0.02] [--time-budget 300]

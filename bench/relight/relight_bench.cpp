@@ -1,4 +1,4 @@
-// relight_bench: issue 5's figures in one run per scene (DESIGN.md sec 11).
+// relight_bench: docs/results.md "Relight" figures in one run per scene (DESIGN.md sec 11).
 //
 //  - per relight stage, median over repeated full relights, for both link forms and 2/3/4
 //    output bands (projected form: only up to the links' bands);

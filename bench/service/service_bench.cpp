@@ -1,5 +1,5 @@
 // service_bench: what a level designer and a room of game clients feel (DESIGN.md sec 11,
-// issue 7 "Figures").
+// docs/results.md "Service").
 //
 //   latency     time from sending UpdateLights to the moment a polling client holds the full
 //               lightmap of a version that contains the update, measured at every client for

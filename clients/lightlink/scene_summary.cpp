@@ -32,7 +32,7 @@ nlohmann::ordered_json summarizeScene(const scene::Scene& s) {
     mask_materials += m.alpha_mode == scene::Material::AlphaMode::kMask ? 1 : 0;
     blend_materials += m.alpha_mode == scene::Material::AlphaMode::kBlend ? 1 : 0;
   }
-  // Instances whose flags change what rays see (issue 46), named up to a few.
+  // Instances whose flags change what rays see (cut-outs, shadow and GI flags), named up to a few.
   constexpr std::size_t kNamed = 8;
   std::size_t cutout_instances = 0;
   nlohmann::ordered_json no_shadow = nlohmann::ordered_json::array(), no_gi = nlohmann::ordered_json::array();

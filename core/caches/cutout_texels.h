@@ -1,4 +1,4 @@
-// Lightmap texels over alpha cut-outs (issue 46): a texel whose cache lies on a hole of a MASK
+// Lightmap texels over alpha cut-outs: a texel whose cache lies on a hole of a MASK
 // (or BLEND) surface stands for nothing an engine will draw (it alpha-tests those pixels away),
 // and every ray passes through it, so it is marked invalid and filled from its valid
 // neighbours like any other invalid texel: the opaque edges of a leaf bleed outwards instead

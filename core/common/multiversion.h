@@ -3,8 +3,8 @@
 // (function multi-versioning, target_clones). The project builds for the baseline, so this is
 // how its hot loops written on GCC vectors (vector_size) get 256- or 512-bit instructions on
 // CPUs that have them. Elsewhere (Clang, other CPUs) it expands to nothing and the baseline
-// code runs. (The x86-64-v4 version took link generation's ray directions from 1.8k to
-// 1.1-1.2k ticks per cache on the Zen 5 VM: docs/results.md, issue 4 fourteenth pass.)
+// code runs. (On AVX-512 CPUs the x86-64-v4 version makes link generation's ray directions
+// markedly cheaper: precompute_bench's "rays" phase.)
 //
 // Rule for its users: all versions must give the same bits. x86-64-v4 implies FMA, which GCC
 // would fuse a * b + c into, so contraction is off in all of them (optimize attribute); a

@@ -355,8 +355,8 @@ void chooseCut(const CutTree& tree, std::span<const Sample> samples, int max_lin
   // never more of them than distinct surfels. With no more of those than the budget, the
   // refinement therefore never stops early and ends with one leaf per surfel: that cut
   // straight from the runs of the sorted samples, without walking every root-to-leaf path.
-  // (On ShadowsDirectional, 52 links per cache on average, this halved chooseCut's perf
-  // samples: docs/results.md, "Cuts that end at the leaves".)
+  // (It pays on open scenes, where a cache sees few surfels: ShadowsDirectional averages
+  // ~52 links per cache; cut_bench --scene times the cut there.)
   // (Counting stops once past the budget: most caches of a closed scene see hundreds of surfels.)
   const std::uint32_t distinct = distinctSurfels(samples, static_cast<std::uint32_t>(max_links));
   if (distinct <= static_cast<std::uint32_t>(max_links)) {
@@ -401,7 +401,7 @@ void chooseCut(const CutTree& tree, std::span<const Sample> samples, int max_lin
       const std::size_t m = std::min(kBatch, x.tail - x.head);
       // A batch of a few nodes (the first ones, from the root down) waits on one gather per
       // halving step where single loads would do: fewer than kVectorFrom go one at a time
-      // (a sweep of the constant with cut_bench: docs/results.md, issue 4 fourteenth pass).
+      // (kVectorFrom is where cut_bench finds the vector split starts to pay).
       (m < kVectorFrom ? &splitScalar : split)(x, m);
     }
     if (x.growing >= limit || x.pending == 0) break;

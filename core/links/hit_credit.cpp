@@ -16,8 +16,8 @@ namespace {
 constexpr std::uint32_t kEscaped = 0xffffffffu, kBlocked = 0xfffffffeu, kAskLocator = 0xfffffffdu;
 
 // Pass 1 of the scalar kernel over rays [i0, i1): each ray's class or raster slot, and the
-// raster loads started (the rasters are MiBs and every hit lands on another line: without
-// the prefetch the classification was 12 % slower on the Cornell box and zdm2).
+// raster loads started (the rasters are MiBs and every hit lands on another line, so the
+// loads must overlap: precompute_bench's "credit" phase on the Cornell box and zdm2).
 void classify(const rt::RayFan& fan, const rt::HitArrays& hits, const std::uint32_t* double_sided,
               const SurfelLocator& locator, std::uint32_t i0, std::uint32_t i1, std::uint32_t* slot, float* escaped) {
   for (std::uint32_t i = i0; i < i1; ++i) {
@@ -88,14 +88,12 @@ HitCredit creditScalar(const rt::RayFan& fan, const rt::HitArrays& hits, const s
 // 16 rays per step, in three passes over the fan. The table reads are gathers, and each
 // pass makes at most one gather per step that depends on another pass's data: pass 1 the
 // triangle's global index (from the mesh), pass 2 its raster reference and the slot (and it
-// starts the owner loads), pass 3 the owners. A one-pass version (an experiment, not kept)
-// made each step wait on a chain of four dependent gathers (mesh, triangle, reference,
-// owner), steps hardly overlapped and it was no faster than the scalar kernel. The three
-// passes take 8.1-8.3 % of link time against the scalar kernel's 11.6-11.9 %
-// (CornellBox-Original, `precompute_bench --pairs 5 --hit-credit best|scalar`, alternated;
-// docs/results.md, issue 4 twelfth pass). A step with a stray hit (the locator's full
-// lookup) finishes in the scalar credit() over its 16 rays, which keeps the samples in ray
-// order.
+// starts the owner loads), pass 3 the owners. In one pass each step would wait on a chain
+// of four dependent gathers (mesh, triangle, reference, owner) and steps would hardly
+// overlap; three passes let them (`precompute_bench --hit-credit best|scalar` on
+// CornellBox-Original compares this kernel with the scalar one). A step with a stray hit
+// (the locator's full lookup) finishes in the scalar credit() over its 16 rays, which keeps
+// the samples in ray order.
 // RasterRef's axis() for 16 lanes: w * size clamped to [0, size - 1] (NaN -> size - 1), then
 // truncated. A function of its own, not a lambda: clang gives a lambda no target attribute.
 LL_AVX512_FN inline __m512i rasterAxis(const float* w, __mmask16 lanes, __m512 size_f, __m512 max_f) {

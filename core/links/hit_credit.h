@@ -5,9 +5,9 @@
 //
 // Two kernels give the same bits: a scalar one, and on x86-64 CPUs with AVX-512 (F, BW, VL,
 // DQ) one that classes 16 rays per step and reads the raster tables and owners with gathers.
-// With Embree's own AVX-512 kernels, tracing is fast on the Zen 5 VM and this step takes
-// 11.6-11.9 % of link generation there with the scalar kernel, 8.1-8.3 % with the AVX-512
-// one (precompute_bench --hit-credit scalar|best; docs/results.md, issue 4 twelfth pass).
+// Where Embree's own AVX-512 kernels make tracing fast, this step is a visible share of link
+// generation and the AVX-512 kernel takes less of it (precompute_bench --hit-credit
+// scalar|best).
 // The kernel is chosen once per process from what the CPU reports unless LinkOptions names
 // one; the tests compare every kernel the CPU can run with the ray-by-ray definition.
 #pragma once

@@ -37,7 +37,7 @@
 // The row kernel, the sky pass, the link sums and the octahedral codes are LL_MULTIVERSION
 // (core/common/multiversion.h: one version per vector width, the same bits). The row kernel
 // is plain loops the compiler vectorises; without contraction every lane rounds exactly as the
-// scalar code did, so the rays are bit-identical on every machine (the artifact depends on them).
+// scalar code does, so the rays are bit-identical on every machine (the artifact depends on them).
 
 namespace lightlink::links {
 namespace {
@@ -72,7 +72,7 @@ struct Scratch {
 };
 
 // The link arrays are HugeVectors for their allocator's default-initialising resize: each
-// cache's links are written right after they are sized, so zeroing them first was wasted.
+// cache's links are written right after they are sized, so zeroing them first would be wasted.
 struct ChunkResult {
   std::vector<std::uint32_t> count;  // links per cache
   HugeVector<std::uint32_t> node;
@@ -97,14 +97,13 @@ struct ChunkResult {
 // in kSkyLanes interleaved partial sums added in a fixed order at the end. Every lane adds in
 // ray order, so every LL_MULTIVERSION build of this loop (and the scalar one) gives the same
 // bits; a plain reduction would not vectorise without reassociating. Most rays of an open
-// scene escape (ShadowsDirectional: 82 %); there the hit loop with the sky projected ray by
-// ray took 0.23 Gcycles, this pass and the owner rasters 0.10 (docs/results.md).
+// scene escape, so this pass is a large share of its link time (precompute_bench's "sky"
+// phase on ShadowsDirectional).
 // The same pass keeps every ray's polynomials (q >= 1) for the links' projection, which sums
-// them over each link's hits instead of evaluating them again per hit (docs/results.md,
-// issue 4 ninth pass). They are kept ray by ray (polyRows rows of 8 floats per ray,
-// transposed from the pass's 8-ray vectors in registers), so that adding a hit to its link
-// is one 8-float load and add per row, where one array per coefficient made it 8 or 15
-// scalar loads and adds (docs/results.md, issue 4 thirteenth pass).
+// them over each link's hits instead of evaluating them again per hit. They are kept ray by
+// ray (polyRows rows of 8 floats per ray, transposed from the pass's 8-ray vectors in
+// registers), so that adding a hit to its link is one 8-float load and add per row, not one
+// scalar load and add per coefficient (precompute_bench's "project" phase).
 constexpr std::uint32_t kSkyLanes = 8;
 // Rays rounded up to whole groups of lanes: the length of the sky pass's arrays.
 constexpr std::uint32_t skyPadded(std::uint32_t rays) { return (rays + kSkyLanes - 1) / kSkyLanes * kSkyLanes; }
@@ -114,14 +113,14 @@ constexpr int polyRows(int bands) { return (bands * bands - 1 + 7) / 8; }
 
 // Eight floats as one GCC vector: the sky pass below is written on it so that it stays
 // vectorised while it also stores every ray's polynomials (written on scalars with those
-// stores added, GCC 12 turned it into scalar code, and link generation got 10 % slower).
+// stores, GCC 12 compiles it to scalar code; precompute_bench's "sky" phase shows it).
 typedef float Lanes8 __attribute__((vector_size(32)));
 typedef std::int32_t Ints8 __attribute__((vector_size(32)));
 static_assert(kSkyLanes == 8);
 
 // r[j] lane i -> dst[i * stride + j]: the 8x8 transpose in three rounds of two-input
-// shuffles (unpack, shufps, 128-bit moves under AVX2), each row stored as it is formed (an
-// array of the rows was spilled and copied back out by GCC). Moves bits only, so every
+// shuffles (unpack, shufps, 128-bit moves under AVX2), each row stored as it is formed (GCC
+// spills an array of the rows to the stack and copies it back). Moves bits only, so every
 // build agrees.
 __attribute__((always_inline)) inline void transpose8(const Lanes8* r, float* dst, std::size_t stride) {
 #define LL_LO(a, b) __builtin_shufflevector(a, b, 0, 8, 1, 9, 4, 12, 5, 13)
@@ -274,8 +273,8 @@ LL_SUMS_ENTRY(4)
 template <int Bands>
 constexpr LinkSumsFn linkSums = Bands == 2 ? linkSums2 : Bands == 3 ? linkSums3 : linkSums4;
 
-// One octahedral code (encodeOctahedral's formula; the same operations in the same order as
-// before, so the same bits).
+// One octahedral code (encodeOctahedral's formula: the same operations in the same order,
+// so the same bits).
 inline std::uint32_t octahedralCode(float x, float y, float z) {
   const float inv = 1.0f / (std::abs(x) + std::abs(y) + std::abs(z));
   const float ox = x * inv, oy = y * inv;
@@ -291,8 +290,9 @@ inline std::uint32_t octahedralCode(float x, float y, float z) {
   return q(u) | (q(v) << 16);
 }
 
-// Laps of linkCache's phases into LinkStats::phase_ticks: 8 counter reads per cache, against
-// ~62k ticks of work per cache on CornellBox-Original, so it stays on in every build.
+// Laps of linkCache's phases into LinkStats::phase_ticks: 8 counter reads per cache, a
+// negligible share of a cache's work (precompute_bench on CornellBox-Original), so it
+// stays on in every build.
 class PhaseClock {
  public:
   explicit PhaseClock(std::array<std::uint64_t, kLinkPhases>& ticks) : ticks_(ticks), last_(now()) {}
@@ -504,8 +504,8 @@ struct RowSetup {
 
 // Directions of one row (strata rays, polar strata 0 .. strata - 1 of one azimuth stratum).
 // One loop with no hashing or trigonometry that vectorises (sqrt does: the module builds
-// with -fno-math-errno). The generator it replaced hashed two jitters per ray and took the
-// azimuth's cosine and sine per ray (docs/results.md, seventh pass: its perf samples halved).
+// with -fno-math-errno); a hash and a sine and cosine per ray would dominate the "rays" phase
+// (precompute_bench).
 // `strata` rays from bj/bc/bs (the base pattern) and bsx (each ray's polar stratum as a
 // float): one row, or a whole fan at once (rows follow each other in the arrays).
 LL_MULTIVERSION void rowDirections(const RowSetup& r, const float* __restrict bj, const float* __restrict bc,
@@ -542,8 +542,8 @@ namespace {
 
 // Rays [0, count) from one origin along (x, y, z)[k], tnear 0, tfar infinity. On x86-64, four
 // at a time: a 4 x 4 transpose of (x, y, z, tfar) gives each ray's second half, so a ray is
-// two 16-byte stores instead of eight 4-byte ones (generate's perf samples on
-// EmissiveStrengthTest: 781 / 768 -> 301 / 245, docs/results.md, seventh pass).
+// two 16-byte stores instead of eight 4-byte ones (generate() writes records for the
+// benchmarks' raw-Embree passes, precompute_bench's among them).
 void storeRays(const glm::vec3& origin, const float* x, const float* y, const float* z, std::uint32_t count,
                rt::Ray* out) {
   static_assert(sizeof(rt::Ray) == 32 && offsetof(rt::Ray, tnear) == 12 && offsetof(rt::Ray, dir) == 16 &&
@@ -591,10 +591,10 @@ glm::vec3 LinkRays::forEachRow(const rt::Accel& accel, std::size_t cache, const 
   // periodic, so turning keeps its strata too). Each jitter is then uniform in its stratum
   // for every cache, whatever the base pattern, so each cache's estimate of any integral is
   // unbiased and the errors of different caches are uncorrelated: they average away over a
-  // surface. (A shared pattern only turned per cache, tried before, kept its polar error
-  // common to all caches: the mean sky irradiance over a plane came out 0.3 % off in
-  // tests/relight. Shifting u itself modulo 1 breaks one polar stratum per row in two, one
-  // piece at the normal and one at the horizon: 3 % error per cache at 256 rays.)
+  // surface. (A shared pattern only turned per cache keeps its polar error common to all
+  // caches: the mean sky irradiance over a plane comes out 0.3 % off in tests/relight.
+  // Shifting u itself modulo 1 breaks one polar stratum per row in two, one piece at the
+  // normal and one at the horizon: 3 % error per cache at 256 rays.)
   const Shift shift = shiftOf(seed_, cache);
   const RowSetup setup{.shift = shift.jitter,
                        .inv = 1.0f / static_cast<float>(strata_),
@@ -607,9 +607,8 @@ glm::vec3 LinkRays::forEachRow(const rt::Accel& accel, std::size_t cache, const 
   const std::uint32_t strata = strata_;
   if (directions != nullptr) {
     // All rows in one call, the polar stratum of each ray read from a table, then the rows
-    // handed on: one call per row cost 1.76-1.86k ticks per cache for the rays phase, this
-    // 1.50-1.60k (CornellBox-Original, four alternated rounds; docs/results.md, issue 4
-    // twentieth pass). The same bits: the table holds float(sx) exactly.
+    // handed on: one call per row costs more in the "rays" phase (precompute_bench on
+    // CornellBox-Original). The same bits: the table holds float(sx) exactly.
     rowDirections(setup, base_jitter_.data(), base_cos_.data(), base_sin_.data(), base_stratum_.data(),
                   strata * strata, directions->x, directions->y, directions->z);
     for (std::uint32_t first = 0; first < strata * strata; first += strata)
@@ -662,9 +661,9 @@ void projectRuntimeLink(const glm::vec3& direction, float omega_over_pi, int ban
 
 std::uint32_t encodeOctahedral(const glm::vec3& d) { return octahedralCode(d.x, d.y, d.z); }
 
-// The codes of a cache's link directions, in one loop after its link loop: called per link
-// (out of line, from inside the projection loop) the encoding took 3.5 % of link generation's
-// samples on the bundled Cornell box, this loop 0.8 % (docs/results.md, issue 4 eighth pass).
+// The codes of a cache's link directions, in one loop after its link loop: called per link,
+// out of line from inside the projection loop, the encoding is several times dearer
+// (precompute_bench's "output" phase on the bundled Cornell box).
 // Eight links at a time on GCC vectors (GCC 12 kept the scalar loop scalar: the clamp and the
 // rounding are control flow to it), with octahedralCode's operations in its order: the
 // clamp as two selects, and lrint (round to nearest even in the default mode) as adding and
@@ -766,13 +765,11 @@ Expected<Links> generateLinks(const scene::Scene& scene, const rt::Accel& accel,
   // place in the output by a serial stage (in chunk order, so the layout does not depend on
   // the scheduling), and copied there in parallel. At most `tokens` chunks are in flight, so
   // a chunk takes a free slot when it enters and frees it when its copy is done (copies end
-  // in any order), and the ring's buffers are reused, warm, for the whole run.
-  // (Keeping every chunk's result until the end, as before, wrote all links twice into fresh
-  // memory: on the Zen 5 VM this stage then took 0.47 s on CornellBox-Original instead of
-  // 0.31, with 25k page faults instead of 9k; docs/results.md, issue 4 tenth pass.) The copy
-  // runs in the parallel stage, so the first write to each output page (a page fault)
-  // stalls one chunk's thread instead of the in-order stage all chunks wait on (docs/results.md,
-  // issue 4 seventeenth pass).
+  // in any order), and the ring's buffers are reused, warm, for the whole run: keeping every
+  // chunk's result until the end would write all links twice into fresh memory (page faults;
+  // precompute_bench's link time). The copy runs in the parallel stage, so the first write
+  // to each output page (a page fault) stalls one chunk's thread instead of the in-order
+  // stage all chunks wait on.
   // The output arrays are sized up front for the worst case (every cache max_links links, up
   // to options.output_links_up_front) without being written (HugePageAllocator
   // default-initialises), so the part never written is never faulted in; past that they
@@ -876,9 +873,8 @@ Expected<Links> generateLinks(const scene::Scene& scene, const rt::Accel& accel,
             {
               const std::shared_lock copying(output_mutex);
               // Streaming stores: nothing reads the output until the stage is over, and a
-              // plain copy first read every line it wrote (the copies took 746-913 ticks per
-              // cache, streaming 457-928, median 507; CornellBox-Original, four alternated
-              // rounds; docs/results.md, issue 4 twentieth pass).
+              // plain copy first reads every line it writes (precompute_bench's "output"
+              // phase on CornellBox-Original).
               auto stream = [](auto& to, std::size_t to_at, const auto& from) {
                 copyStreaming(to.data() + to_at, from.data(), from.size() * sizeof(from[0]));
               };

@@ -64,18 +64,14 @@ LL_MULTIVERSION void bucketStarts(std::uint32_t* __restrict count_a, std::uint32
 // sort by 4-5x here (the sort runs once per cache). A pass has no more buckets than its bits
 // of the surfel need, and the last pass the most (15 bits: 128 then 256): a cache's hits
 // cluster in a few regions of the surfel order, so the high bits' pass meets long runs of
-// one bucket, whose increments wait on each other; finer buckets there shorten them (the
-// sort 0.4-12 % less relative to the trace, median 3.5 %, CornellBox-Original, 7 alternated
-// rounds; docs/results.md, issue 4 sixteenth pass). The first pass's count also sets
-// seen[surfel] for every key: hit credit's own pass for it had cost more (credit + sort
-// 10.1-10.4k -> 9.9-10.0k ticks per cache, CornellBox-Original, 4 alternated rounds). Each
-// pass counts and scatters the two halves of the keys with counters of their own (the second
-// half's bucket b starts where the first half's ends: the same stable order). Neighbouring
-// rays hit nearby surfels (12 % of consecutive hits the same one on CornellBox-Original,
-// 20 % on ShadowsDirectional: cut_bench), so with one set of counters increments of one
-// bucket waited on each other; two halves make two chains that overlap (the sort's share of
-// link time, precompute_bench's phase timers on CornellBox-Original: 5.9-6.5 % -> 5.2-5.3 %,
-// Zen 5 VM; docs/results.md, issue 4 tenth pass).
+// one bucket, whose increments wait on each other; finer buckets there shorten them
+// (precompute_bench's "sort" phase on CornellBox-Original). The first pass's count also sets
+// seen[surfel] for every key, which it reads anyway (cheaper than a pass of its own in hit
+// credit). Each pass counts and scatters the two halves of the keys with counters of their
+// own (the second half's bucket b starts where the first half's ends: the same stable
+// order). Neighbouring rays hit nearby surfels (cut_bench prints how often consecutive hits
+// share one), so with one set of counters increments of one bucket would wait on each
+// other; two halves make two chains that overlap (precompute_bench's "sort" phase).
 Sample* sortSamples(Sample* keys, Sample* buffer, std::size_t n, std::uint32_t surfel_bits, std::uint8_t* seen) {
   const std::uint32_t passes = std::max<std::uint32_t>(1, ceilDiv(surfel_bits, kSortPassBits));
   const std::uint32_t bits = ceilDiv(surfel_bits, passes);

@@ -180,7 +180,7 @@ void SurfelLocator::buildTriangleTables(const surfels::Surfels& surfels, const s
     }
   }
   // Fewer than 65535 surfels (the usual case, nS = 32k): the raster in 16 bits, half the
-  // memory that every link ray's owner load reads from (docs/results.md, issue 4 ninth pass).
+  // memory that every link ray's owner load reads from (precompute_bench's link rays/s).
   if (narrow_raster_ && surfel_count_ < kNoSurfel16) {
     raster16_.resize(raster_.size() + 1, kNoSurfel16);
     for (std::size_t k = 0; k < raster_.size(); ++k)

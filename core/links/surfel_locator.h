@@ -18,11 +18,10 @@
 // (g = ceil(sqrt(surfels)), so a cell is about one surfel spacing), and each cell is split
 // r x r (r = kRaster, less when the rasters would not fit their memory budget): each raster
 // cell holds the surfel nearest to its centre among the 3 x 3 cells around it (the whole
-// triangle when those are empty). A hit costs one 16-byte record and one table load. With a
-// scan of ~8-20 candidates instead, the Cornell box's hit loop took 1.1-1.4 of its 3.9
-// Gcycles of link generation, more than any phase but the tracing; with the rasters 0.3
-// (docs/results.md, issue 4). On zdm2, whose hits land mostly on small triangles, the 1 x 1
-// rasters took a third off the hit classification.
+// triangle when those are empty). A hit costs one 16-byte record and one table load, where
+// a scan of ~8-20 candidates per hit would cost more than any phase of link generation but
+// the tracing (precompute_bench's "credit" phase on the Cornell box; zdm2's hits land mostly
+// on small triangles, which the 1 x 1 rasters answer).
 //
 // The raster is a partition of each big triangle into patches of ~1/r^2 of a surfel's area,
 // each given to the surfel nearest its centre: it differs from the nearest surfel to the hit

@@ -40,7 +40,7 @@ struct ErrorStats {
   double rel_rmse = 0.0;         // sqrt(mean(e^2)), e = |b - r| / max(r, F), all points
   double p95_rel_error = 0.0;    // 95th percentile of e
   double max_rel_error = 0.0;
-  double lit_rel_rmse = 0.0;       // over points with a reference above black: |b - r| / r (before issue 46)
+  double lit_rel_rmse = 0.0;       // over points with a reference above black: |b - r| / r (no floor)
   double lit_p95_rel_error = 0.0;
   double bias = 1.0;             // mean(b) / mean(r) over all points
   double mean_baked = 0.0, mean_reference = 0.0;

@@ -361,10 +361,8 @@ namespace {
 typedef std::int32_t Ints8 __attribute__((vector_size(32)));
 
 // A packet in and out of Embree's record as vector moves: the directions in, and every hit
-// field out with the lanes that missed zeroed by a mask. Lane by lane, with a select per
-// field, link generation's trace phase took 46.4-47.7k ticks per cache on
-// CornellBox-Original, with these 41.0-45.0k (precompute_bench; docs/results.md, issue 4
-// thirteenth pass).
+// field out with the lanes that missed zeroed by a mask: cheaper than copying lane by lane
+// with a select per field (precompute_bench's "trace" phase on CornellBox-Original).
 LL_MULTIVERSION void fanPacketIn(RTCRayHit16& rh, const float* dx, const float* dy, const float* dz, float tfar) {
   std::memcpy(rh.ray.dir_x, dx, sizeof rh.ray.dir_x);
   std::memcpy(rh.ray.dir_y, dy, sizeof rh.ray.dir_y);

@@ -148,8 +148,8 @@ class Accel {
   // A fan in 16-ray packets (rtcIntersect16, coherent): the hits intersect() gives for the
   // same rays with Coherence::kCoherent, bit for bit. Rays and hits stay in arrays, as
   // Embree's packets hold them, so there is no conversion to and from Ray and Hit per ray
-  // (precompute_bench: the same rays trace 0-15 % faster this way than through intersect(),
-  // most on open scenes; docs/results.md, issue 4 ninth pass).
+  // (precompute_bench traces the same rays both ways: this is the faster, most on open
+  // scenes).
   void intersectFan(const RayFan& fan, const HitArrays& hits) const;
 
   // Bounds diagonal of the geometry in the BVH (metres); the yardstick for epsilons.

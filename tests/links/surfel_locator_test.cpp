@@ -122,7 +122,7 @@ Traced expectRasterBoundOnTracedHits(const scene::Scene& scene, const surfels::S
                     << diagonal;
   }
   EXPECT_EQ(failures, 0u);
-  // The figure docs/precompute.md quotes (how often the raster gives the nearest itself).
+  // How often the raster gives the nearest itself (docs/precompute.md "Owner lookup").
   if (traced.on_rasters > 0)
     std::printf("raster owner == nearest candidate on %.1f %% of %zu hits on big triangles\n",
                 100.0 * double(traced.same) / double(traced.on_rasters), traced.on_rasters);

@@ -1,9 +1,9 @@
-// The emitters' direct light at the surfels (issue 6, docs/quality.md "Where the energy went").
-// Surfels used to receive emitted light only through the first bounce gather from the lightmap
-// caches' links, where a small lamp is blurred into coarse cut nodes and 3-band SH: on the
-// Cornell box they got 0.72 of the reference's emitter light, the largest part of the study's
-// energy bias. Now it is sampled on the emitting triangles like a texel's direct light, and
-// this test holds it to the closed form of a parallel rectangle's form factor.
+// The emitters' direct light at the surfels (docs/quality.md "Where the energy went").
+// Received only through the first bounce gather from the lightmap caches' links, a small lamp
+// is blurred into coarse cut nodes and 3-band SH: on the Cornell box the surfels would get 0.72
+// of the reference's emitter light. It is sampled on the emitting triangles like a texel's
+// direct light, and this test holds it to the closed form of a parallel rectangle's form
+// factor.
 #include <cmath>
 #include <numbers>
 
