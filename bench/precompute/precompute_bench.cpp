@@ -36,6 +36,8 @@
 #include "core/scene/load.h"
 #include "core/scene/subdivide.h"
 
+static_assert(lightlink::links::kPhaseProbes, "precompute_bench reports phase shares: configure with LIGHTLINK_PROBES=ON");
+
 namespace {
 
 using namespace lightlink;

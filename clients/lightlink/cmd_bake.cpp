@@ -12,6 +12,7 @@
 #include "clients/lightlink/scene_access.h"
 #include "clients/lightlink/progress_bar.h"
 #include "clients/lightlink/version.h"
+#include "core/common/isa.h"
 #include "core/bake/bake_options.h"
 #include "core/charts/gltf_writer.h"
 #include "core/output/output.h"
@@ -133,6 +134,7 @@ int runBake(const BakeArgs& args) {
   report["artifact"] = artifact_note;
   report["cache_key"] = key_hex;
   report["backend"] = {{"requested", args.backend}, {"used", result->backend}, {"note", backend_note}};
+  report["isa"] = {{"cpu", isaName(cpuIsa())}, {"used", isaName(activeIsa())}};
   report["precompute"] = resident->precomputeReport();
   report["relight"] = result->report();
   report["effects_plan"] = result->plan.toJson();

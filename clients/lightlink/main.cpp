@@ -9,6 +9,7 @@
 #include "clients/lightlink/exit_codes.h"
 #include "clients/lightlink/version.h"
 #include "core/bake/bake_options.h"
+#include "core/common/isa.h"
 
 namespace {
 
@@ -63,6 +64,15 @@ int main(int argc, char** argv) {
   CLI::App app{"lightlink: lightmap and irradiance-volume baking (precomputed illuminance composition)"};
   app.require_subcommand(1);
   app.set_version_flag("--version", std::string("lightlink ") + lightlinkVersion() + " (commit " + lightlinkCommit() + ")");
+  // Before the subcommand: `lightlink --isa avx2 bake ...`. Every tier gives the same bits.
+  app.add_option_function<std::string>(
+         "--isa",
+         [](const std::string& v) {
+           auto isa = lightlink::parseIsa(v);
+           if (!isa) throw CLI::ValidationError("--isa", isa.status().message());
+           lightlink::setIsaLimit(*isa);
+         },
+         "Highest SIMD tier to run: baseline, avx2 or avx512 (default: the CPU's best; also LIGHTLINK_ISA)");
 
   InspectArgs inspect;
   auto* inspect_cmd = app.add_subcommand("inspect", "Load and validate a glTF scene and print a summary");

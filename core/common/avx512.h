@@ -1,8 +1,8 @@
 // Kernels written with AVX-512 intrinsics (links: hit credit, the cut's splits) next to a
 // scalar version that gives the same bits, the one to run chosen at run time: the target
-// attribute those kernels are compiled with, the CPU check that picks them, and the mask of
-// a vector's first lanes. The project builds for the x86-64 baseline; LL_MULTIVERSION
-// (multiversion.h) is the way for loops written on GCC vectors instead of intrinsics.
+// attribute those kernels are compiled with and the mask of a vector's first lanes. The project builds for the x86-64 baseline; whether such code runs is
+// isaAtLeast(Isa::kAvx512) (isa.h), and LL_ISA_CLONES is the way for loops written on GCC
+// vectors instead of intrinsics.
 //
 // LL_AVX512 is 1 where such kernels are compiled (x86-64 with GCC or Clang), else 0.
 // LL_AVX512_FN marks a function that uses them: AVX-512 F, BW, VL and DQ, with contraction
@@ -12,6 +12,8 @@
 #pragma once
 
 #include <cstddef>
+
+#include "core/common/isa.h"
 
 #if defined(__x86_64__) && (defined(__GNUC__) || defined(__clang__))
 // GCC 12 warns inside its own AVX-512 headers (the _mm512_undefined_* they start from, GCC
@@ -33,17 +35,6 @@
 #endif
 
 namespace lightlink {
-
-// Whether this CPU (and this build) can run LL_AVX512_FN code. Asked once per process.
-inline bool cpuHasAvx512() {
-#if LL_AVX512
-  static const bool has = __builtin_cpu_supports("avx512f") && __builtin_cpu_supports("avx512bw") &&
-                          __builtin_cpu_supports("avx512vl") && __builtin_cpu_supports("avx512dq");
-  return has;
-#else
-  return false;
-#endif
-}
 
 #if LL_AVX512
 // The first min(n, 16) lanes of a 16-lane vector: the mask of a loop's last, partial step.

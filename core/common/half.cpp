@@ -1,5 +1,7 @@
 #include "core/common/half.h"
 
+#include "core/common/isa.h"
+
 #if defined(__x86_64__) && (defined(__GNUC__) || defined(__clang__))
 #include <cpuid.h>
 #include <immintrin.h>
@@ -41,27 +43,13 @@ __attribute__((target("avx,f16c"))) std::size_t f16cRange(const float* src, half
   return clamped + scalarRange(src + i, dst + i, n - i);
 }
 
-// CPUID leaf 1: ECX bit 29 F16C, bit 28 AVX, bit 27 OSXSAVE; and the OS must save the YMM
-// state (XCR0 bits 1 and 2). Asked directly: clang 14's __builtin_cpu_supports has no "f16c".
-bool hasF16c() {
-  static const bool has = [] {
-    unsigned a = 0, b = 0, c = 0, d = 0;
-    if (__get_cpuid(1, &a, &b, &c, &d) == 0) return false;
-    constexpr unsigned kF16c = 1u << 29, kAvx = 1u << 28, kOsxsave = 1u << 27;
-    if ((c & (kF16c | kAvx | kOsxsave)) != (kF16c | kAvx | kOsxsave)) return false;
-    unsigned lo = 0, hi = 0;
-    __asm__("xgetbv" : "=a"(lo), "=d"(hi) : "c"(0));
-    return (lo & 6u) == 6u;
-  }();
-  return has;
-}
 #endif
 
 }  // namespace
 
 std::size_t toHalfSaturating(std::span<const float> src, half_bits* dst) {
 #ifdef LL_HALF_F16C
-  if (hasF16c()) return f16cRange(src.data(), dst, src.size());
+  if (isaAtLeast(Isa::kAvx2)) return f16cRange(src.data(), dst, src.size());
 #endif
   return scalarRange(src.data(), dst, src.size());
 }

@@ -6,7 +6,7 @@
 
 #include "core/common/avx512.h"
 #include "core/common/check.h"
-#include "core/common/multiversion.h"
+#include "core/common/isa.h"
 
 namespace lightlink::links {
 
@@ -281,7 +281,7 @@ LL_AVX512_FN void splitAvx512(Search& x, std::size_t m) {
 // The distinct surfels among sorted samples, counted until past `enough`. Blocks of 16
 // samples without a branch inside (the one-sample loop's exit test was taken about every
 // other sample).
-LL_MULTIVERSION std::uint32_t distinctSurfels(std::span<const Sample> samples, std::uint32_t enough) {
+LL_ISA_INLINE std::uint32_t distinctSurfelsImpl(std::span<const Sample> samples, std::uint32_t enough) {
   constexpr std::size_t kBlock = 16;
   const std::size_t n = samples.size();
   std::uint32_t distinct = 1;
@@ -291,13 +291,15 @@ LL_MULTIVERSION std::uint32_t distinctSurfels(std::span<const Sample> samples, s
   for (; k < n && distinct <= enough; ++k) distinct += surfelOf(samples[k]) != surfelOf(samples[k - 1]) ? 1u : 0u;
   return distinct;
 }
+LL_ISA_CLONES(std::uint32_t, distinctSurfels, (std::span<const Sample> samples, std::uint32_t enough), (samples, enough), distinctSurfelsImpl)
 
 // How many of counts[0, n) are >= c.
-LL_MULTIVERSION std::uint32_t countAtLeast(const std::uint32_t* counts, std::size_t n, std::uint32_t c) {
+LL_ISA_INLINE std::uint32_t countAtLeastImpl(const std::uint32_t* counts, std::size_t n, std::uint32_t c) {
   std::uint32_t k = 0;
   for (std::size_t i = 0; i < n; ++i) k += counts[i] >= c ? 1u : 0u;
   return k;
 }
+LL_ISA_CLONES(std::uint32_t, countAtLeast, (const std::uint32_t* counts, std::size_t n, std::uint32_t c), (counts, n, c), countAtLeastImpl)
 
 inline bool keyAbove(std::uint32_t count, std::uint32_t node, std::uint32_t stop_count, std::uint32_t stop_node) {
   return count > stop_count || (count == stop_count && node < stop_node);
@@ -387,7 +389,7 @@ void chooseCut(const CutTree& tree, std::span<const Sample> samples, int max_lin
   Search x(nodes.data(), samples.data(), s.stop_count > 1 ? s.stop_count - 1 : 0, s);
   x.record(0, static_cast<std::uint32_t>(samples.size()), 0, ~0u, 0);
 #if LL_AVX512
-  const bool vector = kernel == CutKernel::kBest && cpuHasAvx512();
+  const bool vector = kernel == CutKernel::kBest && isaAtLeast(Isa::kAvx512);
   auto split = vector ? &splitAvx512 : &splitScalar;
   auto mark = vector ? &markAvx512 : &markScalar;
 #else

@@ -236,7 +236,7 @@ std::vector<std::uint32_t> doubleSidedByMesh(const scene::Scene& scene) {
 }
 
 HitCreditKernel hitCreditKernelRun(HitCreditKernel requested) {
-  return requested != HitCreditKernel::kScalar && cpuHasAvx512() ? HitCreditKernel::kAvx512
+  return requested != HitCreditKernel::kScalar && isaAtLeast(Isa::kAvx512) ? HitCreditKernel::kAvx512
                                                                         : HitCreditKernel::kScalar;
 }
 

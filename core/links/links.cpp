@@ -26,7 +26,7 @@
 #include "core/common/aligned_vector.h"
 #include "core/common/check.h"
 #include "core/common/memory.h"
-#include "core/common/multiversion.h"
+#include "core/common/isa.h"
 #include "core/common/sampling.h"
 #include "core/links/cut.h"
 #include "core/links/hit_credit.h"
@@ -34,8 +34,8 @@
 #include "core/links/surfel_locator.h"
 #include "core/sh/sh.h"
 
-// The row kernel, the sky pass, the link sums and the octahedral codes are LL_MULTIVERSION
-// (core/common/multiversion.h: one version per vector width, the same bits). The row kernel
+// The row kernel, the sky pass, the link sums and the octahedral codes are LL_ISA_CLONES
+// (core/common/isa.h: one version per tier, the same bits). The row kernel
 // is plain loops the compiler vectorises; without contraction every lane rounds exactly as the
 // scalar code does, so the rays are bit-identical on every machine (the artifact depends on them).
 
@@ -95,7 +95,7 @@ struct ChunkResult {
 
 // Sky visibility: sums of the basis polynomials over the escaped rays (escaped[i] is 1 or 0),
 // in kSkyLanes interleaved partial sums added in a fixed order at the end. Every lane adds in
-// ray order, so every LL_MULTIVERSION build of this loop (and the scalar one) gives the same
+// ray order, so every LL_ISA_CLONES build of this loop (and the scalar one) gives the same
 // bits; a plain reduction would not vectorise without reassociating. Most rays of an open
 // scene escape, so this pass is a large share of its link time (precompute_bench's "sky"
 // phase on ShadowsDirectional).
@@ -193,10 +193,10 @@ __attribute__((always_inline)) inline void skyPolynomialsImpl(const float* __res
 // holds count * polyRows(bands) * 8 floats.
 using SkyFn = void (*)(const float*, const float*, const float*, const float*, std::uint32_t, float*, float*);
 #define LL_SKY_ENTRY(B)                                                                                   \
-  LL_MULTIVERSION void sky##B(const float* e, const float* x, const float* y, const float* z, std::uint32_t n, \
-                              float* s, float* poly) {                                                     \
-    skyPolynomialsImpl<B>(e, x, y, z, n, s, poly);                                                         \
-  }
+  LL_ISA_CLONES(void, sky##B,                                                                             \
+                (const float* e, const float* x, const float* y, const float* z, std::uint32_t n, float* s,   \
+                 float* poly),                                                                                \
+                (e, x, y, z, n, s, poly), skyPolynomialsImpl<B>)
 LL_SKY_ENTRY(1)
 LL_SKY_ENTRY(2)
 LL_SKY_ENTRY(3)
@@ -262,10 +262,10 @@ __attribute__((always_inline)) inline void linkSumsImpl(const Sample* __restrict
 using LinkSumsFn = void (*)(const Sample*, std::uint32_t, const std::uint32_t*, const std::uint32_t*, const float*,
                             float*);
 #define LL_SUMS_ENTRY(B)                                                                                   \
-  LL_MULTIVERSION void linkSums##B(const Sample* sorted, std::uint32_t n, const std::uint32_t* first,        \
-                                   const std::uint32_t* link_first, const float* poly, float* sums) {        \
-    linkSumsImpl<B>(sorted, n, first, link_first, poly, sums);                                             \
-  }
+  LL_ISA_CLONES(void, linkSums##B,                                                                        \
+                (const Sample* sorted, std::uint32_t n, const std::uint32_t* first,                          \
+                 const std::uint32_t* link_first, const float* poly, float* sums),                           \
+                (sorted, n, first, link_first, poly, sums), linkSumsImpl<B>)
 LL_SUMS_ENTRY(2)
 LL_SUMS_ENTRY(3)
 LL_SUMS_ENTRY(4)
@@ -290,13 +290,14 @@ inline std::uint32_t octahedralCode(float x, float y, float z) {
   return q(u) | (q(v) << 16);
 }
 
-// Laps of linkCache's phases into LinkStats::phase_ticks: 8 counter reads per cache, a
-// negligible share of a cache's work (precompute_bench on CornellBox-Original), so it
-// stays on in every build.
+// Laps of linkCache's phases into LinkStats::phase_ticks (benchmark builds, kPhaseProbes);
+// elsewhere every lap compiles to nothing.
 class PhaseClock {
  public:
-  explicit PhaseClock(std::array<std::uint64_t, kLinkPhases>& ticks) : ticks_(ticks), last_(now()) {}
+  explicit PhaseClock(std::array<std::uint64_t, kLinkPhases>& ticks)
+      : ticks_(ticks), last_(kPhaseProbes ? now() : 0) {}
   void lap(LinkPhase phase) {
+    if constexpr (!kPhaseProbes) return;
     const std::uint64_t t = now();
     ticks_[phase] += t - last_;
     last_ = t;
@@ -508,7 +509,7 @@ struct RowSetup {
 // (precompute_bench).
 // `strata` rays from bj/bc/bs (the base pattern) and bsx (each ray's polar stratum as a
 // float): one row, or a whole fan at once (rows follow each other in the arrays).
-LL_MULTIVERSION void rowDirections(const RowSetup& r, const float* __restrict bj, const float* __restrict bc,
+LL_ISA_INLINE void rowDirectionsImpl(const RowSetup& r, const float* __restrict bj, const float* __restrict bc,
                                    const float* __restrict bs, const float* __restrict bsx, std::uint32_t strata,
                                    float* __restrict dx, float* __restrict dy, float* __restrict dz) {
   // Everything the loop reads of `r` in locals: the stores through dx/dy/dz could alias it
@@ -535,6 +536,7 @@ LL_MULTIVERSION void rowDirections(const RowSetup& r, const float* __restrict bj
     dz[sx] = a * t.z + c * b.z + z * n.z;
   }
 }
+LL_ISA_CLONES(void, rowDirections, (const RowSetup& r, const float* __restrict bj, const float* __restrict bc, const float* __restrict bs, const float* __restrict bsx, std::uint32_t strata, float* __restrict dx, float* __restrict dy, float* __restrict dz), (r, bj, bc, bs, bsx, strata, dx, dy, dz), rowDirectionsImpl)
 
 }  // namespace
 
@@ -669,7 +671,7 @@ std::uint32_t encodeOctahedral(const glm::vec3& d) { return octahedralCode(d.x, 
 // clamp as two selects, and lrint (round to nearest even in the default mode) as adding and
 // subtracting 1.5 * 2^23, exact for |t| <= 32767; the remainder goes through
 // octahedralCode.
-LL_MULTIVERSION void encodeOctahedral(const float* __restrict x, const float* __restrict y, const float* __restrict z,
+LL_ISA_INLINE void encodeOctahedralImpl(const float* __restrict x, const float* __restrict y, const float* __restrict z,
                                       std::uint32_t count, std::uint32_t* __restrict out) {
   const Ints8 magnitude = Ints8{} + 0x7fffffff;
   const Lanes8 one = Lanes8{} + 1.0f, minus_one = Lanes8{} + -1.0f, zero = Lanes8{};
@@ -701,6 +703,7 @@ LL_MULTIVERSION void encodeOctahedral(const float* __restrict x, const float* __
 #undef LL_ABS8
   for (; i < count; ++i) out[i] = octahedralCode(x[i], y[i], z[i]);
 }
+LL_ISA_CLONES(void, encodeOctahedral, (const float* __restrict x, const float* __restrict y, const float* __restrict z, std::uint32_t count, std::uint32_t* __restrict out), (x, y, z, count, out), encodeOctahedralImpl)
 
 glm::vec3 decodeOctahedral(std::uint32_t packed) {
   const float x = static_cast<float>(static_cast<std::int16_t>(packed & 0xffffu)) / 32767.0f;

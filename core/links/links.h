@@ -71,6 +71,13 @@ struct CacheQuery {
   std::span<const glm::vec3> normal;
 };
 
+#ifndef LIGHTLINK_PROBES
+#define LIGHTLINK_PROBES 0
+#endif
+// Whether this build times link generation's phases (LIGHTLINK_PROBES: benchmark builds).
+// Without probes phase_ticks stay 0 and reports leave the phase shares out.
+inline constexpr bool kPhaseProbes = LIGHTLINK_PROBES != 0;
+
 // The phases of linking one cache, in order: where link generation's time goes. "trace" is
 // Embree alone, so (sum - trace) / trace is link generation's own work per unit of tracing,
 // the figure the ratio to raw Embree depends on (docs/precompute.md).
@@ -86,8 +93,9 @@ struct LinkStats {
   std::uint64_t escaped = 0;        // sky
   std::uint64_t unowned = 0;        // front hits with no surfel near (not credited)
   double seconds = 0.0;
-  // Per LinkPhase: ticks summed over all threads (x86: the timestamp counter; elsewhere
-  // steady_clock nanoseconds). Their unit varies by machine; their shares do not.
+  // Per LinkPhase, with kPhaseProbes: ticks summed over all threads (x86: the timestamp
+  // counter; elsewhere steady_clock nanoseconds). Their unit varies by machine; their
+  // shares do not.
   std::array<std::uint64_t, kLinkPhases> phase_ticks{};
   std::uint64_t totalPhaseTicks() const {
     std::uint64_t total = 0;

@@ -5,7 +5,7 @@
 #include <type_traits>
 #include <utility>
 
-#include "core/common/multiversion.h"
+#include "core/common/isa.h"
 
 namespace lightlink::links {
 namespace {
@@ -23,7 +23,7 @@ typedef std::uint32_t Counts16 __attribute__((vector_size(64)));
 // first half's bucket b. An exclusive prefix sum, 16 buckets per step (a scan in the
 // register, then the running total added): the bucket-by-bucket loop made each bucket wait
 // on the last one's sum, 2 x 256 steps per cache.
-LL_MULTIVERSION void bucketStarts(std::uint32_t* __restrict count_a, std::uint32_t* __restrict count_b,
+LL_ISA_INLINE void bucketStartsImpl(std::uint32_t* __restrict count_a, std::uint32_t* __restrict count_b,
                                   std::uint32_t buckets) {
   std::uint32_t b = 0;
   if (buckets >= 16) {
@@ -56,6 +56,7 @@ LL_MULTIVERSION void bucketStarts(std::uint32_t* __restrict count_a, std::uint32
     sum += a + c;
   }
 }
+LL_ISA_CLONES(void, bucketStarts, (std::uint32_t* __restrict count_a, std::uint32_t* __restrict count_b, std::uint32_t buckets), (count_a, count_b, buckets), bucketStartsImpl)
 
 }  // namespace
 

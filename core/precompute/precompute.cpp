@@ -119,14 +119,16 @@ nlohmann::ordered_json linkStatsJson(const links::Links& l) {
   j["seconds"] = l.stats.seconds;
   j["rays_per_second"] = l.stats.seconds > 0 ? double(l.stats.rays) / l.stats.seconds : 0.0;
   // Where the time went, as shares of the phases' sum (their ticks have no fixed unit), and
-  // link generation's own work per unit of Embree time.
-  const double total = double(l.stats.totalPhaseTicks());
-  nlohmann::ordered_json share = nlohmann::ordered_json::object();
-  for (int k = 0; k < links::kLinkPhases; ++k)
-    share[links::kLinkPhaseNames[k]] = total > 0 ? double(l.stats.phase_ticks[k]) / total : 0.0;
-  j["phase_share"] = share;
-  const double trace = double(l.stats.phase_ticks[links::kPhaseTrace]);
-  j["own_work_per_trace"] = trace > 0 ? (total - trace) / trace : 0.0;
+  // link generation's own work per unit of Embree time: benchmark builds only.
+  if (links::kPhaseProbes) {
+    const double total = double(l.stats.totalPhaseTicks());
+    nlohmann::ordered_json share = nlohmann::ordered_json::object();
+    for (int k = 0; k < links::kLinkPhases; ++k)
+      share[links::kLinkPhaseNames[k]] = total > 0 ? double(l.stats.phase_ticks[k]) / total : 0.0;
+    j["phase_share"] = share;
+    const double trace = double(l.stats.phase_ticks[links::kPhaseTrace]);
+    j["own_work_per_trace"] = trace > 0 ? (total - trace) / trace : 0.0;
+  }
   j["bytes_per_link_projected"] = l.bytesPerLinkProjected();
   j["bytes_per_link_runtime"] = links::Links::bytesPerLinkRuntime();
   return j;

@@ -85,18 +85,6 @@ std::uint64_t streamLinkBytes(const links::LinksView& view, std::size_t cache_be
   return sum;
 }
 
-bool cpuSupportsAvx2F16c() {
-#if defined(__x86_64__) || defined(__i386__)
-  __builtin_cpu_init();
-  // F16C from CPUID leaf 1 (ECX bit 29): clang 14's __builtin_cpu_supports does not know "f16c".
-  unsigned eax = 0, ebx = 0, ecx = 0, edx = 0;
-  const bool f16c = __get_cpuid(1, &eax, &ebx, &ecx, &edx) != 0 && (ecx & bit_F16C) != 0;
-  return __builtin_cpu_supports("avx2") && __builtin_cpu_supports("fma") && f16c;
-#else
-  return false;
-#endif
-}
-
 #if defined(__x86_64__) || defined(__i386__)
 #define LL_AVX2 __attribute__((target("avx2,f16c,fma")))
 

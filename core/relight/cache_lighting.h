@@ -4,11 +4,11 @@
 // This is the hot loop of a relight (seed 000 sec 4.7): it streams every link's bytes once,
 // so it is memory-bound for the projected form and ALU-bound for the runtime form. Node
 // radiosity is read as interleaved (R, G, B, 0) float quadruples: a link touches one cache
-// line of node data instead of three (planar R/G/B arrays measured 3.2x the plain read of
-// the link bytes for the projected AVX2 kernel on cornell_box, 64k nodes; docs/results.md).
-// The SIMD kernels are compiled with __attribute__((target)) in the same translation unit
-// and chosen at run time (cpuSupportsAvx2F16c), so the library runs on any x86-64 and no
-// build flag changes the result of the scalar path. Each kernel sums one cache's links in
+// line of node data instead of three (planar arrays cost several times the plain read of
+// the link bytes: relight_bench's kernel-vs-stream figure). The SIMD kernels are compiled
+// with __attribute__((target)) in the same translation unit and chosen at run time
+// (isaAtLeast(Isa::kAvx2), isa.h), so the library runs on any x86-64 and no build flag
+// changes the result of the scalar path. Each kernel sums one cache's links in
 // a fixed order, so results do not depend on how caches are split across threads; SIMD and
 // scalar sum in different orders and agree to float rounding (tests/relight).
 #pragma once
@@ -40,6 +40,5 @@ void lightCacheRuntimeAvx2(const links::LinksView& view, std::size_t cache, int 
 std::uint64_t streamLinkBytes(const links::LinksView& view, std::size_t cache_begin, std::size_t cache_end,
                               bool projected);
 
-bool cpuSupportsAvx2F16c();
 
 }  // namespace lightlink::relight::detail

@@ -8,6 +8,7 @@
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
 
+#include "core/common/isa.h"
 #include "core/relight/cache_lighting.h"
 #include "core/relight/direct_points.h"
 #include "core/sh/sh.h"
@@ -39,10 +40,10 @@ class CpuPasses final : public RelightPasses {
 
   std::string_view backend() const override { return "cpu"; }
   std::string kernelName(const RelightOptions& o) const override {
-    return o.kernel == Kernel::kAuto && detail::cpuSupportsAvx2F16c() ? "avx2" : "scalar";
+    return o.kernel == Kernel::kAuto && isaAtLeast(Isa::kAvx2) ? "avx2" : "scalar";
   }
   Status begin(const RelightFrame& f) override {
-    simd_ = f.options.kernel == Kernel::kAuto && detail::cpuSupportsAvx2F16c();
+    simd_ = f.options.kernel == Kernel::kAuto && isaAtLeast(Isa::kAvx2);
     return {};
   }
   Status setEmission(std::span<const glm::vec3> emission_b, std::uint64_t) override {

@@ -2,6 +2,7 @@
 
 #include <memory>
 
+#include "core/common/isa.h"
 #include "core/relight/cache_lighting.h"
 #include "core/relight/cpu_passes.h"
 #include "core/relight/emission_state.h"
@@ -104,7 +105,7 @@ Relighter::Relighter(Relighter&&) noexcept = default;
 Relighter& Relighter::operator=(Relighter&&) noexcept = default;
 Relighter::~Relighter() = default;
 
-bool Relighter::simdAvailable() { return detail::cpuSupportsAvx2F16c(); }
+bool Relighter::simdAvailable() { return isaAtLeast(Isa::kAvx2); }
 
 void Relighter::invalidate(Forget what) { impl_->pipeline.invalidate(what == Forget::kEverything); }
 

@@ -15,7 +15,7 @@
 #include "core/rt/cutout.h"
 
 #include "core/common/check.h"
-#include "core/common/multiversion.h"
+#include "core/common/isa.h"
 
 namespace lightlink::rt {
 namespace {
@@ -352,7 +352,7 @@ void Accel::Impl::intersectPackets(std::span<const Ray> rays, std::span<Hit> hit
   }
 }
 
-// The fan's packet copies are LL_MULTIVERSION (core/common/multiversion.h); they move bits only.
+// The fan's packet copies are LL_ISA_CLONES (core/common/isa.h); they move bits only.
 
 namespace {
 
@@ -363,7 +363,7 @@ typedef std::int32_t Ints8 __attribute__((vector_size(32)));
 // A packet in and out of Embree's record as vector moves: the directions in, and every hit
 // field out with the lanes that missed zeroed by a mask: cheaper than copying lane by lane
 // with a select per field (precompute_bench's "trace" phase on CornellBox-Original).
-LL_MULTIVERSION void fanPacketIn(RTCRayHit16& rh, const float* dx, const float* dy, const float* dz, float tfar) {
+LL_ISA_INLINE void fanPacketInImpl(RTCRayHit16& rh, const float* dx, const float* dy, const float* dz, float tfar) {
   std::memcpy(rh.ray.dir_x, dx, sizeof rh.ray.dir_x);
   std::memcpy(rh.ray.dir_y, dy, sizeof rh.ray.dir_y);
   std::memcpy(rh.ray.dir_z, dz, sizeof rh.ray.dir_z);
@@ -372,8 +372,9 @@ LL_MULTIVERSION void fanPacketIn(RTCRayHit16& rh, const float* dx, const float* 
     rh.hit.geomID[j] = RTC_INVALID_GEOMETRY_ID;
   }
 }
+LL_ISA_CLONES(void, fanPacketIn, (RTCRayHit16& rh, const float* dx, const float* dy, const float* dz, float tfar), (rh, dx, dy, dz, tfar), fanPacketInImpl)
 
-LL_MULTIVERSION void fanPacketOut(const RTCRayHit16& rh, const std::uint32_t* geom_to_mesh, std::uint32_t geometries,
+LL_ISA_INLINE void fanPacketOutImpl(const RTCRayHit16& rh, const std::uint32_t* geom_to_mesh, std::uint32_t geometries,
                                   std::size_t base, const HitArrays& out) {
   const Ints8 invalid = Ints8{} + static_cast<std::int32_t>(RTC_INVALID_GEOMETRY_ID);
   for (std::size_t half = 0; half < 16; half += 8) {
@@ -397,6 +398,7 @@ LL_MULTIVERSION void fanPacketOut(const RTCRayHit16& rh, const std::uint32_t* ge
   for (std::size_t j = 0; j < 16; ++j)
     out.mesh[base + j] = geom_to_mesh[std::min<std::uint32_t>(rh.hit.geomID[j], geometries)];
 }
+LL_ISA_CLONES(void, fanPacketOut, (const RTCRayHit16& rh, const std::uint32_t* geom_to_mesh, std::uint32_t geometries, std::size_t base, const HitArrays& out), (rh, geom_to_mesh, geometries, base, out), fanPacketOutImpl)
 
 }  // namespace
 
