@@ -304,7 +304,7 @@ Expected<std::shared_ptr<SceneSession>> SceneRegistry::openResident(SessionIdent
   if (restored_lights) {
     lights = *restored_lights;
   } else {
-    lights = relight::LightSet::fromScene(resident->scene());
+    lights = relight::LightSet::fromSceneLights(resident->scene().lights);
     if (!overrides.is_null()) {
       if (Status s = lights.apply(overrides); !s) return invalidInput("lightset_json: {}", s.message());
     }

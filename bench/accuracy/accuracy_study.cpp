@@ -270,7 +270,7 @@ class Study {
     };
     auto scene = scene::loadScene(sa.path);
     if (!scene) return failAll(scene.status());
-    auto lights = relight::LightSet::fromScene(*scene);
+    auto lights = relight::LightSet::fromSceneLights(scene->lights);
     if (!sa.lights.empty())
       if (Status s = lights.applyFile(sa.lights); !s) return failAll(s);
     const precompute::PrecomputeOptions& pre = group.front().pre;

@@ -100,7 +100,7 @@ int main(int argc, char** argv) {
   if (a.scene.empty()) return fail(invalidInput("--scene is required"));
   auto scene = scene::loadScene(a.scene);
   if (!scene) return fail(scene.status());
-  auto lights = relight::LightSet::fromScene(*scene);
+  auto lights = relight::LightSet::fromSceneLights(scene->lights);
   if (!a.lights.empty())
     if (Status s = lights.applyFile(a.lights); !s) return fail(s);
   if (a.no_punctual) {

@@ -31,7 +31,7 @@ bool parsePrecomputeFlag(const std::string& flag, const char* value, precompute:
 }
 
 relight::LightSet lightsOrSun(const scene::Scene& scene) {
-  relight::LightSet lights = relight::LightSet::fromScene(scene);
+  relight::LightSet lights = relight::LightSet::fromSceneLights(scene.lights);
   if (lights.lights().empty()) {
     relight::LightEntry sun;
     sun.id = "sun";

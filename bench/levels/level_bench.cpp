@@ -99,7 +99,7 @@ int main(int argc, char** argv) {
   out["direct_texels"] = p->direct_texels.size();
   out["precompute_peak_rss_mib"] = peakRssMiB();
 
-  relight::LightSet lights = relight::LightSet::fromScene(*scene);
+  relight::LightSet lights = relight::LightSet::fromSceneLights(scene->lights);
   if (!lights_path.empty()) {
     if (Status s = lights.applyFile(lights_path); !s) {
       std::fprintf(stderr, "%s\n", s.toString().c_str());

@@ -3,12 +3,13 @@
 //
 // The request is applied by the daemon all or nothing, in the order of the proto: replace
 // (`replaceLights`), then `remove`, `modify`, `add`, emissive overrides, sky, emissive_baked.
-// Values are checked here as they enter (NaN/Inf, negative intensity or colour, zero
-// direction, bad cone angles, empty or duplicate ids) with messages naming the field path, so
-// a script learns of its mistake before a round trip; the daemon checks again, because it
-// cannot trust any client.
+// Values are checked here as they enter, by core/lights' rules (lights::LightPatch::
+// validateFields for every entry, lights::LightSet::validate for a whole new light), with
+// messages naming the field path, so a script learns of its mistake before a round trip; the
+// daemon checks again, because it cannot trust any client.
 //
-// Light-set JSON -> request. A light-set file merges into the scene's lights: an entry whose
+// Light-set JSON -> request. The document is read by lights::LightSetPatch, the same reader
+// the CLI and the daemon use, so the three accept the same documents. A light-set file merges into the scene's lights: an entry whose
 // id the scene has overrides the fields given, a new id is added (its `type` required),
 // `"remove": true` removes. Which ids the scene has is the caller's knowledge (SceneHandle
 // keeps the ids OpenScene returned and the changes made through it); when it is not known
@@ -28,6 +29,7 @@
 
 #include "clients/client/textures.h"
 #include "core/common/status.h"
+#include "core/lights/light_set.h"
 
 namespace lightlink::v1 {
 class UpdateLightsRequest;
@@ -63,7 +65,7 @@ class LightUpdate {
   ~LightUpdate();
 
   // Each returns the first problem with its argument, naming the field
-  // (`add[0].intensity: nan is not a finite number`); on error the update is unchanged.
+  // (`add[0].intensity: nan is not finite`); on error the update is unchanged.
   Status add(const LightFields& light);
   Status modify(const LightFields& light);
   Status remove(const std::string& id);
@@ -74,6 +76,7 @@ class LightUpdate {
   Status clearEmissive(int material);
   // Uniform sky radiance, or 9 RGB SH coefficients (docs/sh.md) when `sh` is non-empty.
   Status sky(Vec3 radiance, const std::vector<Vec3>& sh = {});
+  Status sky(const lights::Sky& sky);
   void emissiveBaked(bool baked);
 
   bool empty() const;
@@ -85,7 +88,9 @@ class LightUpdate {
   v1::UpdateLightsRequest& proto() { return *request_; }
 
   // A light-set JSON document (docs/lightset.md, schema version 1) as one update; errors
-  // name the field path of the document (`lights[2].position[1]: "x" is not a number`).
+  // name the field path of the document (`lights[2].position[1]: expected a number, got string`).
+  static Expected<LightUpdate> fromLightSetPatch(const lights::LightSetPatch& patch,
+                                                 const std::set<std::string>* known_ids);
   static Expected<LightUpdate> fromLightSetJson(const nlohmann::json& doc, const std::set<std::string>* known_ids);
   static Expected<LightUpdate> fromLightSetText(const std::string& text, const std::set<std::string>* known_ids);
   static Expected<LightUpdate> fromLightSetFile(const std::string& path, const std::set<std::string>* known_ids);
@@ -94,7 +99,7 @@ class LightUpdate {
   std::unique_ptr<v1::UpdateLightsRequest> request_;
 };
 
-// Parses "point" | "spot" | "directional".
+// Parses "point" | "spot" | "directional" (lights::kLightKindNames).
 Expected<LightType> parseLightType(const std::string& text);
 
 }  // namespace lightlink::client

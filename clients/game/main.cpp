@@ -103,7 +103,7 @@ int run(const Args& a) {
   accel_options.static_only = false;
   auto accel = rt::Accel::build(*scene, accel_options);
   if (!accel) return fail(accel.status());
-  auto lights = relight::LightSet::fromScene(*scene);
+  auto lights = relight::LightSet::fromSceneLights(scene->lights);
   if (!a.lights_path.empty())
     if (Status s = lights.applyFile(a.lights_path); !s) return fail(s);
   const viewer::Camera camera = viewer::defaultCamera(*scene);

@@ -65,7 +65,7 @@ int runBake(const BakeArgs& args) {
   const std::string key_hex = resident->cacheKeyHex();
   const std::string& artifact_note = resident->note();
 
-  auto lights = relight::LightSet::fromScene(scene);
+  auto lights = relight::LightSet::fromSceneLights(scene.lights);
   if (!args.lights_path.empty()) {
     if (Status s = lights.applyFile(args.lights_path); !s) return reportError(kCmd, s);
   }

@@ -94,7 +94,7 @@ int runCompare(const CompareArgs& args) {
   auto scene = scene::loadScene(args.scene_path, load);
   if (!scene) return reportError(kCmd, scene.status());
   scene::applySurfaceRules(*scene, bake_options->precompute.surfaces);
-  auto lights = relight::LightSet::fromScene(*scene);
+  auto lights = relight::LightSet::fromSceneLights(scene->lights);
   if (!args.lights_path.empty())
     if (Status s = lights.applyFile(args.lights_path); !s) return reportError(kCmd, s);
   reference::ReferenceOptions ref_options;

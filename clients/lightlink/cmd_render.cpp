@@ -27,7 +27,7 @@ int runRender(const RenderArgs& args) {
                                           args.scene_path));
   auto baked = viewer::loadBakedLighting(args.bake_dir);
   if (!baked) return reportError(kCmd, baked.status());
-  auto lights = relight::LightSet::fromScene(*scene);
+  auto lights = relight::LightSet::fromSceneLights(scene->lights);
   if (!args.lights_path.empty())
     if (Status s = lights.applyFile(args.lights_path); !s) return reportError(kCmd, s);
   rt::AccelOptions accel_options;

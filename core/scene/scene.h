@@ -16,6 +16,7 @@
 #include <glm/glm.hpp>
 
 #include "core/common/aabb.h"
+#include "core/lights/light.h"
 
 namespace lightlink::scene {
 
@@ -124,21 +125,8 @@ struct MeshInstance {
   bool hasLightmapUv() const { return !uv1.empty(); }
 };
 
-// KHR_lights_punctual, in world space.
-struct Light {
-  enum class Kind { kPoint, kSpot, kDirectional };
-  std::string name;
-  Kind kind = Kind::kPoint;
-  int gltf_node = -1;
-  glm::vec3 color{1.0f};  // linear RGB, multiplies intensity
-  // Point/spot: luminous intensity in candela (lm/sr). Directional: illuminance in lux.
-  float intensity = 1.0f;
-  float range = 0.0f;     // metres; 0 = infinite (glTF: undefined)
-  float inner_cone_angle = 0.0f;                  // radians, spot only
-  float outer_cone_angle = 0.78539816339744831f;  // radians, spot only (glTF default pi/4)
-  glm::vec3 position{0.0f};      // world, point/spot
-  glm::vec3 direction{0, 0, -1}; // world, unit: the direction light travels (spot/directional)
-};
+// KHR_lights_punctual, in world space (core/lights/light.h: the light-set library owns it).
+using Light = lights::Light;
 
 struct SceneStats {
   std::size_t triangles_in = 0;         // as read, before dropping degenerates

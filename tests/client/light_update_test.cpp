@@ -62,7 +62,7 @@ TEST(ClientLightUpdate, TypedErrorsNameTheField) {
   l.id = "a";
   l.type = LightType::kPoint;
   l.intensity = std::numeric_limits<float>::quiet_NaN();
-  expectError(u.add(l), "add[0].intensity: nan is not a finite number");
+  expectError(u.add(l), "add[0].intensity: nan is not finite");
   l.intensity = -1.0f;
   expectError(u.add(l), "add[0].intensity: -1 is negative");
   l.intensity = 1.0f;
@@ -70,7 +70,7 @@ TEST(ClientLightUpdate, TypedErrorsNameTheField) {
   expectError(u.add(l), "add[0].color[1]: -0.5 is negative");
   l.color.reset();
   l.direction = Vec3{0, 0, 0};
-  expectError(u.add(l), "add[0].direction: must not be zero");
+  expectError(u.add(l), "add[0].direction: must be a non-zero vector");
   l.direction.reset();
   l.inner_cone_angle = 0.6f;
   l.outer_cone_angle = 0.4f;
@@ -79,13 +79,13 @@ TEST(ClientLightUpdate, TypedErrorsNameTheField) {
   l.outer_cone_angle.reset();
   LightFields untyped;
   untyped.id = "b";
-  expectError(u.add(untyped), "add[0].type: required");
+  expectError(u.add(untyped), "add[0].type: missing for new light");
   ASSERT_TRUE(u.add(l));
-  expectError(u.add(l), "add[1].id: duplicate id 'a'");
+  expectError(u.add(l), "add[1].id: duplicate id \"a\"");
   LightFields empty_id;
   expectError(u.modify(empty_id), "modify[0].id: must not be empty");
   expectError(u.sky(Vec3{0, 0, 0}, std::vector<Vec3>(4)), "sky.sh: 4 coefficients");
-  expectError(u.emissiveScale(-1, Vec3{1, 1, 1}), "emissive[0].material: -1 is negative");
+  expectError(u.emissiveScale(-1, Vec3{1, 1, 1}), "emissive[0].material: -1 is not a material index");
   EXPECT_EQ(u.proto().add_size(), 1);  // failed calls changed nothing
 }
 
@@ -155,34 +155,34 @@ TEST(ClientLightSetJson, ErrorsNameTheDocumentPath) {
   const std::set<std::string> known = {"light0"};
   auto err = [&](const std::string& text) { return LightUpdate::fromLightSetText(text, &known).status(); };
   expectError(err("{"), "not valid JSON");
-  expectError(err(R"({"lights": []})"), "version: required");
+  expectError(err(R"({"lights": []})"), "version: missing");
   expectError(err(R"({"version": 2})"), "version: 2 is not supported");
   expectError(err(R"({"version": 1, "colour": 1})"), "colour: unknown field");
   expectError(err(R"({"version": 1, "lights": [{"id": "light0", "colour": [1,1,1]}]})"),
               "lights[0].colour: unknown field");
   expectError(err(R"({"version": 1, "lights": [{"id": "light0", "position": [1, "x", 2]}]})"),
-              "lights[0].position[1]: \"x\" is not a number");
+              "lights[0].position[1]: expected a number, got string");
   expectError(err(R"({"version": 1, "lights": [{"id": "light0", "position": [1, 2]}]})"),
               "lights[0].position: expected an array of 3 numbers");
   expectError(err(R"({"version": 1, "lights": [{"id": "light0"}, {"id": "new", "intensity": 1}]})"),
-              "lights[1].type: required for a new light 'new'");
+              "lights[1].type: missing for new light \"new\"");
   expectError(err(R"({"version": 1, "lights": [{"id": "light0", "intensity": -4}]})"),
               "lights[0].intensity: -4 is negative");
   expectError(err(R"({"version": 1, "lights": [{"id": "light0", "intensity": 1e300}]})"),
-              "lights[0].intensity: 1e+300 is not a finite number");
+              "lights[0].intensity: 1e+300 is out of float range");
   expectError(err(R"({"version": 1, "lights": [{"id": "light0", "type": "area"}]})"),
-              "lights[0].type: 'area' is not a light type");
+              "lights[0].type: \"area\" is not point, spot or directional");
   expectError(err(R"({"version": 1, "lights": [{"id": "light0"}, {"id": "light0"}]})"),
               "lights[1].id: duplicate id \"light0\"");
   expectError(err(R"({"version": 1, "lights": [{"id": "ghost", "remove": true}]})"),
-              "lights[0].id: cannot remove \"ghost\"");
+              "lights[0].id: unknown id \"ghost\" cannot be removed");
   expectError(err(R"({"version": 1, "lights": [{"id": "light0", "baked": "yes"}]})"),
-              "lights[0].baked: \"yes\" is not true or false");
+              "lights[0].baked: expected true or false, got string");
   expectError(err(R"({"version": 1, "sky": {"radiance": [0, -1, 0]}})"), "sky.radiance[1]: -1 is negative");
-  expectError(err(R"({"version": 1, "sky": {"sh": [[0,0,0]]}})"), "sky.sh: expected 9 RGB triples");
+  expectError(err(R"({"version": 1, "sky": {"sh": [[0,0,0]]}})"), "sky.sh: expected 9 RGB coefficients");
   expectError(err(R"({"version": 1, "emissive": [{"material": 1, "scale": 1, "radiance": 2}]})"),
-              "emissive[0]: exactly one of scale and radiance");
-  expectError(err(R"({"version": 1, "emissive": [{"scale": 1}]})"), "emissive[0].material: required");
+              "emissive[0]: give exactly one of \"scale\" and \"radiance\"");
+  expectError(err(R"({"version": 1, "emissive": [{"scale": 1}]})"), "emissive[0].material: expected a material index");
   expectError(err(R"({"version": 1, "emissive": [{"material": 0, "scale": [1, -2, 1]}]})"),
               "emissive[0].scale[1]: -2 is negative");
 }

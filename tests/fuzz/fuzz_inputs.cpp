@@ -82,7 +82,7 @@ const RelightContext& relightContext() {
       std::abort();
     }
     c->accel.emplace(std::move(accel).value());
-    c->lights = relight::LightSet::fromScene(c->scene);
+    c->lights = relight::LightSet::fromSceneLights(c->scene.lights);
     return c;
   }();
   return *ctx;
@@ -116,7 +116,7 @@ BakeContext& bakeContext() {
       std::abort();
     }
     c->relighter.emplace(std::move(relighter).value());
-    c->lights = relight::LightSet::fromScene(c->scene);
+    c->lights = relight::LightSet::fromSceneLights(c->scene.lights);
     return c;
   }();
   return *ctx;
@@ -348,7 +348,7 @@ Status writeSeedBakeOutputs(const std::string& dir) {
   if (!accel) return accel.status();
   auto relighter = relight::Relighter::create(s, *accel, *p);
   if (!relighter) return relighter.status();
-  auto result = relighter->relight(relight::LightSet::fromScene(s), {});
+  auto result = relighter->relight(relight::LightSet::fromSceneLights(s.lights), {});
   if (!result) return result.status();
   const fs::path d(dir);
   for (const bool half : {false, true}) {

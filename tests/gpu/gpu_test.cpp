@@ -154,17 +154,17 @@ TEST(GpuBackend, FactoryNamesTheBackendThatRan) {
   relight::RelightOptions o;
   o.max_bounces = 1;
   o.emitter_samples = 2;  // the emitters' direct light is CPU code on both backends
-  ASSERT_OK((*gpu)->relightInto(relight::LightSet::fromScene(f.scene), o, r));
+  ASSERT_OK((*gpu)->relightInto(relight::LightSet::fromSceneLights(f.scene.lights), o, r));
   EXPECT_EQ(r.backend, "gpu");
   // Bad options are rejected with the field named, as on the CPU.
   o.bands = 4;
-  Status s = (*gpu)->relightInto(relight::LightSet::fromScene(f.scene), o, r);
+  Status s = (*gpu)->relightInto(relight::LightSet::fromSceneLights(f.scene.lights), o, r);
   ASSERT_FALSE(s);
   EXPECT_NE(s.message().find("bands 4"), std::string::npos) << s.message();
   o.bands = 0;
   const std::vector<glm::vec3> wrong(3, glm::vec3(1.0f));
   o.surfel_irradiance = wrong;
-  s = (*gpu)->relightInto(relight::LightSet::fromScene(f.scene), o, r);
+  s = (*gpu)->relightInto(relight::LightSet::fromSceneLights(f.scene.lights), o, r);
   ASSERT_FALSE(s);
   EXPECT_NE(s.message().find("surfel_irradiance"), std::string::npos) << s.message();
 }
@@ -182,11 +182,11 @@ void parity(relight::LinkForm form, int bands) {
     const glm::vec3 x = f.p.surfels.position[s] / f.scene.scale;
     e[s] = glm::vec3(2.0f + std::sin(7.0f * x.x), 1.5f + std::cos(5.0f * x.y), 1.0f + x.z * x.z) * 3.0f;
   }
-  relight::LightSet lights = relight::LightSet::fromScene(f.scene);  // emitters + point light
+  relight::LightSet lights = relight::LightSet::fromSceneLights(f.scene.lights);  // emitters + point light
   relight::Sky sky;
   sky.radiance = glm::vec3(0.2f, 0.3f, 0.5f);
   ASSERT_OK(lights.setSky(sky));
-  const relight::LightSet scene_lights = relight::LightSet::fromScene(f.scene);
+  const relight::LightSet scene_lights = relight::LightSet::fromSceneLights(f.scene.lights);
   for (const auto& l : scene_lights.lights()) {
     relight::LightEntry realtime = l;  // not baked: no shadowed direct per texel (shadows differ)
     realtime.baked = false;
@@ -253,7 +253,7 @@ TEST(GpuShadows, ShadowMapsCloseToRayTracedOnCornellBox) {
   ASSERT_TRUE(cpu);
   auto gpu = makeGpuBackend(f.scene, *f.accel, f.p, f.p.lightmap_links.view(), f.p.grid_links.view());
   ASSERT_TRUE(gpu) << gpu.status().toString();
-  relight::LightSet lights = relight::LightSet::fromScene(f.scene);
+  relight::LightSet lights = relight::LightSet::fromSceneLights(f.scene.lights);
   ASSERT_OK(lights.setEmissiveBaked(false));  // direct = the point light's only
   relight::RelightOptions o;
   o.max_bounces = 2;
@@ -304,7 +304,7 @@ TEST(GpuBackend, UnchangedLightSetRewritesOnlyTheTexels) {
   const Fixture& f = demo();
   auto gpu = makeGpuBackend(f.scene, *f.accel, f.p, f.p.lightmap_links.view(), f.p.grid_links.view());
   ASSERT_TRUE(gpu) << gpu.status().toString();
-  relight::LightSet lights = relight::LightSet::fromScene(f.scene);
+  relight::LightSet lights = relight::LightSet::fromSceneLights(f.scene.lights);
   relight::RelightOptions o;
   o.max_bounces = 3;
   o.emitter_samples = 2;

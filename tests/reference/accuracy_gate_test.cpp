@@ -174,7 +174,7 @@ constexpr Tolerance kRoomWithABlock{.bias_lo = 0.96, .bias_hi = 1.02, .max_rel_r
 TEST(AccuracyGate, BundledCornellBox) {
   auto s = scene::loadScene(std::string(LIGHTLINK_SOURCE_DIR) + "/clients/demo/cornell_box.gltf");
   ASSERT_TRUE(s) << s.status().toString();
-  gate("cornell_box", *s, relight::LightSet::fromScene(*s), kCornellBox);
+  gate("cornell_box", *s, relight::LightSet::fromSceneLights(s->lights), kCornellBox);
 }
 
 // A closed room (4 x 2.5 x 3 m, grey 0.5) with a block on its floor and a point light beside

@@ -24,7 +24,7 @@ TEST(AlphaShadow, MaskCheckerCardCastsACheckerAndANoShadowSheetCastsNone) {
   ASSERT_TRUE(baked);
   RelightOptions ro;
   ro.max_bounces = 0;
-  auto r = baked->relighter().relight(LightSet::fromScene(baked->scene), ro);
+  auto r = baked->relighter().relight(LightSet::fromSceneLights(baked->scene.lights), ro);
   ASSERT_TRUE(r) << r.status().toString();
 
   const auto& lm = baked->p.lightmap;

@@ -23,7 +23,7 @@ double floorIndirect(bool wall_contributes) {
   s.lights.push_back(sun);
   auto baked = Baked::make(std::move(s), smallOptions());
   if (!baked) return -1.0;
-  auto r = baked->relighter().relight(LightSet::fromScene(baked->scene), RelightOptions{});
+  auto r = baked->relighter().relight(LightSet::fromSceneLights(baked->scene.lights), RelightOptions{});
   EXPECT_TRUE(r) << r.status().toString();
   if (!r) return -1.0;
   const auto& lm = baked->p.lightmap;

@@ -170,7 +170,7 @@ TEST(Daemon, RoundTripOpenUpdateRelightMatchesInProcess) {
   // The same light set relit here: the daemon's values, bit for bit up to float noise.
   auto scene = scene::loadGltf((sourceDir() / "clients/demo/cornell_box.gltf").string());
   ASSERT_TRUE(scene);
-  auto lights = relight::LightSet::fromScene(*scene);
+  auto lights = relight::LightSet::fromSceneLights(scene->lights);
   ASSERT_TRUE(lights.add(pointEntry("key", 0.2f, 0.4f, 0.3f, 2.0f)));
   const auto want = relightInProcess(f.cache, lights);
   expectClose(decodeValues(res.payloads[v1::PAYLOAD_LIGHTMAP_SH], v1::PRECISION_FLOAT), want.lightmap_sh, "lightmap_sh");
@@ -519,7 +519,7 @@ TEST(Daemon, ProgressivePublishesAPreviewThenTheConvergedResultAsTheNextVersion)
   // The preview is the bounce-free relight, the converged result the full one, of the same lights.
   auto scene = scene::loadGltf((sourceDir() / "clients/demo/cornell_box.gltf").string());
   ASSERT_TRUE(scene);
-  auto lights = relight::LightSet::fromScene(*scene);
+  auto lights = relight::LightSet::fromSceneLights(scene->lights);
   ASSERT_TRUE(lights.add(pointEntry("key", 0.2f, 0.4f, 0.3f, 2.0f)));
   const auto full = relightInProcess(f.cache, lights);
   const auto quick = relightInProcess(f.cache, lights, 0);
@@ -642,7 +642,7 @@ TEST(Daemon, TwentyConcurrentClientsLoseNoUpdateAndSeeNoTornResult) {
 
   auto scene = scene::loadGltf((sourceDir() / "clients/demo/cornell_box.gltf").string());
   ASSERT_TRUE(scene);
-  auto lights = relight::LightSet::fromScene(*scene);
+  auto lights = relight::LightSet::fromSceneLights(scene->lights);
   for (int c = 0; c < kClients; ++c)
     ASSERT_TRUE(lights.add(pointEntry(fmt::format("c{}", c), 0.05f + 0.02f * c, 0.2f + 0.05f * (kUpdates - 1), 0.3f,
                                       0.1f * kUpdates)));

@@ -40,7 +40,7 @@ ScaledBake bakeAtScale(double s) {
   for (auto& m : scene.meshes)
     for (auto& p : m.positions) p = glm::vec3(glm::dvec3(p) * s);
   for (auto& l : scene.lights) l.position = glm::vec3(glm::dvec3(l.position) * s), l.range *= float(s);
-  LightSet set = LightSet::fromScene(scene);
+  LightSet set = LightSet::fromSceneLights(scene.lights);
   // Emitters: radiance scaled by 1/s^2 (see the scale law above).
   for (std::size_t m = 0; m < scene.materials.size(); ++m) {
     if (!scene.materials[m].isEmissive()) continue;

@@ -1,4 +1,4 @@
-#include "core/relight/light_set.h"
+#include "core/lights/light_set.h"
 
 #include <algorithm>
 #include <cmath>
@@ -7,20 +7,13 @@
 #include <set>
 #include <sstream>
 
-namespace lightlink::relight {
+namespace lightlink::lights {
 namespace {
 
 using json = nlohmann::json;
 constexpr float kPi = std::numbers::pi_v<float>;
 
-const char* kindName(scene::Light::Kind k) {
-  switch (k) {
-    case scene::Light::Kind::kPoint: return "point";
-    case scene::Light::Kind::kSpot: return "spot";
-    case scene::Light::Kind::kDirectional: return "directional";
-  }
-  return "point";
-}
+std::string kindName(Light::Kind k) { return std::string(enumName(kLightKindNames, k)); }
 
 Status checkScalar(float v, std::string_view path) {
   if (!std::isfinite(v)) return invalidInput("{}: {} is not finite", path, v);
@@ -75,51 +68,58 @@ Status checkKeys(const json& obj, const std::string& path, std::initializer_list
   return {};
 }
 
-// Applies the fields present in `j` to `e` (which holds defaults or the light overridden).
-Status readLightFields(const json& j, const std::string& path, LightEntry& e) {
+// Reads one "lights" entry; `path` names it ("lights[2]").
+Expected<LightPatch> readLightPatch(const json& j, const std::string& path) {
+  if (!j.is_object()) return invalidInput("{}: expected an object", path);
   if (Status s = checkKeys(j, path,
                            {"id", "type", "color", "intensity", "range", "position", "direction",
                             "inner_cone_angle", "outer_cone_angle", "baked", "remove", "name"});
       !s)
     return s;
+  LightPatch p;
+  if (!j.contains("id") || !j["id"].is_string()) return invalidInput("{}.id: expected a string", path);
+  p.id = j["id"].get<std::string>();
+  if (j.contains("remove")) {
+    auto r = readBool(j["remove"], path + ".remove");
+    if (!r) return r.status();
+    p.remove = *r;
+  }
   if (j.contains("type")) {
     const json& t = j["type"];
     if (!t.is_string()) return invalidInput("{}.type: expected a string", path);
     const std::string ts = t.get<std::string>();
-    if (ts == "point") e.light.kind = scene::Light::Kind::kPoint;
-    else if (ts == "spot") e.light.kind = scene::Light::Kind::kSpot;
-    else if (ts == "directional") e.light.kind = scene::Light::Kind::kDirectional;
-    else return invalidInput("{}.type: \"{}\" is not point, spot or directional", path, ts);
+    p.kind = enumValue(kLightKindNames, ts);
+    if (!p.kind) return invalidInput("{}.type: \"{}\" is not point, spot or directional", path, ts);
   }
   if (j.contains("name")) {
     if (!j["name"].is_string()) return invalidInput("{}.name: expected a string", path);
-    e.light.name = j["name"].get<std::string>();
+    p.name = j["name"].get<std::string>();
   }
-  auto vec = [&](const char* key, glm::vec3& out) -> Status {
+  auto vec = [&](const char* key, std::optional<glm::vec3>& out) -> Status {
     if (!j.contains(key)) return {};
     auto v = readVec3(j[key], path + "." + key);
     if (!v) return v.status();
     out = *v;
     return {};
   };
-  auto num = [&](const char* key, float& out) -> Status {
+  auto num = [&](const char* key, std::optional<float>& out) -> Status {
     if (!j.contains(key)) return {};
     auto v = readNumber(j[key], path + "." + key);
     if (!v) return v.status();
     out = *v;
     return {};
   };
-  for (Status s : {vec("color", e.light.color), num("intensity", e.light.intensity), num("range", e.light.range),
-                   vec("position", e.light.position), vec("direction", e.light.direction),
-                   num("inner_cone_angle", e.light.inner_cone_angle),
-                   num("outer_cone_angle", e.light.outer_cone_angle)})
+  for (Status s : {vec("color", p.color), num("intensity", p.intensity), num("range", p.range),
+                   vec("position", p.position), vec("direction", p.direction),
+                   num("inner_cone_angle", p.inner_cone_angle), num("outer_cone_angle", p.outer_cone_angle)})
     if (!s) return s;
   if (j.contains("baked")) {
     auto b = readBool(j["baked"], path + ".baked");
     if (!b) return b.status();
-    e.baked = *b;
+    p.baked = *b;
   }
-  return {};
+  if (Status s = p.validateFields(path); !s) return s;
+  return p;
 }
 
 Expected<Sky> readSky(const json& j, const std::string& path) {
@@ -189,23 +189,23 @@ std::array<glm::vec3, 9> Sky::radianceSh() const {
   return c;
 }
 
-bool sameLight(const scene::Light& a, const scene::Light& b) {
+bool sameLight(const Light& a, const Light& b) {
   return a.kind == b.kind && a.color == b.color && a.intensity == b.intensity && a.range == b.range &&
          a.inner_cone_angle == b.inner_cone_angle && a.outer_cone_angle == b.outer_cone_angle &&
          a.position == b.position && a.direction == b.direction;
 }
 
-LightSet LightSet::fromScene(const scene::Scene& scene) {
+LightSet LightSet::fromSceneLights(const std::vector<Light>& scene_lights) {
   LightSet set;
   std::set<std::string> names;
   std::set<std::string> duplicated;
-  for (const auto& l : scene.lights)
+  for (const auto& l : scene_lights)
     if (!names.insert(l.name).second) duplicated.insert(l.name);
-  for (std::size_t i = 0; i < scene.lights.size(); ++i) {
-    const auto& l = scene.lights[i];
+  for (std::size_t i = 0; i < scene_lights.size(); ++i) {
+    const auto& l = scene_lights[i];
     LightEntry e{l.name.empty() || duplicated.count(l.name) ? fmt::format("light{}", i) : l.name, l, true};
     // Scene lights were validated by ingest; a collision of a name with a generated id is
-    // resolved by suffixing, so fromScene never fails.
+    // resolved by suffixing, so fromSceneLights never fails.
     while (set.find(e.id)) e.id += "_";
     set.lights_.push_back(std::move(e));
   }
@@ -222,9 +222,9 @@ Status LightSet::validate(const LightEntry& e, std::string_view path) {
   if (Status s = checkScalar(l.range, fmt::format("{}.range", path)); !s) return s;
   if (Status s = checkFinite(l.position, fmt::format("{}.position", path)); !s) return s;
   if (Status s = checkFinite(l.direction, fmt::format("{}.direction", path)); !s) return s;
-  if (l.kind != scene::Light::Kind::kPoint && !(glm::length(l.direction) > 1e-6f))
+  if (l.kind != Light::Kind::kPoint && !(glm::length(l.direction) > 1e-6f))
     return invalidInput("{}.direction: must be a non-zero vector", path);
-  if (l.kind == scene::Light::Kind::kSpot) {
+  if (l.kind == Light::Kind::kSpot) {
     if (!std::isfinite(l.outer_cone_angle) || l.outer_cone_angle <= 0.0f || l.outer_cone_angle > 0.5f * kPi + 1e-6f)
       return invalidInput("{}.outer_cone_angle: {} is outside (0, pi/2]", path, l.outer_cone_angle);
     if (!std::isfinite(l.inner_cone_angle) || l.inner_cone_angle < 0.0f || l.inner_cone_angle >= l.outer_cone_angle)
@@ -270,6 +270,44 @@ void normalizeDirection(LightEntry& e) {
   if (len > 0.0f) e.light.direction /= len;
 }
 }  // namespace
+
+void LightPatch::applyTo(LightEntry& e) const {
+  if (kind) e.light.kind = *kind;
+  if (name) e.light.name = *name;
+  if (color) e.light.color = *color;
+  if (intensity) e.light.intensity = *intensity;
+  if (range) e.light.range = *range;
+  if (position) e.light.position = *position;
+  if (direction) e.light.direction = *direction;
+  if (inner_cone_angle) e.light.inner_cone_angle = *inner_cone_angle;
+  if (outer_cone_angle) e.light.outer_cone_angle = *outer_cone_angle;
+  if (baked) e.baked = *baked;
+}
+
+Status LightPatch::validateFields(std::string_view path) const {
+  if (id.empty()) return invalidInput("{}.id: must not be empty", path);
+  if (id.size() > 256) return invalidInput("{}.id: longer than 256 characters", path);
+  if (color)
+    if (Status s = checkColor(*color, fmt::format("{}.color", path)); !s) return s;
+  if (intensity)
+    if (Status s = checkScalar(*intensity, fmt::format("{}.intensity", path)); !s) return s;
+  if (range)
+    if (Status s = checkScalar(*range, fmt::format("{}.range", path)); !s) return s;
+  if (position)
+    if (Status s = checkFinite(*position, fmt::format("{}.position", path)); !s) return s;
+  if (direction) {
+    if (Status s = checkFinite(*direction, fmt::format("{}.direction", path)); !s) return s;
+    // Zero is no direction for any kind: a later "type" change would make it one.
+    if (!(glm::length(*direction) > 1e-6f)) return invalidInput("{}.direction: must be a non-zero vector", path);
+  }
+  for (auto [key, angle] : {std::pair{"inner_cone_angle", inner_cone_angle}, std::pair{"outer_cone_angle", outer_cone_angle}})
+    if (angle && !(*angle >= 0.0f && *angle <= 0.5f * kPi + 1e-6f))
+      return invalidInput("{}.{}: {} is outside [0, pi/2]", path, key, *angle);
+  if (inner_cone_angle && outer_cone_angle && !(*inner_cone_angle < *outer_cone_angle))
+    return invalidInput("{}.inner_cone_angle: {} is not below outer_cone_angle = {}", path, *inner_cone_angle,
+                        *outer_cone_angle);
+  return {};
+}
 
 const LightEntry* LightSet::find(std::string_view id) const {
   for (const auto& e : lights_)
@@ -339,49 +377,30 @@ Status LightSet::setEmissiveBaked(bool baked) {
   return {};
 }
 
-Status LightSet::apply(const json& j) {
+Expected<LightSetPatch> LightSetPatch::fromJson(const json& j) {
   if (!j.is_object()) return invalidInput("light set: expected a JSON object");
   if (Status s = checkKeys(j, "light set", {"version", "lights", "sky", "emissive", "emissive_baked"}); !s) return s;
   if (!j.contains("version")) return invalidInput("version: missing (this build reads version {})", kLightSetSchemaVersion);
   if (!j["version"].is_number_integer() || j["version"].get<long long>() != kLightSetSchemaVersion)
     return invalidInput("version: {} is not supported (this build reads version {})", j["version"].dump(),
                         kLightSetSchemaVersion);
-  LightSet next = *this;  // all or nothing
+  LightSetPatch patch;
   if (j.contains("lights")) {
     const json& arr = j["lights"];
     if (!arr.is_array()) return invalidInput("lights: expected an array");
     std::set<std::string> seen;
     for (std::size_t i = 0; i < arr.size(); ++i) {
       const std::string path = fmt::format("lights[{}]", i);
-      const json& lj = arr[i];
-      if (!lj.is_object()) return invalidInput("{}: expected an object", path);
-      if (!lj.contains("id") || !lj["id"].is_string()) return invalidInput("{}.id: expected a string", path);
-      const std::string id = lj["id"].get<std::string>();
-      if (!seen.insert(id).second) return invalidInput("{}.id: duplicate id \"{}\"", path, id);
-      auto it = std::find_if(next.lights_.begin(), next.lights_.end(), [&](const auto& e) { return e.id == id; });
-      if (lj.contains("remove")) {
-        auto r = readBool(lj["remove"], path + ".remove");
-        if (!r) return r.status();
-        if (*r) {
-          if (it == next.lights_.end()) return invalidInput("{}.id: unknown id \"{}\" cannot be removed", path, id);
-          next.lights_.erase(it);
-          continue;
-        }
-      }
-      LightEntry e = it != next.lights_.end() ? *it : LightEntry{id, {}, true};
-      if (it == next.lights_.end() && !lj.contains("type"))
-        return invalidInput("{}.type: missing for new light \"{}\"", path, id);
-      if (Status s = readLightFields(lj, path, e); !s) return s;
-      if (Status s = validate(e, path); !s) return s;
-      normalizeDirection(e);
-      if (it != next.lights_.end()) *it = std::move(e);
-      else next.lights_.push_back(std::move(e));
+      auto p = readLightPatch(arr[i], path);
+      if (!p) return p.status();
+      if (!seen.insert(p->id).second) return invalidInput("{}.id: duplicate id \"{}\"", path, p->id);
+      patch.lights.push_back(std::move(*p));
     }
   }
   if (j.contains("sky")) {
     auto sky = readSky(j["sky"], "sky");
     if (!sky) return sky.status();
-    next.sky_ = *sky;
+    patch.sky = *sky;
   }
   if (j.contains("emissive")) {
     const json& arr = j["emissive"];
@@ -389,20 +408,53 @@ Status LightSet::apply(const json& j) {
     for (std::size_t i = 0; i < arr.size(); ++i) {
       auto e = readEmissive(arr[i], fmt::format("emissive[{}]", i));
       if (!e) return e.status();
-      auto it = std::lower_bound(next.emissive_.begin(), next.emissive_.end(), e->material,
-                                 [](const EmissiveOverride& a, int m) { return a.material < m; });
-      if (it != next.emissive_.end() && it->material == e->material) *it = *e;
-      else next.emissive_.insert(it, *e);
+      patch.emissive.push_back(*e);
     }
   }
   if (j.contains("emissive_baked")) {
     auto b = readBool(j["emissive_baked"], "emissive_baked");
     if (!b) return b.status();
-    next.emissive_baked_ = *b;
+    patch.emissive_baked = *b;
   }
+  return patch;
+}
+
+Status LightSet::apply(const LightSetPatch& patch) {
+  LightSet next = *this;  // all or nothing
+  for (std::size_t i = 0; i < patch.lights.size(); ++i) {
+    const LightPatch& p = patch.lights[i];
+    const std::string path = fmt::format("lights[{}]", i);
+    auto it = std::find_if(next.lights_.begin(), next.lights_.end(), [&](const auto& e) { return e.id == p.id; });
+    if (p.remove) {
+      if (it == next.lights_.end()) return invalidInput("{}.id: unknown id \"{}\" cannot be removed", path, p.id);
+      next.lights_.erase(it);
+      continue;
+    }
+    if (it == next.lights_.end() && !p.kind) return invalidInput("{}.type: missing for new light \"{}\"", path, p.id);
+    LightEntry e = it != next.lights_.end() ? *it : LightEntry{p.id, {}, true};
+    p.applyTo(e);
+    if (Status s = validate(e, path); !s) return s;
+    normalizeDirection(e);
+    if (it != next.lights_.end()) *it = std::move(e);
+    else next.lights_.push_back(std::move(e));
+  }
+  if (patch.sky) next.sky_ = *patch.sky;
+  for (const EmissiveOverride& e : patch.emissive) {
+    auto it = std::lower_bound(next.emissive_.begin(), next.emissive_.end(), e.material,
+                               [](const EmissiveOverride& a, int m) { return a.material < m; });
+    if (it != next.emissive_.end() && it->material == e.material) *it = e;
+    else next.emissive_.insert(it, e);
+  }
+  if (patch.emissive_baked) next.emissive_baked_ = *patch.emissive_baked;
   next.version_ = version_ + 1;
   *this = std::move(next);
   return {};
+}
+
+Status LightSet::apply(const json& j) {
+  auto patch = LightSetPatch::fromJson(j);
+  if (!patch) return patch.status();
+  return apply(*patch);
 }
 
 Expected<LightSet> LightSet::fromJson(const json& j) {
@@ -412,16 +464,12 @@ Expected<LightSet> LightSet::fromJson(const json& j) {
 }
 
 namespace {
-// Parses a light-set file. JSON has no Inf, so a number such as 1e999 that overflows double is
-// a parse error (nlohmann: "number overflow"), raised before any schema check could name the
-// field; the callback tracks the path the parser has reached (object keys, array indices) so
-// that error names the field like every other light-set error does (DESIGN.md sec 6:
+// Parses light-set JSON text. JSON has no Inf, so a number such as 1e999 that overflows double
+// is a parse error (nlohmann: "number overflow"), raised before any schema check could name
+// the field; the callback tracks the path the parser has reached (object keys, array indices)
+// so that error names the field like every other light-set error does (DESIGN.md sec 6:
 // non-finite input is rejected naming the field; tests/stability).
-Expected<json> parseFile(const std::string& path) {
-  std::ifstream in(path, std::ios::binary);
-  if (!in) return notFound("{}: cannot open light set", path);
-  std::stringstream ss;
-  ss << in.rdbuf();
+Expected<json> parseText(const std::string& text, std::string_view origin) {
   struct Level {
     bool array = false;
     std::size_t count = 0;  // array: completed elements
@@ -445,31 +493,53 @@ Expected<json> parseFile(const std::string& path) {
     return true;
   };
   try {
-    return json::parse(ss.str(), track);
+    return json::parse(text, track);
   } catch (const json::exception& e) {
     std::string at;
     for (const Level& l : levels) {
       if (l.array) at += fmt::format("[{}]", l.count);
       else if (!l.key.empty()) at += (at.empty() ? "" : ".") + l.key;
     }
-    if (at.empty()) return invalidInput("{}: not valid JSON: {}", path, e.what());
-    return invalidInput("{}: not valid JSON at {}: {}", path, at, e.what());
+    if (at.empty()) return invalidInput("{}: not valid JSON: {}", origin, e.what());
+    return invalidInput("{}: not valid JSON at {}: {}", origin, at, e.what());
   }
 }
+
+Expected<std::string> readFile(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  if (!in) return notFound("{}: cannot open light set", path);
+  std::stringstream ss;
+  ss << in.rdbuf();
+  return ss.str();
+}
+
+Status prefixed(const Status& s, std::string_view origin) { return Status(s.code(), fmt::format("{}: {}", origin, s.message())); }
 }  // namespace
 
-Expected<LightSet> LightSet::load(const std::string& path) {
-  auto j = parseFile(path);
+Expected<LightSetPatch> LightSetPatch::parse(const std::string& text, std::string_view origin) {
+  auto j = parseText(text, origin);
   if (!j) return j.status();
-  auto set = fromJson(*j);
-  if (!set) return Status(set.status().code(), path + ": " + set.status().message());
+  auto patch = fromJson(*j);
+  if (!patch) return prefixed(patch.status(), origin);
+  return patch;
+}
+
+Expected<LightSetPatch> LightSetPatch::load(const std::string& path) {
+  auto text = readFile(path);
+  if (!text) return text.status();
+  return parse(*text, path);
+}
+
+Expected<LightSet> LightSet::load(const std::string& path) {
+  LightSet set;
+  if (Status s = set.applyFile(path); !s) return s;
   return set;
 }
 
 Status LightSet::applyFile(const std::string& path) {
-  auto j = parseFile(path);
-  if (!j) return j.status();
-  if (Status s = apply(*j); !s) return Status(s.code(), path + ": " + s.message());
+  auto patch = LightSetPatch::load(path);
+  if (!patch) return patch.status();
+  if (Status s = apply(*patch); !s) return prefixed(s, path);
   return {};
 }
 
@@ -485,9 +555,9 @@ nlohmann::ordered_json LightSet::toJson() const {
     l["color"] = vec3Json(e.light.color);
     l["intensity"] = e.light.intensity;
     if (e.light.range > 0.0f) l["range"] = e.light.range;
-    if (e.light.kind != scene::Light::Kind::kDirectional) l["position"] = vec3Json(e.light.position);
-    if (e.light.kind != scene::Light::Kind::kPoint) l["direction"] = vec3Json(e.light.direction);
-    if (e.light.kind == scene::Light::Kind::kSpot) {
+    if (e.light.kind != Light::Kind::kDirectional) l["position"] = vec3Json(e.light.position);
+    if (e.light.kind != Light::Kind::kPoint) l["direction"] = vec3Json(e.light.direction);
+    if (e.light.kind == Light::Kind::kSpot) {
       l["inner_cone_angle"] = e.light.inner_cone_angle;
       l["outer_cone_angle"] = e.light.outer_cone_angle;
     }
@@ -520,4 +590,4 @@ Status LightSet::save(const std::string& path) const {
   return {};
 }
 
-}  // namespace lightlink::relight
+}  // namespace lightlink::lights

@@ -1,4 +1,4 @@
-#include "core/relight/light_set.h"
+#include "core/lights/light_set.h"
 
 #include <cmath>
 #include <limits>
@@ -7,7 +7,7 @@
 
 #include "tests/common/testing.h"
 
-namespace lightlink::relight {
+namespace lightlink::lights {
 namespace {
 
 using nlohmann::json;
@@ -15,7 +15,7 @@ using nlohmann::json;
 LightEntry point(std::string id, float intensity) {
   LightEntry e;
   e.id = std::move(id);
-  e.light.kind = scene::Light::Kind::kPoint;
+  e.light.kind = Light::Kind::kPoint;
   e.light.intensity = intensity;
   return e;
 }
@@ -27,22 +27,24 @@ std::string errorOf(const json& j) {
 }
 
 TEST(LightSet, FromSceneGivesStableIdsAllBaked) {
-  scene::Scene s;
-  scene::Light a;
+  struct {
+    std::vector<Light> lights;
+  } s;  // a scene's lights
+  Light a;
   a.name = "sun";
-  a.kind = scene::Light::Kind::kDirectional;
-  scene::Light b;  // unnamed
-  scene::Light c;
+  a.kind = Light::Kind::kDirectional;
+  Light b;  // unnamed
+  Light c;
   c.name = "sun";  // duplicate name
   s.lights = {a, b, c};
-  const LightSet set = LightSet::fromScene(s);
+  const LightSet set = LightSet::fromSceneLights(s.lights);
   ASSERT_EQ(set.lights().size(), 3u);
   EXPECT_EQ(set.lights()[0].id, "light0");  // "sun" is not unique
   EXPECT_EQ(set.lights()[1].id, "light1");
   EXPECT_EQ(set.lights()[2].id, "light2");
   for (const auto& e : set.lights()) EXPECT_TRUE(e.baked);
   s.lights = {a, b};
-  EXPECT_EQ(LightSet::fromScene(s).lights()[0].id, "sun");
+  EXPECT_EQ(LightSet::fromSceneLights(s.lights).lights()[0].id, "sun");
 }
 
 TEST(LightSet, EditsValidateAndBumpTheVersion) {
@@ -70,7 +72,7 @@ TEST(LightSet, EditsValidateAndBumpTheVersion) {
   EXPECT_EQ(set.version(), 3u);
   EXPECT_TRUE(set.lights().empty());
   LightEntry spot = point("s", 1.0f);
-  spot.light.kind = scene::Light::Kind::kSpot;
+  spot.light.kind = Light::Kind::kSpot;
   spot.light.inner_cone_angle = 0.8f;
   spot.light.outer_cone_angle = 0.5f;
   Status cone = set.add(spot);
@@ -82,13 +84,13 @@ TEST(LightSet, JsonRoundTrip) {
   LightSet set;
   LightEntry sun;
   sun.id = "sun";
-  sun.light.kind = scene::Light::Kind::kDirectional;
+  sun.light.kind = Light::Kind::kDirectional;
   sun.light.direction = glm::vec3(0, -2, 0);  // stored normalised
   sun.light.intensity = 1000.0f;
   sun.baked = false;
   ASSERT_TRUE(set.add(sun));
   LightEntry spot = point("spot", 50.0f);
-  spot.light.kind = scene::Light::Kind::kSpot;
+  spot.light.kind = Light::Kind::kSpot;
   spot.light.position = {1, 2, 3};
   spot.light.direction = {0, 0, -1};
   spot.light.range = 10.0f;
@@ -130,7 +132,7 @@ TEST(LightSet, ApplyOverridesByIdAddsAndRemoves) {
   EXPECT_GT(set.version(), v);
   ASSERT_EQ(set.lights().size(), 2u);
   EXPECT_EQ(set.find("a")->light.intensity, 15.0f);
-  EXPECT_EQ(set.find("a")->light.kind, scene::Light::Kind::kPoint);  // untouched fields kept
+  EXPECT_EQ(set.find("a")->light.kind, Light::Kind::kPoint);  // untouched fields kept
   EXPECT_EQ(set.find("b"), nullptr);
   EXPECT_FALSE(set.find("sun")->baked);
   // All or nothing: an error in the second light leaves the first unchanged.
@@ -184,4 +186,4 @@ TEST(LightSet, BadJsonIsRejectedNamingTheField) {
 }
 
 }  // namespace
-}  // namespace lightlink::relight
+}  // namespace lightlink::lights
