@@ -3,13 +3,13 @@
 // decoder of clients/client/raw_result.h, both feeding the same ResultAssembler.
 //
 // Fixed workload: the demo scene's medium lightmap as service_bench's clients ask for it —
-// 128 x 128 texels, 3 bands, half precision, lightmap only (SH + direct + validity, 1.0 MB),
+// 256 x 256 texels, 3 bands, half precision, lightmap only (SH + direct + validity, 4.0 MB),
 // in the daemon's own wire form (Snapshot::wire, 1 MiB chunks). Each message is handed to
 // the decoder as gRPC hands a received message over: a ByteBuffer of 16 KiB slices. Reports
 // the median over --repeats of the time per result and the throughput; the decoded
 // checksum is printed, so the optimizer cannot drop the work.
 //
-//   result_decode_bench [--repeats N] [--slice-kib K] [--float]   (--float: float32 values, 2 MB)
+//   result_decode_bench [--repeats N] [--slice-kib K] [--float]   (--float: float32 values, 8 MB)
 #include <algorithm>
 #include <chrono>
 #include <cstdio>
@@ -34,16 +34,16 @@ namespace {
 using namespace lightlink;
 using Clock = std::chrono::steady_clock;
 
-// The demo scene (clients/demo/cornell_box.gltf) at medium: a 128 x 128 lightmap, 3 bands.
+// The demo scene (clients/demo/cornell_box.gltf) at medium: a 256 x 256 lightmap, 3 bands.
 void fillMediumDemo(service::Snapshot& s) {
   s.scene_id = "bench";
   s.version = 1;
   s.sequence = 1;
   s.backend = "cpu";
   s.bands = 3;
-  s.width = 128;
-  s.height = 128;
-  const std::size_t texels = 128 * 128;
+  s.width = 256;
+  s.height = 256;
+  const std::size_t texels = 256 * 256;
   s.lightmap_sh.resize(texels * 27);
   for (std::size_t i = 0; i < s.lightmap_sh.size(); ++i) s.lightmap_sh[i] = 0.25f + 0.001f * float(i % 997);
   s.direct.assign(texels * 3, 0.5f);
@@ -153,7 +153,7 @@ int main(int argc, char** argv) {
   const double generated = medianMicroseconds(messages, repeats, decodeGenerated, &sum);
   const double hand = medianMicroseconds(messages, repeats, decodeHand, &sum);
   std::printf("machine: %s, %u threads\n", cpuModel().c_str(), std::thread::hardware_concurrency());
-  std::printf("result: 128x128 texels, 3 bands, %s, lightmap only: %zu messages, %.3f MB, %zu KiB slices\n",
+  std::printf("result: 256x256 texels, 3 bands, %s, lightmap only: %zu messages, %.3f MB, %zu KiB slices\n",
               as_float ? "float" : "half", messages.size(), mb, slice_kib);
   std::printf("%-22s %10s %10s\n", "decoder", "us/result", "GB/s");
   std::printf("%-22s %10.1f %10.2f\n", "generated (protobuf)", generated, mb * 1e3 / generated);
