@@ -22,7 +22,7 @@ install(DIRECTORY "${PROJECT_SOURCE_DIR}/core/common" "${PROJECT_SOURCE_DIR}/cor
         DESTINATION "${LIGHTLINK_INSTALL_INCLUDEDIR}/core" COMPONENT lightlink_client
         FILES_MATCHING PATTERN "*.h")
 install(FILES clients/client/client.h clients/client/light_update.h clients/client/local_daemon.h
-              clients/client/raw_result.h clients/client/session.h clients/client/shared_result.h
+              clients/client/session.h clients/client/shared_result.h
               clients/client/textures.h
         DESTINATION "${LIGHTLINK_INSTALL_INCLUDEDIR}/clients/client" COMPONENT lightlink_client)
 install(FILES proto/shared_result_format.h proto/lightlink.proto

@@ -2,11 +2,13 @@
 
 #include <unistd.h>
 
+#include <condition_variable>
+#include <deque>
 #include <fstream>
+#include <functional>
+#include <system_error>
+#include <thread>
 
-#include <google/protobuf/descriptor.h>
-
-#include "core/common/check.h"
 #include "service/auth.h"
 #include "gpu/backend_factory.h"
 #include "service/logging.h"
@@ -118,9 +120,149 @@ void fillOpened(const SceneSession& s, v1::SceneOpened* o) {
   o->set_open_seconds(r.openSeconds());
 }
 
+// Threads that run the bodies of result calls, reused: 50 clients polling at 200 Hz would
+// otherwise start 10,000 threads a second. A body that waits holds its thread, so a call that
+// finds no idle thread starts one; a thread idle for a while exits. Never destroyed: idle
+// threads may still wait on it while the process exits.
+class BodyThreads {
+ public:
+  static BodyThreads& instance() {
+    static auto* threads = new BodyThreads;
+    return *threads;
+  }
+  // Throws std::system_error when a thread is needed and cannot be started (`body` not run).
+  void run(std::function<void()> body) {
+    {
+      std::lock_guard lock(mutex_);
+      if (idle_ > queue_.size()) {  // an idle thread not yet claimed
+        queue_.push_back(std::move(body));
+        ready_.notify_one();
+        return;
+      }
+    }
+    std::thread([this, body = std::move(body)]() mutable {
+      body();
+      body = nullptr;
+      loop();
+    }).detach();
+  }
+
+ private:
+  static constexpr auto kIdleExit = std::chrono::seconds(10);
+  void loop() {
+    std::unique_lock lock(mutex_);
+    for (;;) {
+      ++idle_;
+      const bool got = ready_.wait_for(lock, kIdleExit, [&] { return !queue_.empty(); });
+      --idle_;
+      if (!got) return;
+      auto body = std::move(queue_.front());
+      queue_.pop_front();
+      lock.unlock();
+      body();
+      lock.lock();
+    }
+  }
+  std::mutex mutex_;
+  std::condition_variable ready_;
+  std::deque<std::function<void()>> queue_;
+  std::size_t idle_ = 0;  // threads waiting for a body
+};
+
+}  // namespace
+
+// One call of Relight, GetTextures or Subscribe as gRPC callback reactor. Its body runs on a
+// thread of its own while it lasts (BodyThreads), because it waits for results (SceneSession's waits block) and a
+// gRPC callback thread must never block. The body hands over a result's messages at once;
+// each write's completion starts the next on gRPC's thread, and the body waits only for the
+// whole result (one thread hand-off per result, not per message, and a slow subscriber still
+// skips versions). The last message of a call that ends with it goes out together with the
+// status (one flush, one wake-up of the client).
+// The reactor deletes itself once gRPC is done with the call and the body thread has ended.
+class LightlinkService::ResultCall final : public grpc::ServerWriteReactor<grpc::ByteBuffer> {
+ public:
+  using Body = std::function<grpc::Status(ResultCall&)>;
+
+  ResultCall(const char* rpc, Body body) {
+    try {
+      BodyThreads::instance().run([this, rpc, body = std::move(body)] { run(rpc, body); });
+    } catch (const std::system_error&) {
+      Finish(grpcError(grpc::StatusCode::RESOURCE_EXHAUSTED, fmt::format("{}: the daemon cannot start a thread", rpc)));
+      release();
+    }
+  }
+
+  // Sends the first `count` messages of `wire` (references to its slices, no copy) and
+  // returns once all went out; false when the client is gone.
+  bool write(std::shared_ptr<const WireResult> wire, std::size_t count) {
+    if (count == 0) return true;
+    const grpc::ByteBuffer* first = &wire->messages[0];
+    {
+      std::lock_guard lock(mutex_);
+      batch_ = std::move(wire);
+      batch_count_ = count;
+      next_ = 1;
+      write_done_ = false;
+    }
+    StartWrite(first);
+    std::unique_lock lock(mutex_);
+    written_.wait(lock, [&] { return write_done_; });
+    batch_.reset();
+    return write_ok_;
+  }
+  // The call's last message, sent with its status when the body returns OK.
+  void writeLast(const grpc::ByteBuffer& message) { last_ = message; }
+
+  void OnWriteDone(bool ok) override {
+    const grpc::ByteBuffer* next = nullptr;
+    {
+      std::lock_guard lock(mutex_);
+      if (ok && next_ < batch_count_) {
+        next = &batch_->messages[next_++];  // alive: the body waits until the batch is done
+      } else {
+        write_ok_ = ok;
+        write_done_ = true;
+        written_.notify_one();
+      }
+    }
+    if (next) StartWrite(next);
+  }
+  void OnDone() override { release(); }
+
+ private:
+  void run(const char* rpc, const Body& body) {
+    grpc::Status status;
+    // gRPC would answer UNKNOWN and log nothing.
+    try {
+      status = body(*this);
+    } catch (const std::bad_alloc&) {
+      logEvent(LogLevel::kError, "out_of_memory", {{"rpc", rpc}});
+      status = grpcError(grpc::StatusCode::RESOURCE_EXHAUSTED, fmt::format("out of memory while answering {}", rpc));
+    }
+    if (last_ && status.ok()) StartWriteAndFinish(&*last_, grpc::WriteOptions(), status);
+    else Finish(status);
+    release();
+  }
+  // Two owners: gRPC (until OnDone) and the body thread (until it returns).
+  void release() {
+    if (refs_.fetch_sub(1, std::memory_order_acq_rel) == 1) delete this;
+  }
+
+  std::mutex mutex_;
+  std::condition_variable written_;
+  std::shared_ptr<const WireResult> batch_;  // the messages being written
+  std::size_t batch_count_ = 0, next_ = 0;
+  bool write_done_ = false, write_ok_ = false;
+  std::optional<grpc::ByteBuffer> last_;
+  std::atomic<int> refs_{2};
+};
+
+namespace {
+
+using ResultCall = LightlinkService::ResultCall;
+
 // Header of a GetTextures answer when nothing changed.
-template <typename Stream>
-grpc::Status sendNotModified(const SceneSession& s, const Snapshot& snap, Stream* stream) {
+grpc::Status sendNotModified(const SceneSession& s, const Snapshot& snap, ResultCall& call) {
   v1::ResultMessage m;
   auto* h = m.mutable_header();
   h->mutable_scene()->set_scene_id(s.identity().id);
@@ -130,7 +272,7 @@ grpc::Status sendNotModified(const SceneSession& s, const Snapshot& snap, Stream
   grpc::ByteBuffer bytes;
   bool own = false;
   if (auto st = grpc::SerializationTraits<v1::ResultMessage>::Serialize(m, &bytes, &own); !st.ok()) return st;
-  stream->WriteLast(WireMessage{&bytes}, grpc::WriteOptions());  // with the status: one flush
+  call.writeLast(bytes);  // with the status: one flush
   return grpc::Status::OK;
 }
 
@@ -140,21 +282,16 @@ enum class CallEnds { kAfterThisResult, kLater };
 
 // Sends a result from the snapshot's shared wire form (Snapshot::wire: `previous` and
 // `delta` for a Subscribe stream). CANCELLED when a write fails: the client is gone.
-template <typename Stream>
-grpc::Status sendWire(const Snapshot& snap, const SpecKey& spec, std::size_t chunk_bytes, Stream* stream, CallEnds ends,
+grpc::Status sendWire(const Snapshot& snap, const SpecKey& spec, std::size_t chunk_bytes, ResultCall& call, CallEnds ends,
                       const Snapshot* previous = nullptr, bool delta = false) {
   const auto wire = snap.wire(spec, chunk_bytes, previous, delta);
   if (!wire) return grpcError(grpc::StatusCode::INTERNAL, "result: could not serialize the result messages");
   const std::size_t n = wire->messages.size();
-  // The last message of a call's only result goes out with its status (WriteLast): one flush
-  // and one wake-up of the client fewer. (A buffer hint on the other messages is not an
-  // option: on the synchronous server a hinted Write waits for a flush only the next write
-  // starts.)
+  // The last message of a call's only result goes out with its status: one flush and one
+  // wake-up of the client fewer.
   const std::size_t plain = ends == CallEnds::kAfterThisResult && n > 0 ? n - 1 : n;
-  for (std::size_t i = 0; i < plain; ++i)
-    if (!stream->Write(WireMessage{&wire->messages[i]}))
-      return grpcError(grpc::StatusCode::CANCELLED, "the client went away");
-  if (plain < n) stream->WriteLast(WireMessage{&wire->messages.back()}, grpc::WriteOptions());
+  if (!call.write(wire, plain)) return grpcError(grpc::StatusCode::CANCELLED, "the client went away");
+  if (plain < n) call.writeLast(wire->messages.back());
   return grpc::Status::OK;
 }
 
@@ -167,34 +304,35 @@ std::uint64_t residentSetBytes() {
   return resident * static_cast<std::uint64_t>(::sysconf(_SC_PAGESIZE));
 }
 
+LightlinkService::LightlinkService(const DaemonConfig& config, SceneRegistry& registry)
+    : config_(config), registry_(registry), shared_(config.shared_memory_dir) {}
+
 template <typename Request>
-void LightlinkService::replaceWithWireHandler(
-    const char* name,
-    grpc::Status (LightlinkService::*handler)(grpc::ServerContext*, grpc::ServerSplitStreamer<Request, WireMessage>*)) {
-  // The generated Service registers its methods in the order of the proto file, which is
-  // the descriptor's method order.
-  const auto* service = google::protobuf::DescriptorPool::generated_pool()->FindServiceByName(
-      v1::Lightlink::service_full_name());
-  const auto* method = service ? service->FindMethodByName(name) : nullptr;
-  LL_CHECK(method != nullptr);
-  MarkMethodStreamed(method->index(), new grpc::internal::SplitServerStreamingHandler<Request, WireMessage>(
-                                          [this, handler, name](grpc::ServerContext* ctx, auto* stream) {
-                                            // gRPC would answer UNKNOWN and log nothing.
-                                            try {
-                                              return (this->*handler)(ctx, stream);
-                                            } catch (const std::bad_alloc&) {
-                                              logEvent(LogLevel::kError, "out_of_memory", {{"rpc", name}});
-                                              return grpcError(grpc::StatusCode::RESOURCE_EXHAUSTED,
-                                                               fmt::format("out of memory while answering {}", name));
-                                            }
-                                          }));
+grpc::ServerWriteReactor<grpc::ByteBuffer>* LightlinkService::startResultCall(
+    const char* rpc, grpc::CallbackServerContext* ctx, const grpc::ByteBuffer* request,
+    grpc::Status (LightlinkService::*body)(grpc::ServerContextBase*, const Request&, ResultCall&)) {
+  Request parsed;
+  grpc::ByteBuffer bytes(*request);  // a reference to the received slices
+  const bool ok = grpc::SerializationTraits<Request>::Deserialize(&bytes, &parsed).ok();
+  return new ResultCall(rpc, [this, ctx, rpc, ok, parsed = std::move(parsed), body](ResultCall& call) {
+    if (!ok) return grpcError(grpc::StatusCode::INVALID_ARGUMENT, fmt::format("{}: the request is not valid", rpc));
+    return (this->*body)(ctx, parsed, call);
+  });
 }
 
-LightlinkService::LightlinkService(const DaemonConfig& config, SceneRegistry& registry)
-    : config_(config), registry_(registry), shared_(config.shared_memory_dir) {
-  replaceWithWireHandler("Relight", &LightlinkService::RelightWire);
-  replaceWithWireHandler("GetTextures", &LightlinkService::GetTexturesWire);
-  replaceWithWireHandler("Subscribe", &LightlinkService::SubscribeWire);
+grpc::ServerWriteReactor<grpc::ByteBuffer>* LightlinkService::Relight(grpc::CallbackServerContext* ctx,
+                                                                      const grpc::ByteBuffer* request) {
+  return startResultCall("Relight", ctx, request, &LightlinkService::relight);
+}
+
+grpc::ServerWriteReactor<grpc::ByteBuffer>* LightlinkService::GetTextures(grpc::CallbackServerContext* ctx,
+                                                                          const grpc::ByteBuffer* request) {
+  return startResultCall("GetTextures", ctx, request, &LightlinkService::getTextures);
+}
+
+grpc::ServerWriteReactor<grpc::ByteBuffer>* LightlinkService::Subscribe(grpc::CallbackServerContext* ctx,
+                                                                        const grpc::ByteBuffer* request) {
+  return startResultCall("Subscribe", ctx, request, &LightlinkService::subscribe);
 }
 
 LightlinkService::StreamSlot::StreamSlot(LightlinkService& service, std::string client)
@@ -217,7 +355,7 @@ LightlinkService::StreamSlot::~StreamSlot() {
   --service_.active_streams_;
 }
 
-grpc::Status LightlinkService::admit(grpc::ServerContext* ctx, bool new_work) const {
+grpc::Status LightlinkService::admit(grpc::ServerContextBase* ctx, bool new_work) const {
   const auto& md = ctx->client_metadata();
   const auto it = md.find("authorization");
   const bool present = it != md.end();
@@ -246,7 +384,7 @@ grpc::Status LightlinkService::admit(grpc::ServerContext* ctx, bool new_work) co
   return grpc::Status::OK;
 }
 
-grpc::Status LightlinkService::lookup(grpc::ServerContext* ctx, const v1::SceneRef& ref,
+grpc::Status LightlinkService::lookup(grpc::ServerContextBase* ctx, const v1::SceneRef& ref,
                                       std::shared_ptr<SceneSession>* out) const {
   if (ref.scene_id().empty()) return grpcError(grpc::StatusCode::INVALID_ARGUMENT, "scene.scene_id: required");
   auto s = registry_.find(ref.scene_id());
@@ -272,7 +410,7 @@ grpc::Status LightlinkService::lookup(grpc::ServerContext* ctx, const v1::SceneR
   return grpc::Status::OK;
 }
 
-grpc::Status LightlinkService::beginResultCall(grpc::ServerContext* ctx, const v1::SceneRef& ref,
+grpc::Status LightlinkService::beginResultCall(grpc::ServerContextBase* ctx, const v1::SceneRef& ref,
                                                const v1::ResultSpec& spec, std::shared_ptr<SceneSession>* scene,
                                                std::optional<StreamSlot>* slot) {
   if (auto st = admit(ctx, true); !st.ok()) return st;
@@ -284,16 +422,7 @@ grpc::Status LightlinkService::beginResultCall(grpc::ServerContext* ctx, const v
   return grpc::Status::OK;
 }
 
-template <typename Request>
-grpc::Status LightlinkService::beginWireCall(grpc::ServerContext* ctx, grpc::ServerSplitStreamer<Request, WireMessage>* stream,
-                                             const char* rpc, Request* request, std::shared_ptr<SceneSession>* scene,
-                                             std::optional<StreamSlot>* slot) {
-  if (!stream->Read(request))
-    return grpcError(grpc::StatusCode::INVALID_ARGUMENT, fmt::format("{}: no request message", rpc));
-  return beginResultCall(ctx, request->scene(), request->spec(), scene, slot);
-}
-
-Clock::time_point LightlinkService::waitDeadline(grpc::ServerContext* ctx) const {
+Clock::time_point LightlinkService::waitDeadline(grpc::ServerContextBase* ctx) const {
   // The call's own deadline, mapped onto the steady clock; none: kDefaultWait.
   const auto now_sys = std::chrono::system_clock::now();
   const auto d = ctx->deadline();
@@ -387,9 +516,8 @@ grpc::Status LightlinkService::UpdateLights(grpc::ServerContext* ctx, const v1::
   return grpc::Status::OK;
 }
 
-template <typename Stream>
-grpc::Status LightlinkService::sendResult(grpc::ServerContext* ctx, const Snapshot& snap, const SpecKey& spec,
-                                          bool shared_memory, Stream* stream) {
+grpc::Status LightlinkService::sendResult(grpc::ServerContextBase* ctx, const Snapshot& snap, const SpecKey& spec,
+                                          bool shared_memory, ResultCall& call) {
   if (shared_memory && shared_.enabled() && isLocalPeer(ctx->peer())) {
     const auto wire = snap.wire(spec, config_.chunk_bytes);
     if (!wire) return grpcError(grpc::StatusCode::INTERNAL, "result: could not serialize the result messages");
@@ -397,20 +525,20 @@ grpc::Status LightlinkService::sendResult(grpc::ServerContext* ctx, const Snapsh
     if (header) {
       // The one message goes out with the call's status: one flush and one wake-up of the
       // client instead of two.
-      stream->WriteLast(WireMessage{header->get()}, grpc::WriteOptions());
+      call.writeLast(**header);
       return grpc::Status::OK;
     }
     // No file (no space, an old result): the stream still works.
     logEvent(LogLevel::kDebug, "shared_memory_skipped", {{"scene", snap.scene_id}, {"reason", header.status().message()}});
   }
-  return sendWire(snap, spec, config_.chunk_bytes, stream, CallEnds::kAfterThisResult);
+  return sendWire(snap, spec, config_.chunk_bytes, call, CallEnds::kAfterThisResult);
 }
 
-grpc::Status LightlinkService::RelightWire(grpc::ServerContext* ctx, RelightStreamer* stream) {
-  v1::RelightRequest request;
+grpc::Status LightlinkService::relight(grpc::ServerContextBase* ctx, const v1::RelightRequest& request,
+                                       ResultCall& call) {
   std::shared_ptr<SceneSession> s;
   std::optional<StreamSlot> slot;
-  if (auto st = beginWireCall(ctx, stream, "Relight", &request, &s, &slot); !st.ok()) return st;
+  if (auto st = beginResultCall(ctx, request.scene(), request.spec(), &s, &slot); !st.ok()) return st;
   const std::uint64_t newest = s->version();
   if (request.version() > newest)
     return grpcError(grpc::StatusCode::OUT_OF_RANGE, fmt::format("version: {} is newer than the scene's newest version {}",
@@ -423,14 +551,14 @@ grpc::Status LightlinkService::RelightWire(grpc::ServerContext* ctx, RelightStre
     return grpcError(grpc::StatusCode::DEADLINE_EXCEEDED,
                      fmt::format("version: no result >= {} within the deadline", request.version()));
   }
-  return sendResult(ctx, *snap, SpecKey::from(request.spec(), snap->bands), request.shared_memory(), stream);
+  return sendResult(ctx, *snap, SpecKey::from(request.spec(), snap->bands), request.shared_memory(), call);
 }
 
-grpc::Status LightlinkService::GetTexturesWire(grpc::ServerContext* ctx, GetTexturesStreamer* stream) {
-  v1::GetTexturesRequest request;
+grpc::Status LightlinkService::getTextures(grpc::ServerContextBase* ctx, const v1::GetTexturesRequest& request,
+                                           ResultCall& call) {
   std::shared_ptr<SceneSession> s;
   std::optional<StreamSlot> slot;
-  if (auto st = beginWireCall(ctx, stream, "GetTextures", &request, &s, &slot); !st.ok()) return st;
+  if (auto st = beginResultCall(ctx, request.scene(), request.spec(), &s, &slot); !st.ok()) return st;
   if (request.wait_ms() > kMaxWaitMs)
     return grpcError(grpc::StatusCode::INVALID_ARGUMENT,
                      fmt::format("wait_ms: {} is above the limit of {}", request.wait_ms(), kMaxWaitMs));
@@ -454,15 +582,15 @@ grpc::Status LightlinkService::GetTexturesWire(grpc::ServerContext* ctx, GetText
       // Deadline or drain: the plain answer, not modified.
     }
   }
-  if (snap->version == request.last_seen_version()) return sendNotModified(*s, *snap, stream);
-  return sendResult(ctx, *snap, SpecKey::from(request.spec(), snap->bands), request.shared_memory(), stream);
+  if (snap->version == request.last_seen_version()) return sendNotModified(*s, *snap, call);
+  return sendResult(ctx, *snap, SpecKey::from(request.spec(), snap->bands), request.shared_memory(), call);
 }
 
-grpc::Status LightlinkService::SubscribeWire(grpc::ServerContext* ctx, SubscribeStreamer* stream) {
-  v1::SubscribeRequest request;
+grpc::Status LightlinkService::subscribe(grpc::ServerContextBase* ctx, const v1::SubscribeRequest& request,
+                                         ResultCall& call) {
   std::shared_ptr<SceneSession> s;
   std::optional<StreamSlot> slot;
-  if (auto st = beginWireCall(ctx, stream, "Subscribe", &request, &s, &slot); !st.ok()) return st;
+  if (auto st = beginResultCall(ctx, request.scene(), request.spec(), &s, &slot); !st.ok()) return st;
   s->addSubscriber(1);
   struct Unsubscribe {
     SceneSession& s;
@@ -485,7 +613,7 @@ grpc::Status LightlinkService::SubscribeWire(grpc::ServerContext* ctx, Subscribe
     // Streams that sent the same previous result send the same bytes: one wire form for
     // all of them (Snapshot::wire), full or delta.
     const SpecKey spec = SpecKey::from(request.spec(), snap->bands);
-    if (auto st = sendWire(*snap, spec, config_.chunk_bytes, stream, CallEnds::kLater, previous.get(),
+    if (auto st = sendWire(*snap, spec, config_.chunk_bytes, call, CallEnds::kLater, previous.get(),
                             request.deltas()); !st.ok())
       return st;
     previous = std::move(snap);

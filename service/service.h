@@ -6,6 +6,13 @@
 // result calls `beginResultCall`, instead of repeating the checks. Blocking waits (a result for a version, the next result of a
 // subscription) poll the call's cancellation and the drain flag every ~50 ms, so no call
 // outlives a cancelled client or a shutdown.
+//
+// Relight, GetTextures and Subscribe are gRPC callback methods with raw (ByteBuffer)
+// messages, through the generated WithRawCallbackMethod_* mixins: each result is serialized
+// once per (result, spec) into grpc::ByteBuffers (Snapshot::wire) and every caller is sent
+// references to the same slices, never a re-encoding. Their bodies run on a thread of the
+// call's own (ResultCall in service.cpp), since the scene's waits block and gRPC's callback
+// threads must not.
 #pragma once
 
 #include <atomic>
@@ -23,11 +30,14 @@
 #include "service/config.h"
 #include "service/scene_registry.h"
 #include "service/shared_results.h"
-#include "service/wire_message.h"
 
 namespace lightlink::service {
 
-class LightlinkService final : public v1::Lightlink::Service {
+// The generated service with the three result methods switched to raw callback handlers.
+using LightlinkServiceBase = v1::Lightlink::WithRawCallbackMethod_Relight<
+    v1::Lightlink::WithRawCallbackMethod_GetTextures<v1::Lightlink::WithRawCallbackMethod_Subscribe<v1::Lightlink::Service>>>;
+
+class LightlinkService final : public LightlinkServiceBase {
  public:
   LightlinkService(const DaemonConfig& config, SceneRegistry& registry);
 
@@ -35,17 +45,15 @@ class LightlinkService final : public v1::Lightlink::Service {
                          grpc::ServerWriter<v1::OpenSceneProgress>* writer) override;
   grpc::Status UpdateLights(grpc::ServerContext* ctx, const v1::UpdateLightsRequest* request,
                             v1::UpdateLightsResponse* response) override;
-  // Relight, GetTextures and Subscribe send results serialized once per result and spec
-  // (and, for Subscribe, per previous result) and shared by all their callers
-  // (service/wire_message.h). The constructor registers them in place of the generated
-  // handlers, as split-streaming methods whose responses are WireMessages (the same bytes
-  // as a serialized ResultMessage).
-  using RelightStreamer = grpc::ServerSplitStreamer<v1::RelightRequest, WireMessage>;
-  using GetTexturesStreamer = grpc::ServerSplitStreamer<v1::GetTexturesRequest, WireMessage>;
-  using SubscribeStreamer = grpc::ServerSplitStreamer<v1::SubscribeRequest, WireMessage>;
-  grpc::Status RelightWire(grpc::ServerContext* ctx, RelightStreamer* stream);
-  grpc::Status GetTexturesWire(grpc::ServerContext* ctx, GetTexturesStreamer* stream);
-  grpc::Status SubscribeWire(grpc::ServerContext* ctx, SubscribeStreamer* stream);
+  class ResultCall;  // the reactor of one result call (service.cpp)
+  // Relight, GetTextures and Subscribe: the request arrives serialized, each response is a
+  // serialized ResultMessage shared with every other caller of the same result (see above).
+  grpc::ServerWriteReactor<grpc::ByteBuffer>* Relight(grpc::CallbackServerContext* ctx,
+                                                      const grpc::ByteBuffer* request) override;
+  grpc::ServerWriteReactor<grpc::ByteBuffer>* GetTextures(grpc::CallbackServerContext* ctx,
+                                                          const grpc::ByteBuffer* request) override;
+  grpc::ServerWriteReactor<grpc::ByteBuffer>* Subscribe(grpc::CallbackServerContext* ctx,
+                                                        const grpc::ByteBuffer* request) override;
   grpc::Status ListScenes(grpc::ServerContext* ctx, const v1::ListScenesRequest* request,
                           v1::ListScenesResponse* response) override;
   grpc::Status CloseScene(grpc::ServerContext* ctx, const v1::CloseSceneRequest* request,
@@ -77,33 +85,31 @@ class LightlinkService final : public v1::Lightlink::Service {
     bool acquired_ = false;
   };
 
-  grpc::Status admit(grpc::ServerContext* ctx, bool new_work) const;
+  // Helpers take ServerContextBase: the synchronous and the callback methods share them.
+  grpc::Status admit(grpc::ServerContextBase* ctx, bool new_work) const;
   // Finds the scene and checks its token; waits (within the call's deadline) for a scene
   // still being restored after a restart, UNAVAILABLE when it is not back in time.
-  grpc::Status lookup(grpc::ServerContext* ctx, const v1::SceneRef& ref, std::shared_ptr<SceneSession>* out) const;
+  grpc::Status lookup(grpc::ServerContextBase* ctx, const v1::SceneRef& ref, std::shared_ptr<SceneSession>* out) const;
   // The preamble of the calls that send results (Relight, GetTextures, Subscribe): admit
   // as new work, look the scene up and check its token, validate the spec, take a stream
   // slot of the client (released when `slot` is destroyed).
-  grpc::Status beginResultCall(grpc::ServerContext* ctx, const v1::SceneRef& ref, const v1::ResultSpec& spec,
+  grpc::Status beginResultCall(grpc::ServerContextBase* ctx, const v1::SceneRef& ref, const v1::ResultSpec& spec,
                                std::shared_ptr<SceneSession>* scene, std::optional<StreamSlot>* slot);
-  // The same for the split-streaming handlers, which first read their one request message.
-  template <typename Request>
-  grpc::Status beginWireCall(grpc::ServerContext* ctx, grpc::ServerSplitStreamer<Request, WireMessage>* stream,
-                             const char* rpc, Request* request, std::shared_ptr<SceneSession>* scene,
-                             std::optional<StreamSlot>* slot);
-  std::chrono::steady_clock::time_point waitDeadline(grpc::ServerContext* ctx) const;
+  std::chrono::steady_clock::time_point waitDeadline(grpc::ServerContextBase* ctx) const;
+  // The bodies of the three result calls, run by their ResultCall.
+  grpc::Status relight(grpc::ServerContextBase* ctx, const v1::RelightRequest& request, ResultCall& call);
+  grpc::Status getTextures(grpc::ServerContextBase* ctx, const v1::GetTexturesRequest& request, ResultCall& call);
+  grpc::Status subscribe(grpc::ServerContextBase* ctx, const v1::SubscribeRequest& request, ResultCall& call);
   // Sends a full result: as one header naming a shared file when the client asked for shared
   // memory, is on this machine and delivery is on (service/shared_results.h), else as the
   // header and chunk messages of its wire form.
-  template <typename Stream>
-  grpc::Status sendResult(grpc::ServerContext* ctx, const Snapshot& snap, const SpecKey& spec, bool shared_memory,
-                          Stream* stream);
-  // Registers `handler` for the method `name` of lightlink.v1.Lightlink in place of the
-  // generated one.
+  grpc::Status sendResult(grpc::ServerContextBase* ctx, const Snapshot& snap, const SpecKey& spec, bool shared_memory,
+                          ResultCall& call);
+  // Parses the request of a result call and starts its reactor running `body`.
   template <typename Request>
-  void replaceWithWireHandler(const char* name,
-                              grpc::Status (LightlinkService::*handler)(grpc::ServerContext*,
-                                                                        grpc::ServerSplitStreamer<Request, WireMessage>*));
+  grpc::ServerWriteReactor<grpc::ByteBuffer>* startResultCall(
+      const char* rpc, grpc::CallbackServerContext* ctx, const grpc::ByteBuffer* request,
+      grpc::Status (LightlinkService::*body)(grpc::ServerContextBase*, const Request&, ResultCall&));
 
   DaemonConfig config_;
   SceneRegistry& registry_;

@@ -53,7 +53,7 @@ struct EncodedResult {
 };
 
 // A full result serialized for the wire: the header message, then the chunk messages, as
-// sendFull (result_stream.h) produces them. Shared by every reader (service/wire_message.h).
+// sendFull (result_stream.h) produces them. Shared by every reader (service/service.h).
 struct WireResult {
   std::vector<grpc::ByteBuffer> messages;
   std::uint64_t bytes = 0;  // serialized size of all messages

@@ -7,7 +7,6 @@
 
 #include <grpcpp/grpcpp.h>
 
-#include "clients/client/raw_result.h"
 #include "clients/client/shared_result.h"
 #include "proto/lightlink.grpc.pb.h"
 
@@ -50,38 +49,25 @@ Expected<std::string> readFile(const std::string& path, const char* what) {
   return ss.str();
 }
 
-// Relight, GetTextures and Subscribe are read as RawResultMessages, so they are called by
-// their full method names, as the generated stub calls them. A call keeps a pointer into
-// its method description: the descriptions live as long as the program.
-const grpc::internal::RpcMethod kRelightMethod("/lightlink.v1.Lightlink/Relight",
-                                               grpc::internal::RpcMethod::SERVER_STREAMING);
-const grpc::internal::RpcMethod kGetTexturesMethod("/lightlink.v1.Lightlink/GetTextures",
-                                                   grpc::internal::RpcMethod::SERVER_STREAMING);
-const grpc::internal::RpcMethod kSubscribeMethod("/lightlink.v1.Lightlink/Subscribe",
-                                                 grpc::internal::RpcMethod::SERVER_STREAMING);
-
-// Reads the one result (header + chunks) a Relight or GetTextures stream carries, each
-// message as a RawResultMessage: chunk data goes from gRPC's receive slices straight into
-// the payload (clients/client/raw_result.h). When the header names a shared-memory file
-// instead, the chunks are read from it (shared_result.h); if that fails, `*shared_unreadable`
-// is set and the error returned, for the caller to ask again on the stream.
+// How the generated stub starts a Relight or GetTextures call.
 template <typename Request>
-Expected<Textures> readOneRawResult(const char* rpc, const grpc::internal::RpcMethod& rpc_method,
-                                    grpc::ChannelInterface* channel, grpc::ClientContext& ctx, const Request& request,
-                                    bool* shared_unreadable = nullptr) {
-  std::unique_ptr<grpc::ClientReader<RawResultMessage>> reader(
-      grpc::internal::ClientReaderFactory<RawResultMessage>::Create(channel, rpc_method, &ctx, request));
+using ResultCallStarter = std::unique_ptr<grpc::ClientReader<v1::ResultMessage>> (v1::Lightlink::Stub::*)(
+    grpc::ClientContext*, const Request&);
+
+// Reads the one result (header + chunks) a Relight or GetTextures stream carries. When the
+// header names a shared-memory file instead, the chunks are read from it (shared_result.h);
+// if that fails, `*shared_unreadable` is set and the error returned, for the caller to ask
+// again on the stream.
+template <typename Request>
+Expected<Textures> readOneResult(const char* rpc, v1::Lightlink::Stub& stub, ResultCallStarter<Request> start,
+                                 grpc::ClientContext& ctx, const Request& request, bool* shared_unreadable = nullptr) {
+  std::unique_ptr<grpc::ClientReader<v1::ResultMessage>> reader = (stub.*start)(&ctx, request);
   ResultAssembler assembler;
-  RawResultMessage msg;
-  RawResult decoded;
-  Status status;
+  v1::ResultMessage msg;
   std::optional<v1::SharedResult> shared;
   while (reader->Read(&msg)) {
-    status = decodeRawResult(msg.bytes, decoded);
-    if (status && decoded.kind == RawResult::Kind::kHeader && decoded.header.has_shared())
-      shared = decoded.header.shared();
-    if (status) status = assembler.add(decoded);
-    if (!status) {
+    if (msg.has_header() && msg.header().has_shared()) shared = msg.header().shared();
+    if (Status status = assembler.add(msg); !status) {
       // A torn or malformed result: stop the call, drain what is in flight, report.
       ctx.TryCancel();
       while (reader->Read(&msg)) {
@@ -175,20 +161,20 @@ struct Client::Impl {
   // request without shared_memory and, for a long poll, with wait_ms 0 (the daemon just
   // named a result newer than last_seen_version).
   template <typename Request>
-  Expected<Textures> readResult(const char* rpc, const grpc::internal::RpcMethod& method, Request req,
+  Expected<Textures> readResult(const char* rpc, ResultCallStarter<Request> start, Request req,
                                 std::chrono::milliseconds deadline) const {
     bool shared_unreadable = false;
     {
       grpc::ClientContext ctx;
       prepare(ctx, deadline);
-      auto t = readOneRawResult(rpc, method, channel.get(), ctx, req, &shared_unreadable);
+      auto t = readOneResult(rpc, *this->rpc, start, ctx, req, &shared_unreadable);
       if (t || !shared_unreadable) return t;
     }
     req.set_shared_memory(false);
     if constexpr (requires { req.set_wait_ms(0u); }) req.set_wait_ms(0);
     grpc::ClientContext ctx;
     prepare(ctx);
-    return readOneRawResult(rpc, method, channel.get(), ctx, req);
+    return readOneResult(rpc, *this->rpc, start, ctx, req);
   }
 };
 
@@ -290,7 +276,7 @@ Expected<Textures> Client::relight(const SceneHandle& scene, std::uint64_t versi
   req.set_version(version);
   *req.mutable_spec() = toProto(spec);
   req.set_shared_memory(options_.shared_memory);
-  return impl_->readResult("Relight", kRelightMethod, std::move(req), impl_->call_timeout);
+  return impl_->readResult("Relight", &v1::Lightlink::Stub::Relight, std::move(req), impl_->call_timeout);
 }
 
 Expected<std::optional<Textures>> Client::getTextures(const SceneHandle& scene, std::uint64_t last_seen_version,
@@ -301,7 +287,8 @@ Expected<std::optional<Textures>> Client::getTextures(const SceneHandle& scene, 
   *req.mutable_spec() = toProto(spec);
   req.set_wait_ms(wait_ms);
   req.set_shared_memory(options_.shared_memory);
-  auto t = impl_->readResult("GetTextures", kGetTexturesMethod, std::move(req), impl_->waitingDeadline(wait_ms));
+  auto t = impl_->readResult("GetTextures", &v1::Lightlink::Stub::GetTextures, std::move(req),
+                             impl_->waitingDeadline(wait_ms));
   if (!t) return t.status();
   if (t->info.not_modified) return std::optional<Textures>{};
   return std::optional<Textures>(std::move(t).value());
@@ -309,10 +296,9 @@ Expected<std::optional<Textures>> Client::getTextures(const SceneHandle& scene, 
 
 struct Subscription::Stream {
   grpc::ClientContext ctx;
-  std::unique_ptr<grpc::ClientReader<RawResultMessage>> reader;  // read without a copy (raw_result.h)
+  std::unique_ptr<grpc::ClientReader<v1::ResultMessage>> reader;
   ResultAssembler assembler;
-  RawResultMessage msg;
-  RawResult decoded;
+  v1::ResultMessage msg;
   std::atomic<bool> cancelled{false};
 };
 
@@ -336,9 +322,7 @@ Expected<const Textures*> Subscription::next() {
   if (done_) return static_cast<const Textures*>(nullptr);
   Stream& s = *stream_;
   while (s.reader->Read(&s.msg)) {
-    Status st = decodeRawResult(s.msg.bytes, s.decoded);
-    if (st) st = s.assembler.add(s.decoded);
-    if (!st) return Status(st.code(), "Subscribe: " + st.message());
+    if (Status st = s.assembler.add(s.msg); !st) return Status(st.code(), "Subscribe: " + st.message());
     if (!s.assembler.complete()) continue;
     auto t = s.assembler.take(have_current_ ? &current_ : nullptr);
     if (!t) return Status(t.status().code(), "Subscribe: " + t.status().message());
@@ -365,8 +349,7 @@ Expected<std::unique_ptr<Subscription>> Client::subscribe(const SceneHandle& sce
   std::unique_ptr<Subscription> sub(new Subscription());
   sub->stream_ = std::make_unique<Subscription::Stream>();
   impl_->prepare(sub->stream_->ctx, std::chrono::milliseconds(0));
-  sub->stream_->reader.reset(grpc::internal::ClientReaderFactory<RawResultMessage>::Create(
-      impl_->channel.get(), kSubscribeMethod, &sub->stream_->ctx, req));
+  sub->stream_->reader = impl_->rpc->Subscribe(&sub->stream_->ctx, req);
   return sub;
 }
 

@@ -6,13 +6,10 @@
 
 #include <cerrno>
 #include <cstring>
+#include <limits>
 #include <span>
 #include <vector>
 
-#include <grpcpp/support/byte_buffer.h>
-#include <grpcpp/support/slice.h>
-
-#include "clients/client/raw_result.h"
 
 namespace lightlink::client {
 namespace {
@@ -58,23 +55,19 @@ Status readSharedResult(const v1::SharedResult& shared, ResultAssembler& assembl
   if (size < sizeof v1::kSharedResultMagic || std::memcmp(p, v1::kSharedResultMagic, sizeof v1::kSharedResultMagic) != 0)
     return invalidInput("shared result {}: not a lightlink shared result of format version 1 (magic)", path);
   std::size_t at = sizeof v1::kSharedResultMagic;
-  RawResult decoded;
+  v1::ResultMessage decoded;
   for (std::size_t record = 0; at < size; ++record) {
     std::uint32_t length = 0;
     if (size - at < sizeof length)
       return invalidInput("shared result {}: record {} truncated in its length", path, record);
     std::memcpy(&length, p + at, sizeof length);  // little-endian on every supported host
     at += sizeof length;
-    if (length > size - at)
+    if (length > size - at || length > static_cast<std::uint32_t>(std::numeric_limits<int>::max()))
       return invalidInput("shared result {}: record {} claims {} bytes, {} left", path, record, length, size - at);
-    // A slice over the buffer (no copy); the buffer outlives every use of it below.
-    const grpc::Slice slice(p + at, length, grpc::Slice::STATIC_SLICE);
-    const grpc::ByteBuffer message(&slice, 1);
+    const bool parsed = decoded.ParseFromArray(p + at, static_cast<int>(length));
     at += length;
-    if (Status s = decodeRawResult(message, decoded); !s)
-      return invalidInput("shared result {}: record {}: {}", path, record, s.message());
-    if (decoded.kind != RawResult::Kind::kChunk)
-      return invalidInput("shared result {}: record {} is not a chunk", path, record);
+    if (!parsed) return invalidInput("shared result {}: record {}: not a valid ResultMessage", path, record);
+    if (!decoded.has_chunk()) return invalidInput("shared result {}: record {} is not a chunk", path, record);
     if (Status s = assembler.add(decoded); !s) return invalidInput("shared result {}: {}", path, s.message());
   }
   return {};

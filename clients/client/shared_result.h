@@ -4,8 +4,7 @@
 // A client on the daemon's machine that asks with `shared_memory` gets one header naming a
 // file that holds the result's chunk messages, written once by the daemon for every client
 // with the same spec. The file is read into a buffer the calling thread reuses and each
-// record is decoded from it with the same decoder as a received message (raw_result.h): the
-// chunk data is copied out of the page cache, then once into its payload.
+// record is parsed as the ResultMessage it is, as a received message would be.
 #pragma once
 
 #include "clients/client/textures.h"

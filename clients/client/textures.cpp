@@ -5,7 +5,6 @@
 #include <cstring>
 
 #include "core/common/half.h"
-#include "clients/client/raw_result.h"
 #include "proto/lightlink.pb.h"
 
 namespace lightlink::client {
@@ -165,16 +164,7 @@ Status ResultAssembler::add(const v1::ResultMessage& message) {
   if (!message.has_chunk()) return invalidInput("result stream: empty message");
   const v1::Chunk& c = message.chunk();
   const std::span<const std::uint8_t> data(reinterpret_cast<const std::uint8_t*>(c.data().data()), c.data().size());
-  return addChunk(c.payload(), c.offset(), c.tile(), std::span(&data, 1));
-}
-
-Status ResultAssembler::add(const RawResult& message) {
-  switch (message.kind) {
-    case RawResult::Kind::kHeader: return addHeader(message.header);
-    case RawResult::Kind::kChunk: return addChunk(message.payload, message.offset, message.tile, message.data);
-    case RawResult::Kind::kNone: break;
-  }
-  return invalidInput("result stream: empty message");
+  return addChunk(c.payload(), c.offset(), c.tile(), data);
 }
 
 Status ResultAssembler::addHeader(const v1::ResultHeader& header) {
@@ -194,7 +184,7 @@ Status ResultAssembler::addHeader(const v1::ResultHeader& header) {
 }
 
 Status ResultAssembler::addChunk(int payload, std::uint64_t offset, std::uint32_t tile,
-                                 std::span<const std::span<const std::uint8_t>> data) {
+                                 std::span<const std::uint8_t> data) {
   if (!started_) return invalidInput("result stream: chunk before the header");
   if (!validPayload(payload)) return invalidInput("chunk.payload: {} is not a known payload", payload);
   const Payload p = Payload(payload);
@@ -202,8 +192,7 @@ Status ResultAssembler::addChunk(int payload, std::uint64_t offset, std::uint32_
     return invalidInput("chunk.payload: {} sent but the header has no lightmap", payloadName(p));
   if (!isLightmap(p) && (!info_.has_grid || info_.gridPoints() == 0))
     return invalidInput("chunk.payload: {} sent but the header has no grid", payloadName(p));
-  std::size_t size = 0;
-  for (const auto& piece : data) size += piece.size();
+  const std::size_t size = data.size();
   received_ += size;
   if (received_ > info_.payload_bytes)
     return invalidInput("result stream: {} bytes received, header announced {}", received_, info_.payload_bytes);
@@ -226,8 +215,8 @@ Status ResultAssembler::addChunk(int payload, std::uint64_t offset, std::uint32_
                           expected);
     if (buf->capacity() < expected) buf->reserve(expected);
   }
-  // Byte ranges of the same type: one memmove per piece, no zero fill first.
-  for (const auto& piece : data) buf->insert(buf->end(), piece.begin(), piece.end());
+  // Byte ranges of the same type: one memmove, no zero fill first.
+  buf->insert(buf->end(), data.begin(), data.end());
   return {};
 }
 

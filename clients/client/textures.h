@@ -30,8 +30,6 @@ class ResultHeader;
 
 namespace lightlink::client {
 
-struct RawResult;  // clients/client/raw_result.h
-
 // Mirrors lightlink.v1.Payload (the numeric values are the wire values).
 enum class Payload : int {
   kLightmapSh = 1,
@@ -111,9 +109,6 @@ class ResultAssembler {
   // header does not allow, a chunk out of order or beyond the payload, a tile index outside
   // the lightmap, more bytes than `payload_bytes`.
   Status add(const v1::ResultMessage& message);
-  // The same for a message decoded from the receive buffer (no copy of the chunk data
-  // before it lands in its payload).
-  Status add(const RawResult& message);
   bool started() const { return started_; }
   // True once the header arrived and every byte it announced has been received.
   bool complete() const { return started_ && received_ == info_.payload_bytes; }
@@ -127,9 +122,7 @@ class ResultAssembler {
 
  private:
   Status addHeader(const v1::ResultHeader& header);
-  // `data`: the chunk's bytes, in one or more pieces.
-  Status addChunk(int payload, std::uint64_t offset, std::uint32_t tile,
-                  std::span<const std::span<const std::uint8_t>> data);
+  Status addChunk(int payload, std::uint64_t offset, std::uint32_t tile, std::span<const std::uint8_t> data);
   struct TileBuffer {
     std::vector<std::uint8_t> bytes;
   };

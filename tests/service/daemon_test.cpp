@@ -9,12 +9,14 @@
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
+#include <future>
 #include <set>
 #include <sstream>
 #include <thread>
 
 #include <fmt/format.h>
 #include <gtest/gtest.h>
+#include <grpcpp/generic/generic_stub.h>
 #include <nlohmann/json.hpp>
 
 #include "core/artifact/artifact.h"
@@ -775,6 +777,31 @@ TEST(Daemon, HostileRequestsGetTheRightStatusAndTheDaemonKeepsServing) {
   v1::UpdateLightsResponse ur;
   ASSERT_TRUE(rpc->UpdateLights(context().get(), up, &ur).ok());
   EXPECT_EQ(ur.version(), 2u) << "rejected updates must not consume versions";
+}
+
+// The result calls take their request as bytes (raw callback methods): bytes that are no
+// request message are INVALID_ARGUMENT naming the call, and the daemon keeps serving.
+TEST(Daemon, ResultCallsRefuseBytesThatAreNoRequest) {
+  Fixture f;
+  DaemonProcess d(f.cache, quickFlags());
+  ASSERT_TRUE(d.ok()) << d.error();
+  grpc::GenericStub generic(grpc::CreateChannel(d.target(), grpc::InsecureChannelCredentials()));
+  const std::string garbage("\x0a\xff\xff\xff\xff\x0f", 6);  // field 1, a length past the end
+  const grpc::Slice slice(garbage);
+  for (const char* rpc : {"Relight", "GetTextures", "Subscribe"}) {
+    grpc::ClientContext ctx;
+    ctx.set_deadline(std::chrono::system_clock::now() + std::chrono::seconds(10));
+    const grpc::ByteBuffer request(&slice, 1);
+    grpc::ByteBuffer response;
+    std::promise<grpc::Status> done;
+    generic.UnaryCall(&ctx, fmt::format("/lightlink.v1.Lightlink/{}", rpc), grpc::StubOptions(), &request, &response,
+                      [&](grpc::Status st) { done.set_value(std::move(st)); });
+    const grpc::Status st = done.get_future().get();
+    EXPECT_EQ(st.error_code(), grpc::StatusCode::INVALID_ARGUMENT) << rpc << ": " << st.error_message();
+    EXPECT_NE(st.error_message().find(rpc), std::string::npos) << st.error_message();
+  }
+  v1::HealthResponse health;
+  EXPECT_TRUE(d.rpc()->Health(context().get(), v1::HealthRequest{}, &health).ok());
 }
 
 TEST(Daemon, BearerTokenIsRequiredWhenConfigured) {
