@@ -10,6 +10,7 @@ namespace {
 
 glm::vec3 toVec(const v1::Vec3& v) { return {v.x(), v.y(), v.z()}; }
 
+// Proto vectors of emissive overrides and the sky, before core's whole-value checks.
 Status checkFiniteVec(const v1::Vec3& v, const std::string& path) {
   const float c[3] = {v.x(), v.y(), v.z()};
   for (int i = 0; i < 3; ++i)
@@ -27,40 +28,30 @@ Expected<scene::Light::Kind> kindFrom(v1::LightType type, const std::string& pat
 }
 
 // Writes the fields present in `l` over `entry` (add/set: over defaults; modify: over the
-// existing light), then validates the whole light.
+// existing light) with core's light-set rules: each field as LightPatch::validateFields
+// checks it (the rules of a light-set file and of the client library), then the whole light.
 Status mergeLight(const v1::Light& l, const std::string& path, relight::LightEntry& entry) {
+  lights::LightPatch patch;
+  patch.id = l.id();
   if (l.type() != v1::LIGHT_TYPE_UNSPECIFIED) {
     auto kind = kindFrom(l.type(), path);
     if (!kind) return kind.status();
-    entry.light.kind = *kind;
+    patch.kind = *kind;
   }
-  if (l.has_color()) {
-    if (Status s = checkFiniteVec(l.color(), path + ".color"); !s) return s;
-    entry.light.color = toVec(l.color());
-  }
-  if (l.has_intensity()) entry.light.intensity = l.intensity();
-  if (l.has_range()) entry.light.range = l.range();
-  if (l.has_position()) {
-    if (Status s = checkFiniteVec(l.position(), path + ".position"); !s) return s;
-    entry.light.position = toVec(l.position());
-  }
-  if (l.has_direction()) {
-    if (Status s = checkFiniteVec(l.direction(), path + ".direction"); !s) return s;
-    const glm::vec3 d = toVec(l.direction());
-    if (!(glm::length(d) > 1e-6f)) return invalidInput("{}.direction: must be a non-zero vector", path);
-    entry.light.direction = glm::normalize(d);
-  }
-  if (l.has_inner_cone_angle()) entry.light.inner_cone_angle = l.inner_cone_angle();
-  if (l.has_outer_cone_angle()) entry.light.outer_cone_angle = l.outer_cone_angle();
-  if (l.has_baked()) entry.baked = l.baked();
   if (l.has_name()) {
     if (l.name().size() > kMaxNameBytes) return invalidInput("{}.name: longer than {} bytes", path, kMaxNameBytes);
-    entry.light.name = l.name();
+    patch.name = l.name();
   }
-  // Explicit checks for values LightSet::validate accepts as "unset" but the wire forbids.
-  if (!std::isfinite(entry.light.intensity))
-    return invalidInput("{}.intensity: {} is not a finite number", path, entry.light.intensity);
-  if (entry.light.intensity < 0.0f) return invalidInput("{}.intensity: {} is negative", path, entry.light.intensity);
+  if (l.has_color()) patch.color = toVec(l.color());
+  if (l.has_intensity()) patch.intensity = l.intensity();
+  if (l.has_range()) patch.range = l.range();
+  if (l.has_position()) patch.position = toVec(l.position());
+  if (l.has_direction()) patch.direction = toVec(l.direction());
+  if (l.has_inner_cone_angle()) patch.inner_cone_angle = l.inner_cone_angle();
+  if (l.has_outer_cone_angle()) patch.outer_cone_angle = l.outer_cone_angle();
+  if (l.has_baked()) patch.baked = l.baked();
+  if (Status s = patch.validateFields(path); !s) return s;
+  patch.applyTo(entry);
   return relight::LightSet::validate(entry, path);
 }
 

@@ -88,7 +88,18 @@ TEST(ServiceValidation, UpdateErrorsNameTheField) {
   nan_color->mutable_color()->set_y(std::nanf(""));
   s = applyUpdate(r, 4, lights);
   ASSERT_FALSE(s);
-  EXPECT_NE(s.message().find("add[0].color.y"), std::string::npos) << s.message();
+  EXPECT_NE(s.message().find("add[0].color[1]"), std::string::npos) << s.message();
+
+  // The wire follows the light-set file's rules (core's LightPatch): a cone angle beyond
+  // pi/2 is refused on a point light too, as lights.json and the client library refuse it.
+  r.clear_add();
+  auto* cone = r.add_add();
+  cone->set_id("d");
+  cone->set_type(v1::LIGHT_TYPE_POINT);
+  cone->set_outer_cone_angle(2.0f);
+  s = applyUpdate(r, 4, lights);
+  ASSERT_FALSE(s);
+  EXPECT_NE(s.message().find("add[0].outer_cone_angle: 2 is outside [0, pi/2]"), std::string::npos) << s.message();
 
   r.clear_add();
   auto* e = r.add_emissive();
