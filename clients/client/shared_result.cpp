@@ -15,9 +15,8 @@ namespace lightlink::client {
 namespace {
 
 // The file's bytes, read into a buffer each thread reuses: one copy out of the page cache.
-// Mapping the file instead cost a munmap per result, and with the client's threads on
-// several cores every munmap is a TLB shootdown: 10 % of the clients' samples in a perf
-// profile of bench/service with 50 clients (docs/results.md, shared-memory delivery).
+// Mapping the file instead costs a munmap per result, and with the client's threads on
+// several cores every munmap is a TLB shootdown (service_bench with 50 shared-memory clients).
 Expected<std::span<const std::uint8_t>> readWhole(const std::string& path, std::uint64_t expected) {
   const int fd = ::open(path.c_str(), O_RDONLY | O_CLOEXEC);
   if (fd < 0) return notFound("shared result {}: cannot open: {}", path, std::strerror(errno));

@@ -4,7 +4,7 @@
 // The links carry emitted light too, but as a cut of coarse tree nodes: a small lamp a few
 // texels from a receiver becomes one blurred node and its shadow a smudge. The lightmap's
 // `direct` output instead samples the emitting triangles themselves, each sample checked by
-// one shadow ray, so penumbrae come from the true emitter geometry (issue 5 item 5); the
+// one shadow ray, so penumbrae come from the true emitter geometry; the
 // relight then leaves the emitters' first gather out of the lightmap SH (docs/relight.md).
 //
 // Estimator, per receiver at x with unit normal n: pick triangle t with probability
