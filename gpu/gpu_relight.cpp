@@ -199,6 +199,7 @@ class GpuPasses final : public relight::RelightPasses {
   Status lightCaches(const GpuLinks& links, const GlBuffer& node_rad, const GlBuffer& out, int bands, LinkForm form,
                      bool sky);
   void applyFill(const GpuFill& f, const GlBuffer& data, int stride);
+  void dispatchLevels(const GlProgram& prog, const GpuFill& f, int stride);
   void readBack(const RelightFrame& f, RelightResult& res);
 
   const relight::SceneTables& t_;
@@ -393,15 +394,20 @@ Status GpuPasses::lightCaches(const GpuLinks& links, const GlBuffer& node_rad, c
 
 void GpuPasses::applyFill(const GpuFill& f, const GlBuffer& data, int stride) {
   if (f.count == 0) return;
+  data.bindStorage(kFiData);
+  dispatchLevels(fill, f, stride);
+}
+
+// One dispatch per level of a leveled plan, with fill.comp or its DILATE variant.
+void GpuPasses::dispatchLevels(const GlProgram& prog, const GpuFill& f, int stride) {
   f.target.bindStorage(kFiTarget);
   f.begin.bindStorage(kFiBegin);
   f.source.bindStorage(kFiSource);
-  data.bindStorage(kFiData);
-  fill.set("u_stride", std::uint32_t(stride));
+  prog.set("u_stride", std::uint32_t(stride));
   for (const auto& [lb, le] : f.levels) {
-    fill.set("u_begin", lb);
-    fill.set("u_end", le);
-    dispatch(fill, le - lb, 64);
+    prog.set("u_begin", lb);
+    prog.set("u_end", le);
+    dispatch(prog, le - lb, 64);
   }
 }
 
@@ -666,18 +672,10 @@ Status GpuPasses::texels(const RelightFrame& f, RelightResult& res) {
         texel_pass.set("u_stride", std::uint32_t(stride));
         dispatch(texel_pass, texels_, 64);
         if (dilation.count) {
-          dilation.target.bindStorage(kFiTarget);
-          dilation.begin.bindStorage(kFiBegin);
-          dilation.source.bindStorage(kFiSource);
           texel_sh.bindStorage(kFiData);
           texel_valid.bindStorage(kFiValid);
           texel_direct.bindStorage(kFiDirect);
-          dilate.set("u_stride", std::uint32_t(stride));
-          for (const auto& [lb, le] : dilation.levels) {
-            dilate.set("u_begin", lb);
-            dilate.set("u_end", le);
-            dispatch(dilate, le - lb, 64);
-          }
+          dispatchLevels(dilate, dilation, stride);
         }
         return {};
       });
