@@ -484,7 +484,7 @@ Status GpuPasses::surfelDirect(const RelightFrame& f, std::span<const glm::vec3>
   if (Status st = prepareLights(f); !st) return st;
   const auto& given_e = f.options.surfel_irradiance;
   // The emitters' direct light at the surfels starts the sum the shader adds punctual
-  // lights to (docs/quality.md "Where the energy went").
+  // lights to (docs/relight.md, the surfel_emitter pass).
   const bool surfel_emits =
       std::any_of(surfel_emit.begin(), surfel_emit.end(), [](const glm::vec3& e) { return e != glm::vec3(0.0f); });
   const bool use_given = !given_e.empty() || surfel_emits;

@@ -1,4 +1,4 @@
-// stage_probe: where the baker's first-bounce energy goes, stage by stage (docs/quality.md "Where the energy went").
+// stage_probe: where the baker's first-bounce energy goes, stage by stage (docs/quality.md "What limits accuracy").
 //
 // For a scene and a punctual light set, bake with no bounce feedback (max_bounces 0: the
 // lightmap SH holds light reflected once, from surfels lit directly) and compare, at evenly
@@ -25,7 +25,7 @@
 //   gather for punctual lights, the emitters' direct light with --no-punctual 1.
 // --mode hidden: surfels that no valid lightmap cache's link ray reaches, and their share of
 //   the converged reflected flux (light only coarse cut nodes carry to caches).
-// Used to find the 0.94-0.95 bias of docs/quality.md ("Where the energy went").
+// Its stage table is in docs/quality.md ("What limits accuracy").
 #include <algorithm>
 #include <cmath>
 #include <cstdio>

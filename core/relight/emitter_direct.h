@@ -16,7 +16,7 @@
 // E += L_e V cos_r cos_e / d^2 * A_t / P(t). With few emitting triangles (kLocalPickMax) P(t)
 // is the receiver's own: w_t(x) = w_t / max(d^2, A_t), 0 below its horizon or behind a
 // one-sided emitter, so a texel next to a weak lamp does not spend its samples on a strong
-// one it barely sees (EmissiveStrengthTest: docs/quality.md). Samples are a Hammersley set (stratified in the
+// one it barely sees (test ReceiversDoNotSpendSamplesOnEmittersThatCannotLightThem). Samples are a Hammersley set (stratified in the
 // pick, so emitters get samples in proportion to power, and within each triangle) rotated
 // per receiver by its seed (Cranley-Patterson), so every receiver's result is a pure
 // function of (position, normal, N, seed): deterministic for any thread count. Units: L_e

@@ -1,4 +1,4 @@
-// The emitters' direct light at the surfels (docs/quality.md "Where the energy went").
+// The emitters' direct light at the surfels (docs/relight.md, the surfel_emitter pass).
 // Received only through the first bounce gather from the lightmap caches' links, a small lamp
 // is blurred into coarse cut nodes and 3-band SH: on the Cornell box the surfels would get 0.72
 // of the reference's emitter light. It is sampled on the emitting triangles like a texel's
