@@ -188,7 +188,7 @@ __attribute__((always_inline)) inline void skyPolynomialsImpl(const float* __res
   }
 }
 
-// One multiversioned entry per band count (target_clones does not apply to templates).
+// One LL_ISA_CLONES entry per band count (the clones are plain functions, not templates).
 // `count` is a multiple of kSkyLanes (the arrays are padded, escaped = 0 there); `poly`
 // holds count * polyRows(bands) * 8 floats.
 using SkyFn = void (*)(const float*, const float*, const float*, const float*, std::uint32_t, float*, float*);
