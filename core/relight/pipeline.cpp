@@ -254,37 +254,36 @@ Status RelightPipeline::relightInto(const LightSet& lights, const RelightOptions
   return {};
 }
 
-bool RelightPipeline::unchanged(const LightSet& lights, const RelightOptions& o, int bands) const {
+bool RelightPipeline::sameSetting(const LightSet& lights, const RelightOptions& o, int bands) const {
   const Memo& m = memo_;
-  const auto& L = lights.lights();
   const int last_bands = m.options.bands ? m.options.bands : t_.lm_links.bands;
-  // Every option that changes the result must match.
-  if (!o.incremental || !o.surfel_irradiance.empty() || o.link_form != m.options.link_form || bands != last_bands ||
-      o.kernel != m.options.kernel || o.max_bounces != m.options.max_bounces ||
-      o.bounce_threshold != m.options.bounce_threshold || o.emitter_samples != m.options.emitter_samples ||
-      lights.sky().radiance != m.sky.radiance || lights.sky().sh != m.sky.sh ||
-      !sameEmissive(lights.emissive(), m.emissive) || lights.emissiveBaked() != m.emissive_baked ||
-      L.size() != m.ids.size())
+  return o.incremental && o.surfel_irradiance.empty() && o.link_form == m.options.link_form &&
+         bands == last_bands && o.kernel == m.options.kernel && o.emitter_samples == m.options.emitter_samples &&
+         lights.sky().radiance == m.sky.radiance && lights.sky().sh == m.sky.sh &&
+         sameEmissive(lights.emissive(), m.emissive) && lights.emissiveBaked() == m.emissive_baked;
+}
+
+bool RelightPipeline::sameEntry(const LightEntry& e, std::size_t j) const {
+  return e.id == memo_.ids[j] && sameLight(e.light, memo_.lights[j]) && e.baked == bool(memo_.baked[j]);
+}
+
+bool RelightPipeline::unchanged(const LightSet& lights, const RelightOptions& o, int bands) const {
+  // Every option that changes the result must match, the bounce options included.
+  const auto& L = lights.lights();
+  if (!sameSetting(lights, o, bands) || o.max_bounces != memo_.options.max_bounces ||
+      o.bounce_threshold != memo_.options.bounce_threshold || L.size() != memo_.ids.size())
     return false;
   for (std::size_t i = 0; i < L.size(); ++i)
-    if (L[i].id != m.ids[i] || !sameLight(L[i].light, m.lights[i]) || L[i].baked != bool(m.baked[i])) return false;
+    if (!sameEntry(L[i], i)) return false;
   return true;
 }
 
 std::optional<LightChange> RelightPipeline::oneChange(const LightSet& lights, const RelightOptions& o,
                                                       const EffectsPlan& plan, int bands) const {
   const Memo& m = memo_;
-  const int last_bands = m.options.bands ? m.options.bands : t_.lm_links.bands;
-  if (!o.incremental || !o.surfel_irradiance.empty() || plan.bounces || m.bounced ||
-      o.link_form != m.options.link_form || bands != last_bands || o.kernel != m.options.kernel ||
-      lights.sky().radiance != m.sky.radiance || lights.sky().sh != m.sky.sh ||
-      !sameEmissive(lights.emissive(), m.emissive) || lights.emissiveBaked() != m.emissive_baked ||
-      o.emitter_samples != m.options.emitter_samples)
-    return std::nullopt;
+  if (!sameSetting(lights, o, bands) || plan.bounces || m.bounced) return std::nullopt;
   const auto& L = lights.lights();
-  auto same = [&](std::size_t i, std::size_t j) {
-    return L[i].id == m.ids[j] && sameLight(L[i].light, m.lights[j]) && L[i].baked == bool(m.baked[j]);
-  };
+  auto same = [&](std::size_t i, std::size_t j) { return sameEntry(L[i], j); };
   scene::Light dark;  // stands for "no light": reaches() is false for zero intensity
   dark.intensity = 0.0f;
   LightChange c;

@@ -59,6 +59,10 @@ class RelightPipeline {
     std::string bounce_stop;
   };
   void resetResult(const LightSet& lights, const RelightOptions& o, int bands, RelightResult& res) const;
+  // Both shortcuts need the same options and light-set fields but the lights (bounce
+  // options aside); sameEntry compares a light with the memo's j-th.
+  bool sameSetting(const LightSet& lights, const RelightOptions& o, int bands) const;
+  bool sameEntry(const LightEntry& e, std::size_t j) const;
   bool unchanged(const LightSet& lights, const RelightOptions& o, int bands) const;
   std::optional<LightChange> oneChange(const LightSet& lights, const RelightOptions& o, const EffectsPlan& plan,
                                        int bands) const;
