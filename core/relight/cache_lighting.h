@@ -4,8 +4,7 @@
 // This is the hot loop of a relight (seed 000 sec 4.7): it streams every link's bytes once,
 // so it is memory-bound for the projected form and ALU-bound for the runtime form. Node
 // radiosity is read as interleaved (R, G, B, 0) float quadruples: a link touches one cache
-// line of node data instead of three (planar arrays cost several times the plain read of
-// the link bytes: relight_bench's kernel-vs-stream figure). The SIMD kernels are compiled
+// line of node data instead of three. The SIMD kernels are compiled
 // with __attribute__((target)) in the same translation unit and chosen at run time
 // (isaAtLeast(Isa::kAvx2), isa.h), so the library runs on any x86-64 and no build flag
 // changes the result of the scalar path. Each kernel sums one cache's links in
