@@ -21,14 +21,6 @@ using detail::kCacheChunk;
 using detail::kChunk;
 using detail::lightEmits;
 using detail::reaches;
-using Clock = std::chrono::steady_clock;
-
-template <class F>
-void timed(RelightResult& res, std::string stage, F&& body) {
-  const auto t0 = Clock::now();
-  body();
-  res.timings.push_back({std::move(stage), std::chrono::duration<double>(Clock::now() - t0).count()});
-}
 
 class CpuPasses final : public RelightPasses {
  public:
@@ -107,7 +99,7 @@ Status CpuPasses::surfelDirect(const RelightFrame& f, std::span<const glm::vec3>
   const auto& given = f.options.surfel_irradiance;
   direct_e_.assign(ns, glm::vec3(0.0f));
   per_light_surfel_.assign(L.size(), {});
-  timed(res, "surfel_direct", [&] {
+  timedStage(res, "surfel_direct", [&] {
     if (!given.empty()) {
       // Given by the caller (parity runs): no light is evaluated at the surfels.
       for (auto& pl : per_light_surfel_) pl.assign(ns, glm::vec3(0.0f));
@@ -136,13 +128,13 @@ Status CpuPasses::surfelDirect(const RelightFrame& f, std::span<const glm::vec3>
 }
 
 Status CpuPasses::pullAndLight(const RelightFrame& f, const std::string& prefix, bool grid, RelightResult& res) {
-  timed(res, prefix + "pull", [&] {
+  timedStage(res, prefix + "pull", [&] {
     for (std::size_t s = 0; s < p_.surfels.size(); ++s) setLeafFlux(s);
     pullAll();
     res.passes.pulls++;
     res.counts.nodes_pulled = p_.tree.nodeCount();
   });
-  timed(res, prefix + "cache_lighting", [&] {
+  timedStage(res, prefix + "cache_lighting", [&] {
     lightCaches(f, t_.lm_links, lm_sh_, p_.lightmap.valid, nullptr);
     res.passes.cache_lighting++;
     res.passes.sky += f.plan.sky ? 1 : 0;
@@ -161,7 +153,7 @@ Status CpuPasses::pullAndLight(const RelightFrame& f, const std::string& prefix,
 Status CpuPasses::gather(const RelightFrame& f, int bounce, bool fill_grid, RelightResult& res) {
   const std::size_t ns = p_.surfels.size(), stride = f.stride;
   const int bands = f.bands, nc = bands * bands;
-  timed(res, "bounce" + std::to_string(bounce) + "_gather", [&] {
+  timedStage(res, "bounce" + std::to_string(bounce) + "_gather", [&] {
     // Fill invalid caches first: surfels may gather from them.
     detail::applyFill(p_.lightmap_fill, lm_sh_.data(), stride);
     if (fill_grid) detail::applyFill(p_.grid_fill, grid_sh_.data(), stride);
@@ -209,7 +201,7 @@ void CpuPasses::sumCacheDirect(const EmitterTexels& emitter) {
 
 Status CpuPasses::cacheDirect(const RelightFrame& f, const EmitterTexels& emitter, RelightResult& res) {
   const auto& L = f.lights.lights();
-  timed(res, "baked_direct", [&] {
+  timedStage(res, "baked_direct", [&] {
     per_light_cache_.assign(L.size(), {});
     cache_direct_.assign(p_.lightmap.size(), glm::vec3(0.0f));
     if (!f.plan.baked_direct || !f.coarse_direct) return;
@@ -226,7 +218,7 @@ Status CpuPasses::cacheDirect(const RelightFrame& f, const EmitterTexels& emitte
 Status CpuPasses::texels(const RelightFrame& f, RelightResult& res) {
   const std::size_t stride = f.stride;
   cache_direct_.resize(p_.lightmap.size(), glm::vec3(0.0f));
-  timed(res, "fill_dilate", [&] {
+  timedStage(res, "fill_dilate", [&] {
     detail::applyFill(p_.lightmap_fill, lm_sh_.data(), stride);
     detail::applyFill(p_.lightmap_fill, reinterpret_cast<float*>(cache_direct_.data()), 3);
     if (f.plan.grid) detail::applyFill(p_.grid_fill, grid_sh_.data(), stride);
@@ -288,7 +280,7 @@ Status CpuPasses::relightChange(const RelightFrame& f, const LightChange& c, std
   const std::size_t ns = p_.surfels.size();
   const bool surfels_change = !sameLight(c.old_light, c.new_light);
   std::vector<std::uint32_t> touched;
-  timed(res, "surfel_direct", [&] {
+  timedStage(res, "surfel_direct", [&] {
     if (surfels_change) touched = changeSurfels(c, surfel_emit, res);
   });
   if (!surfels_change) {
@@ -301,11 +293,11 @@ Status CpuPasses::relightChange(const RelightFrame& f, const LightChange& c, std
   // (relight_bench, "incremental"). The sums are the same in the same order either way.
   const bool dense = touched.size() * 2 > ns;
   std::vector<std::uint32_t> changed_nodes;
-  timed(res, "pull", [&] { changed_nodes = changeTree(touched, dense, res); });
-  timed(res, "cache_lighting", [&] {
+  timedStage(res, "pull", [&] { changed_nodes = changeTree(touched, dense, res); });
+  timedStage(res, "cache_lighting", [&] {
     if (!changed_nodes.empty() || dense) changeCaches(f, changed_nodes, dense, res);
   });
-  timed(res, "baked_direct", [&] { changeDirect(f, c, surfels_change, emitter, res); });
+  timedStage(res, "baked_direct", [&] { changeDirect(f, c, surfels_change, emitter, res); });
   return {};
 }
 

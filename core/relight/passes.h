@@ -13,6 +13,7 @@
 // backend keeps its per-cache state (the pipeline relies on it for both shortcuts).
 #pragma once
 
+#include <chrono>
 #include <cstdint>
 #include <span>
 #include <string>
@@ -59,6 +60,15 @@ struct EmitterTexels {
   std::span<const glm::vec3> value;  // empty: not baked into the texels
   std::uint64_t generation = 0;
 };
+
+// Runs `body` and records its wall time as stage `stage` of `res` (host-side stages; the GPU
+// records its own with timer queries).
+template <class F>
+void timedStage(RelightResult& res, std::string stage, F&& body) {
+  const auto t0 = std::chrono::steady_clock::now();
+  body();
+  res.timings.push_back({std::move(stage), std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count()});
+}
 
 class RelightPasses {
  public:

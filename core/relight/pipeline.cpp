@@ -16,13 +16,6 @@ using detail::sameEmissive;
 using Clock = std::chrono::steady_clock;
 double secondsSince(Clock::time_point t0) { return std::chrono::duration<double>(Clock::now() - t0).count(); }
 
-template <class F>
-void timed(RelightResult& res, std::string stage, F&& body) {
-  const auto t0 = Clock::now();
-  body();
-  res.timings.push_back({std::move(stage), secondsSince(t0)});
-}
-
 // Gauss-Legendre nodes/weights on [-1, 1] by Newton iteration on P_n.
 void gaussLegendre(int n, std::vector<double>& x, std::vector<double>& w) {
   x.resize(n), w.resize(n);
@@ -319,12 +312,12 @@ std::optional<LightChange> RelightPipeline::oneChange(const LightSet& lights, co
 
 Status RelightPipeline::fullRelight(const RelightFrame& f, RelightResult& res) {
   const EffectsPlan& plan = f.plan;
-  timed(res, "emission", [&] {
+  timedStage(res, "emission", [&] {
     emission_.updateEmission(f.lights);
     res.passes.emission = plan.emissive ? 1 : 0;
   });
   if (Status s = passes_->setEmission(emission_.emission(), emission_.emissionGeneration()); !s) return s;
-  timed(res, "surfel_emitter", [&] {
+  timedStage(res, "surfel_emitter", [&] {
     // The emitters' direct light at the surfels, sampled; it depends only on the emission
     // state, so relights that change punctual lights reuse it.
     if (emission_.updateSurfels(f.lights)) res.passes.surfel_emitter = plan.emissive ? 1 : 0;
@@ -381,7 +374,7 @@ Status RelightPipeline::bounceLoop(const RelightFrame& f, RelightResult& res) {
 }
 
 void RelightPipeline::emitterTexels(const RelightFrame& f, RelightResult& res) {
-  timed(res, "emissive_direct", [&] {
+  timedStage(res, "emissive_direct", [&] {
     // A finer direct layer samples the emitters itself.
     if (!f.plan.emissive_direct || !f.coarse_direct) {
       emission_.dropTexels();
@@ -396,7 +389,7 @@ void RelightPipeline::emitterTexels(const RelightFrame& f, RelightResult& res) {
 }
 
 void RelightPipeline::gridEmitter(const RelightFrame& f, RelightResult& res) {
-  timed(res, "grid_emitter", [&] {
+  timedStage(res, "grid_emitter", [&] {
     // The emitters' light at the grid caches, sampled; it depends only on the emission
     // state and the bands, so relights that change punctual lights, sky or bounces reuse it.
     const bool fresh = emission_.updateGrid(f.lights, f.bands, res.counts.shadow_rays);
@@ -408,7 +401,7 @@ void RelightPipeline::gridEmitter(const RelightFrame& f, RelightResult& res) {
 
 void RelightPipeline::finish(const RelightFrame& f, RelightResult& res) {
   const RelightOptions& o = f.options;
-  timed(res, "texel_filters", [&] {
+  timedStage(res, "texel_filters", [&] {
     // Links' reflected light and sky, plus the emitters' sampled light (both filled).
     const auto& grid_emit = emission_.grid();
     if (f.plan.grid && grid_emit.size() == res.grid_sh.size())

@@ -43,7 +43,7 @@ class ScriptedPasses final : public RelightPasses {
     return log("gather" + std::to_string(bounce));
   }
   Expected<BounceSums> bounceSums() override {
-    log("bounceSums");
+    (void)log("bounceSums");
     return sums_[std::min<std::size_t>(std::size_t(gathered_ - 1), sums_.size() - 1)];
   }
   bool sumsLag() const override { return lag_; }
