@@ -204,6 +204,48 @@ int main(int argc, char** argv) {
     j["emission_change"] = {{"total_ms", median(total) * 1e3}, {"emission_only_ms", median(emit) * 1e3}};
   }
 
+  {
+    // An editor's emission edit (one material's strength and colour) against an editor's light
+    // move, both at the same options (1 bounce): the emitters' light is rescaled per material,
+    // not sampled again. Issue 48's target: the edit costs at most 2x the move.
+    int material = -1;
+    for (std::size_t m = 0; m < scene->materials.size() && material < 0; ++m)
+      if (scene->materials[m].isEmissive()) material = int(m);
+    const relight::RelightOptions o{.max_bounces = 1, .bounce_threshold = 0.0f};
+    relight::RelightResult res;
+    relight::LightSet edit = lights;
+    std::vector<double> move_ms, edit_ms;
+    relighter->invalidate(relight::Relighter::Forget::kLightState);
+    if (Status s = relighter->relightInto(edit, o, res); !s) return 2;  // emission state sampled once
+    for (int r = 0; r <= args.repeats; ++r) {
+      if (!edit.lights().empty()) {
+        relight::LightEntry moved = edit.lights().front();
+        const float step = (r & 1) ? -1.0f : 1.0f;
+        if (moved.light.kind == scene::Light::Kind::kDirectional)
+          moved.light.direction = glm::normalize(moved.light.direction + glm::vec3(0.01f * step, 0.0f, 0.0f));
+        else
+          moved.light.position.x += 0.01f * scene->scale * step;
+        if (Status s = edit.modify(moved); !s) return 2;
+        if (Status s = relighter->relightInto(edit, o, res); !s) return 2;
+        if (r > 0) move_ms.push_back(res.totalSeconds() * 1e3);
+      }
+      if (material >= 0) {
+        const float k = (r & 1) ? 0.5f : 2.0f;
+        if (Status s = edit.setEmissive({material, relight::EmissiveOverride::Mode::kScale, glm::vec3(k, 1.0f, k)}); !s)
+          return 2;
+        if (Status s = relighter->relightInto(edit, o, res); !s) return 2;
+        if (r > 0) edit_ms.push_back(res.totalSeconds() * 1e3);
+      }
+    }
+    if (!move_ms.empty() && !edit_ms.empty()) {
+      const double move = median(move_ms), em = median(edit_ms);
+      fmt::print("emission edit (material {} strength and colour, 1 bounce): {:.3f} ms vs a light move {:.3f} ms: "
+                 "{:.2f}x\n",
+                 material, em, move, em / move);
+      j["emission_edit"] = {{"material", material}, {"ms", em}, {"light_move_ms", move}, {"ratio", em / move}};
+    }
+  }
+
   // ---- cache lighting vs a plain read of the same link bytes -------------------------
   {
     const std::size_t nodes = p->tree.nodeCount();

@@ -5,7 +5,7 @@
 
 #include "core/common/sampling.h"
 #include "core/relight/direct_points.h"
-#include "core/relight/emitter_direct.h"
+#include "core/relight/emitter_layers.h"
 #include "core/scene/light_eval.h"
 
 namespace lightlink::relight {
@@ -19,11 +19,7 @@ struct DirectLayer::State {
     std::vector<glm::vec3> e;  // per point: this light's shadowed irradiance
   };
   std::vector<Kept> kept;  // the last call's baked lights, in its order
-  std::vector<glm::vec3> emitter;  // per point; valid while the emission state is
-  bool emitter_valid = false;
-  std::vector<EmissiveOverride> emitter_overrides;
-  int emitter_samples = 0;
-  std::size_t emitter_triangles = 0;
+  detail::LayeredEmitterLight emitter;  // per point
   std::vector<glm::vec3> sum;  // per point, scratch
 };
 
@@ -114,7 +110,7 @@ DirectLayer::~DirectLayer() = default;
 
 void DirectLayer::invalidate(bool everything) {
   s_->kept.clear();
-  if (everything) s_->emitter_valid = false;
+  if (everything) s_->emitter.clear();
 }
 
 void DirectLayer::compute(const LightSet& lights, const RelightOptions& o, const EffectsPlan& plan,
@@ -148,29 +144,24 @@ void DirectLayer::compute(const LightSet& lights, const RelightOptions& o, const
 
   if (!plan.emissive_direct) {
     s.emitter.clear();
-    s.emitter_valid = false;
-  } else if (s.emitter_valid && s.emitter_samples == o.emitter_samples &&
-             detail::sameEmissive(s.emitter_overrides, lights.emissive())) {
-    res.counts.emitter_direct_reused = 1;
-    res.counts.emitter_triangles = s.emitter_triangles;
   } else {
-    const detail::EmitterSampler sampler(scene_, accel_, lights.emissive());
-    // Salted so the layer's texels do not repeat the caches' noise pattern.
-    detail::sampleEmitters(sampler, dt, o.emitter_samples, std::uint64_t(1) << 40, s.emitter, res.counts.shadow_rays);
-    s.emitter_valid = true;
-    s.emitter_overrides = lights.emissive();
-    s.emitter_samples = o.emitter_samples;
-    s.emitter_triangles = sampler.triangleCount();
-    res.counts.emitter_triangles = s.emitter_triangles;
-    res.passes.emissive_direct = 1;
+    const auto how = s.emitter.update(scene_, accel_, lights.emissive(), o.emitter_samples, n, 3,
+                                      [&](const detail::EmitterSampler& sampler, std::vector<float>& layers) {
+      // Salted so the layer's texels do not repeat the caches' noise pattern.
+      detail::sampleEmitters(sampler, dt, o.emitter_samples, std::uint64_t(1) << 40, layers, res.counts.shadow_rays);
+    });
+    if (how == detail::LayeredEmitterLight::Update::kSampled) res.passes.emissive_direct = 1;
+    else res.counts.emitter_direct_reused = 1;
+    if (how == detail::LayeredEmitterLight::Update::kRescaled) res.counts.emitter_rescaled++;
+    res.counts.emitter_triangles = s.emitter.triangles();
   }
 
   // Sum per point in light order, fill invalid points, then gather texels.
   s.sum.assign(n, glm::vec3(0.0f));
   for (const State::Kept& k : s.kept)
     for (std::size_t c = 0; c < n; ++c) s.sum[c] += k.e[c];
-  if (!s.emitter.empty())
-    for (std::size_t c = 0; c < n; ++c) s.sum[c] += s.emitter[c];
+  if (const auto emitter = s.emitter.rgb(); emitter.size() == n)
+    for (std::size_t c = 0; c < n; ++c) s.sum[c] += emitter[c];
   detail::applyFill(p_.direct_fill, reinterpret_cast<float*>(s.sum.data()), 3);
   const std::size_t texels = std::size_t(dt.width) * std::size_t(dt.height);
   res.direct_width = dt.width;

@@ -82,9 +82,9 @@ void shadowedLight(const rt::Accel& accel, const scene::Light& light, std::span<
 
 
 void sampleEmitters(const EmitterSampler& sampler, const caches::LightmapCaches& points, int samples,
-                    std::uint64_t salt, std::vector<glm::vec3>& out, std::size_t& rays) {
-  const std::size_t n = points.size();
-  out.assign(n, glm::vec3(0.0f));
+                    std::uint64_t salt, std::vector<float>& layers, std::size_t& rays) {
+  const std::size_t n = points.size(), L = std::size_t(sampler.layerCount());
+  layers.assign(n * L * 3, 0.0f);
   std::vector<std::size_t> chunk_rays((n + kCacheChunk - 1) / kCacheChunk, 0);
   forChunks(n, kCacheChunk, [&](std::size_t chunk, std::size_t begin, std::size_t end) {
     EmitterSampler::Scratch scratch;
@@ -92,17 +92,18 @@ void sampleEmitters(const EmitterSampler& sampler, const caches::LightmapCaches&
     for (std::size_t c = begin; c < end; ++c) {
       if (!points.valid[c]) continue;
       const std::uint64_t seed = mixBits(0x6c6c656d69747465ULL ^ (std::uint64_t(points.texel[c]) | salt));
-      out[c] = sampler.irradiance(points.position[c], points.normal[c], samples, seed, scratch, r);
+      sampler.irradiance(points.position[c], points.normal[c], samples, seed, scratch,
+                         reinterpret_cast<glm::vec3*>(layers.data() + c * L * 3), r);
     }
     chunk_rays[chunk] = r;
   });
   for (std::size_t r : chunk_rays) rays += r;
 }
 
-void sampleEmittersSh(const EmitterSampler& sampler, const caches::GridCaches& grid, const caches::FillPlan& fill,
-                      int bands, int samples, std::vector<float>& out, std::size_t& rays) {
-  const std::size_t n = grid.size(), stride = std::size_t(3) * bands * bands;
-  out.assign(n * stride, 0.0f);
+void sampleEmittersSh(const EmitterSampler& sampler, const caches::GridCaches& grid, int bands, int samples,
+                      std::vector<float>& layers, std::size_t& rays) {
+  const std::size_t n = grid.size(), stride = std::size_t(3) * bands * bands, L = std::size_t(sampler.layerCount());
+  layers.assign(n * L * stride, 0.0f);
   std::vector<std::size_t> chunk_rays((n + kCacheChunk - 1) / kCacheChunk, 0);
   forChunks(n, kCacheChunk, [&](std::size_t chunk, std::size_t begin, std::size_t end) {
     EmitterSampler::Scratch scratch;
@@ -110,12 +111,11 @@ void sampleEmittersSh(const EmitterSampler& sampler, const caches::GridCaches& g
     for (std::size_t c = begin; c < end; ++c) {
       if (!grid.valid[c]) continue;
       const std::uint64_t seed = mixBits(0x67726964656d6974ULL ^ std::uint64_t(c));
-      sampler.radianceSh(grid.position[c], bands, samples, seed, scratch, out.data() + c * stride, r);
+      sampler.radianceSh(grid.position[c], bands, samples, seed, scratch, layers.data() + c * L * stride, r);
     }
     chunk_rays[chunk] = r;
   });
   for (std::size_t r : chunk_rays) rays += r;
-  applyFill(fill, out.data(), stride);
 }
 
 std::vector<std::uint8_t> hasValue(const std::vector<std::uint8_t>& valid, const caches::FillPlan& fill) {

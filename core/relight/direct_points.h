@@ -54,19 +54,19 @@ void shadowedLight(const rt::Accel& accel, const scene::Light& light, std::span<
                    const std::vector<std::uint32_t>* subset, std::vector<glm::vec3>& out, std::size_t& rays,
                    rt::Coherence coherence);
 
-// The emitters' direct irradiance at every valid point (0 at invalid ones), `samples` shadow
-// rays each, seeded by the point's texel or'ed with `salt` (so a texel's noise depends on
-// neither the point order nor the split, and two layers of the same atlas differ); adds
-// the rays traced to `rays`.
+// The emitters' direct irradiance at every valid point (0 at invalid ones) per sampler layer
+// (RGB at layers[3 * (point * layers + layer)]), `samples` shadow rays each, seeded by the
+// point's texel or'ed with `salt` (so a texel's noise depends on neither the point order nor
+// the split, and the direct layer's texels differ from the caches'); adds the rays traced
+// to `rays`.
 void sampleEmitters(const EmitterSampler& sampler, const caches::LightmapCaches& points, int samples,
-                    std::uint64_t salt, std::vector<glm::vec3>& out, std::size_t& rays);
+                    std::uint64_t salt, std::vector<float>& layers, std::size_t& rays);
 
-// The SH (`bands` bands, 3 * bands^2 floats per point) of the radiance the emitters send each
-// valid grid cache over the whole sphere (0 at invalid ones), `samples` shadow rays each,
-// seeded by the cache's index; then `fill` applied, as the caches' own SH gets it. Adds the
-// rays traced to `rays`.
-void sampleEmittersSh(const EmitterSampler& sampler, const caches::GridCaches& grid, const caches::FillPlan& fill,
-                      int bands, int samples, std::vector<float>& out, std::size_t& rays);
+// The SH (`bands` bands, 3 * bands^2 floats per point and layer) of the radiance the emitters
+// send each valid grid cache over the whole sphere (0 at invalid ones), per sampler layer,
+// `samples` shadow rays each, seeded by the cache's index. Adds the rays traced to `rays`.
+void sampleEmittersSh(const EmitterSampler& sampler, const caches::GridCaches& grid, int bands, int samples,
+                      std::vector<float>& layers, std::size_t& rays);
 
 // Per point: 1 when it holds a value after `fill` (valid, or a fill target with sources).
 std::vector<std::uint8_t> hasValue(const std::vector<std::uint8_t>& valid, const caches::FillPlan& fill);

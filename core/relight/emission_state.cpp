@@ -4,7 +4,6 @@
 
 #include "core/common/sampling.h"
 #include "core/relight/direct_points.h"
-#include "core/relight/emitter_direct.h"
 
 namespace lightlink::relight {
 
@@ -28,73 +27,77 @@ void surfelEmissionInto(const SceneTables& t, const LightSet& lights, std::vecto
   }
 }
 
-bool EmissionState::Key::matches(const LightSet& lights, int c) const {
-  return valid && count == c && detail::sameEmissive(overrides, lights.emissive());
-}
-
-void EmissionState::Key::set(const LightSet& lights, int c) {
-  valid = true, overrides = lights.emissive(), count = c;
-}
-
 bool EmissionState::updateEmission(const LightSet& lights) {
-  if (emission_key_.matches(lights, 0)) return false;
+  if (emission_valid_ && detail::sameEmissive(emission_overrides_, lights.emissive())) return false;
   surfelEmissionInto(t_, lights, emission_);
-  emission_key_.set(lights, 0);
+  emission_overrides_ = lights.emissive();
+  emission_valid_ = true;
   ++emission_generation_;
   return true;
 }
 
-bool EmissionState::updateSurfels(const LightSet& lights) {
-  if (surfel_key_.matches(lights, kSurfelEmitterSamples)) return false;
-  const std::size_t ns = t_.p.surfels.size();
-  surfel_.assign(ns, glm::vec3(0.0f));
-  surfel_key_.set(lights, kSurfelEmitterSamples);
-  if (!detail::anyEmitter(t_.scene, lights.emissive())) return true;
-  const detail::EmitterSampler sampler(t_.scene, t_.accel, lights.emissive());
-  forChunks(ns, kChunk, [&](std::size_t, std::size_t begin, std::size_t end) {
-    detail::EmitterSampler::Scratch scratch;
-    std::size_t r = 0;
-    for (std::size_t s = begin; s < end; ++s) {
-      // Seeded by the surfel, so its noise does not depend on the split; unbiased, and every
-      // cache averages many surfels, so 16 samples suffice where a texel's direct needs more.
-      const std::uint64_t seed = mixBits(0x73757266656d6974ULL ^ std::uint64_t(s));
-      surfel_[s] = sampler.irradiance(t_.p.surfels.position[s], t_.p.surfels.normal[s], kSurfelEmitterSamples, seed,
-                                      scratch, r);
-    }
+EmitterUpdate EmissionState::updateSurfels(const LightSet& lights) {
+  const auto& surfels = t_.p.surfels;
+  return surfel_.update(t_.scene, t_.accel, lights.emissive(), kSurfelEmitterSamples, surfels.size(), 3,
+                        [&](const detail::EmitterSampler& sampler, std::vector<float>& layers) {
+    if (sampler.triangleCount() == 0) return;
+    const std::size_t L = std::size_t(sampler.layerCount());
+    forChunks(surfels.size(), kChunk, [&](std::size_t, std::size_t begin, std::size_t end) {
+      detail::EmitterSampler::Scratch scratch;
+      std::size_t r = 0;
+      for (std::size_t s = begin; s < end; ++s) {
+        // Seeded by the surfel, so its noise does not depend on the split; unbiased, and every
+        // cache averages many surfels, so 16 samples suffice where a texel's direct needs more.
+        const std::uint64_t seed = mixBits(0x73757266656d6974ULL ^ std::uint64_t(s));
+        sampler.irradiance(surfels.position[s], surfels.normal[s], kSurfelEmitterSamples, seed, scratch,
+                           reinterpret_cast<glm::vec3*>(layers.data() + s * L * 3), r);
+      }
+    });
   });
-  return true;
 }
 
-bool EmissionState::updateTexels(const LightSet& lights, int samples, std::size_t& rays) {
-  if (texel_key_.matches(lights, samples)) return false;
-  const detail::EmitterSampler sampler(t_.scene, t_.accel, lights.emissive());
-  triangles_ = sampler.triangleCount();
-  detail::sampleEmitters(sampler, t_.p.lightmap, samples, 0, texel_, rays);
-  texel_key_.set(lights, samples);
-  ++texel_generation_;
-  return true;
+EmitterUpdate EmissionState::updateTexels(const LightSet& lights, int samples, std::size_t& rays) {
+  const auto how = texel_.update(t_.scene, t_.accel, lights.emissive(), samples, t_.p.lightmap.size(), 3,
+                                 [&](const detail::EmitterSampler& sampler, std::vector<float>& layers) {
+    detail::sampleEmitters(sampler, t_.p.lightmap, samples, 0, layers, rays);
+  });
+  if (how != EmitterUpdate::kKept) ++texel_generation_;
+  return how;
 }
 
 void EmissionState::dropTexels() {
-  if (texel_.empty() && !texel_key_.valid) return;
+  if (!texel_.valid()) return;
   texel_.clear();
-  texel_key_.valid = false;
   ++texel_generation_;
 }
 
-bool EmissionState::updateGrid(const LightSet& lights, int bands, std::size_t& rays) {
-  if (grid_key_.matches(lights, bands)) return false;
-  grid_.clear();
-  grid_key_.set(lights, bands);
+EmitterUpdate EmissionState::updateGrid(const LightSet& lights, int bands, std::size_t& rays) {
   const auto& p = t_.p;
-  if (!p.has_grid || p.grid.size() == 0 || !detail::anyEmitter(t_.scene, lights.emissive())) return true;
-  const detail::EmitterSampler sampler(t_.scene, t_.accel, lights.emissive());
-  detail::sampleEmittersSh(sampler, p.grid, p.grid_fill, bands, kGridEmitterSamples, grid_, rays);
-  return true;
+  if (!p.has_grid || p.grid.size() == 0) {
+    const bool had = grid_light_.valid();
+    grid_light_.clear(), grid_.clear();
+    return had ? EmitterUpdate::kSampled : EmitterUpdate::kKept;
+  }
+  const std::size_t stride = std::size_t(3) * bands * bands;
+  const auto how = grid_light_.update(t_.scene, t_.accel, lights.emissive(), bands, p.grid.size(), stride,
+                                      [&](const detail::EmitterSampler& sampler, std::vector<float>& layers) {
+    if (sampler.triangleCount() > 0)
+      detail::sampleEmittersSh(sampler, p.grid, bands, kGridEmitterSamples, layers, rays);
+  });
+  if (how == EmitterUpdate::kKept) return how;
+  if (grid_light_.triangles() == 0) {
+    grid_.clear();
+    return how;
+  }
+  const auto v = grid_light_.value();
+  grid_.assign(v.begin(), v.end());
+  detail::applyFill(p.grid_fill, grid_.data(), stride);  // as the caches' own SH gets it
+  return how;
 }
 
 void EmissionState::invalidate() {
-  emission_key_.valid = surfel_key_.valid = texel_key_.valid = grid_key_.valid = false;
+  emission_valid_ = false;
+  surfel_.clear(), texel_.clear(), grid_light_.clear();
 }
 
 }  // namespace lightlink::relight

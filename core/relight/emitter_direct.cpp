@@ -111,9 +111,10 @@ bool anyEmitter(const scene::Scene& scene, std::span<const EmissiveOverride> ove
 }
 
 EmitterSampler::EmitterSampler(const scene::Scene& scene, const rt::Accel& accel,
-                               std::span<const EmissiveOverride> overrides)
+                               std::span<const EmissiveOverride> overrides, std::span<const int> layer_of_material)
     : scene_(scene), accel_(accel) {
   const auto me = materialEmission(scene, overrides);
+  for (int l : layer_of_material) layers_ = std::max(layers_, l + 1);
   std::vector<double> weight;
   for (std::uint32_t mi = 0; mi < scene.meshes.size(); ++mi) {
     const auto& mesh = scene.meshes[mi];
@@ -135,6 +136,8 @@ EmitterSampler::EmitterSampler(const scene::Scene& scene, const rt::Accel& accel
       double_sided_.push_back(two_sided);
       replace_.push_back(o.replace);
       value_.push_back(o.value);
+      const int layer = layer_of_material.empty() || mesh.material < 0 ? 0 : layer_of_material[mesh.material];
+      layer_.push_back(std::uint16_t(std::max(0, layer)));
       weight.push_back(area_m2 * (double(bound.x) + bound.y + bound.z));
       inv_pdf_area_.push_back(float(area_m2));  // times W / w_t below
     }
@@ -166,6 +169,7 @@ std::size_t EmitterSampler::sample(glm::vec3 position, const glm::vec3* normal_o
   const glm::vec3 normal = sphere ? glm::vec3(0.0f) : *normal_or_null;
   const std::size_t n = std::size_t(samples);
   scratch.rays.resize(n), scratch.contrib.resize(n), scratch.blocked.resize(n), scratch.dir.resize(n);
+  scratch.layer.resize(n);
   std::span<const double> cdf = cdf_;
   std::span<const float> inv_pick = inv_pick_, inv_pdf_area = inv_pdf_area_;
   if (cdf_.size() <= kLocalPickMax) {
@@ -275,6 +279,7 @@ std::size_t EmitterSampler::sample(glm::vec3 position, const glm::vec3* normal_o
     ray.tfar = std::max(0.0f, 1.0f - accel_.rayEpsilon() / std::max(glm::length(ray.dir), 1e-30f));
     scratch.rays[count] = ray;
     scratch.dir[count] = w_unit;
+    scratch.layer[count] = layer_[e];
     scratch.contrib[count++] = le * weight;
   }
   accel_.occluded(std::span(scratch.rays.data(), count), std::span(scratch.blocked.data(), count));
@@ -282,14 +287,14 @@ std::size_t EmitterSampler::sample(glm::vec3 position, const glm::vec3* normal_o
   return count;
 }
 
-glm::vec3 EmitterSampler::irradiance(glm::vec3 position, glm::vec3 normal, int samples, std::uint64_t seed,
-                                     Scratch& scratch, std::size_t& rays) const {
+void EmitterSampler::irradiance(glm::vec3 position, glm::vec3 normal, int samples, std::uint64_t seed,
+                                Scratch& scratch, glm::vec3* out, std::size_t& rays) const {
+  std::fill(out, out + layers_, glm::vec3(0.0f));
   const std::size_t count = sample(position, &normal, samples, seed, scratch, rays);
-  if (count == 0) return glm::vec3(0.0f);
-  glm::vec3 sum(0.0f);  // in sample order: the same for any thread count
-  for (std::size_t k = 0; k < count; ++k)
-    if (!scratch.blocked[k]) sum += scratch.contrib[k];
-  return sum / float(samples);
+  if (count == 0) return;
+  for (std::size_t k = 0; k < count; ++k)  // in sample order: the same for any thread count
+    if (!scratch.blocked[k]) out[scratch.layer[k]] += scratch.contrib[k];
+  for (int l = 0; l < layers_; ++l) out[l] /= float(samples);
 }
 
 void EmitterSampler::radianceSh(glm::vec3 position, int bands, int samples, std::uint64_t seed, Scratch& scratch,
@@ -302,7 +307,8 @@ void EmitterSampler::radianceSh(glm::vec3 position, int bands, int samples, std:
     if (scratch.blocked[k]) continue;
     sh::evalBasis(bands, scratch.dir[k], y);
     const glm::vec3 c = scratch.contrib[k] * inv_n;
-    for (int i = 0; i < nc; ++i) out[i] += c.x * y[i], out[nc + i] += c.y * y[i], out[2 * nc + i] += c.z * y[i];
+    float* o = out + std::size_t(scratch.layer[k]) * 3 * nc;
+    for (int i = 0; i < nc; ++i) o[i] += c.x * y[i], o[nc + i] += c.y * y[i], o[2 * nc + i] += c.z * y[i];
   }
 }
 

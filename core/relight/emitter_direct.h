@@ -25,6 +25,10 @@
 // Grid caches (points in free space, no normal) take the same samples over the whole sphere
 // (no horizon, no cos_r) and project them into SH instead: L_lm += L_e V Y_lm(w) Omega_t / P(t)
 // (radianceSh), so a small lamp reaches the irradiance volume as sharply as it reaches a texel.
+//
+// Layers: given a layer per material, each sample's contribution goes to its triangle's
+// material's layer, so the caller can keep the light of each emissive material apart and
+// rescale it when only that material's strength or colour changes (emitter_layers.h).
 #pragma once
 
 #include <cstddef>
@@ -48,9 +52,13 @@ class EmitterSampler {
  public:
   // Collects the static triangles whose emission bound is > 0 after `overrides` (dynamic
   // meshes are neither in the BVH nor surfels: nothing baked depends on them).
-  EmitterSampler(const scene::Scene& scene, const rt::Accel& accel, std::span<const EmissiveOverride> overrides);
+  // `layer_of_material` (indexed by material; empty: one layer) gives each triangle the
+  // layer its contributions go to; it must cover every emitting triangle's material.
+  EmitterSampler(const scene::Scene& scene, const rt::Accel& accel, std::span<const EmissiveOverride> overrides,
+                 std::span<const int> layer_of_material = {});
 
   std::size_t triangleCount() const { return p0_.size(); }
+  int layerCount() const { return layers_; }
 
   // Per-call scratch (one per task), so the hot loop does not allocate.
   struct Scratch {
@@ -58,6 +66,7 @@ class EmitterSampler {
     std::vector<glm::vec3> contrib;
     std::vector<glm::vec3> dir;              // unit direction of each sample (radianceSh)
     std::vector<std::uint8_t> blocked;
+    std::vector<std::uint16_t> layer;        // layer of each sample's triangle
     std::vector<double> cdf;                 // per-receiver pick (few emitters), see irradiance()
     std::vector<float> inv_pick, inv_pdf_area;
   };
@@ -67,14 +76,14 @@ class EmitterSampler {
   // weight 0 only where it cannot contribute.
   static constexpr std::size_t kLocalPickMax = 64;
 
-  // Irradiance at `position` (unit `normal`) from the emitters, with `samples` samples; adds
-  // the shadow rays traced to `rays`.
-  glm::vec3 irradiance(glm::vec3 position, glm::vec3 normal, int samples, std::uint64_t seed, Scratch& scratch,
-                       std::size_t& rays) const;
+  // Irradiance at `position` (unit `normal`) from the emitters, with `samples` samples, per
+  // layer: writes out[layerCount()]; adds the shadow rays traced to `rays`.
+  void irradiance(glm::vec3 position, glm::vec3 normal, int samples, std::uint64_t seed, Scratch& scratch,
+                  glm::vec3* out, std::size_t& rays) const;
   // SH (`bands` bands, 3 planar channels, docs/sh.md) of the radiance arriving at `position`
-  // from the emitters over the whole sphere, with `samples` samples; *adds* to out[3 *
-  // bands^2] and the shadow rays traced to `rays`. A pure function of (position, samples,
-  // seed), like irradiance().
+  // from the emitters over the whole sphere, with `samples` samples, per layer; *adds* to
+  // out[layerCount() * 3 * bands^2] (layer-major) and the shadow rays traced to `rays`. A pure
+  // function of (position, samples, seed), like irradiance().
   void radianceSh(glm::vec3 position, int bands, int samples, std::uint64_t seed, Scratch& scratch, float* out,
                   std::size_t& rays) const;
 
@@ -95,6 +104,8 @@ class EmitterSampler {
   std::vector<std::uint32_t> mesh_, triangle_;
   std::vector<std::uint8_t> double_sided_;
   std::vector<std::uint8_t> replace_;    // 1: radiance = value_ (kRadiance override)
+  std::vector<std::uint16_t> layer_;     // layer of each triangle
+  int layers_ = 1;
   std::vector<glm::vec3> value_;         // kRadiance radiance, or the kScale factor (1 without override)
   std::vector<double> cdf_;              // cdf_[i] = sum_{j <= i} w_j / W; cdf_.back() = 1
   std::vector<float> inv_pick_;          // 1 / P(t) = W / w_t

@@ -320,8 +320,10 @@ Status RelightPipeline::fullRelight(const RelightFrame& f, RelightResult& res) {
   timedStage(res, "surfel_emitter", [&] {
     // The emitters' direct light at the surfels, sampled; it depends only on the emission
     // state, so relights that change punctual lights reuse it.
-    if (emission_.updateSurfels(f.lights)) res.passes.surfel_emitter = plan.emissive ? 1 : 0;
+    const EmitterUpdate how = emission_.updateSurfels(f.lights);
+    if (how == EmitterUpdate::kSampled) res.passes.surfel_emitter = plan.emissive ? 1 : 0;
     else if (plan.emissive) res.counts.surfel_emitter_reused = 1;
+    if (how == EmitterUpdate::kRescaled) res.counts.emitter_rescaled++;
   });
   if (plan.sky) skyMatrixInto(f.lights.sky(), f.bands, t_.lm_links.bands, sky_matrix_);
   if (Status s = passes_->surfelDirect(f, emission_.surfels(), res); !s) return s;
@@ -380,10 +382,10 @@ void RelightPipeline::emitterTexels(const RelightFrame& f, RelightResult& res) {
       emission_.dropTexels();
       return;
     }
-    if (emission_.updateTexels(f.lights, f.options.emitter_samples, res.counts.shadow_rays))
-      res.passes.emissive_direct = 1;
-    else
-      res.counts.emitter_direct_reused = 1;
+    const EmitterUpdate how = emission_.updateTexels(f.lights, f.options.emitter_samples, res.counts.shadow_rays);
+    if (how == EmitterUpdate::kSampled) res.passes.emissive_direct = 1;
+    else res.counts.emitter_direct_reused = 1;
+    if (how == EmitterUpdate::kRescaled) res.counts.emitter_rescaled++;
     res.counts.emitter_triangles = emission_.emitterTriangles();
   });
 }
@@ -392,10 +394,11 @@ void RelightPipeline::gridEmitter(const RelightFrame& f, RelightResult& res) {
   timedStage(res, "grid_emitter", [&] {
     // The emitters' light at the grid caches, sampled; it depends only on the emission
     // state and the bands, so relights that change punctual lights, sky or bounces reuse it.
-    const bool fresh = emission_.updateGrid(f.lights, f.bands, res.counts.shadow_rays);
+    const EmitterUpdate how = emission_.updateGrid(f.lights, f.bands, res.counts.shadow_rays);
     const int has = emission_.grid().empty() ? 0 : 1;
-    if (fresh) res.passes.grid_emitter = has;
+    if (how == EmitterUpdate::kSampled) res.passes.grid_emitter = has;
     else res.counts.grid_emitter_reused = std::size_t(has);
+    if (how == EmitterUpdate::kRescaled && has) res.counts.emitter_rescaled++;
   });
 }
 

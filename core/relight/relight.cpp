@@ -70,6 +70,7 @@ nlohmann::ordered_json RelightResult::report() const {
                  {"emitter_direct_reused", counts.emitter_direct_reused},
                  {"surfel_emitter_reused", counts.surfel_emitter_reused},
                  {"grid_emitter_reused", counts.grid_emitter_reused},
+                 {"emitter_rescaled", counts.emitter_rescaled},
                  {"texels", counts.texels},
                  {"texels_filled", counts.texels_filled},
                  {"surfels_without_gather", counts.surfels_without_gather}};

@@ -149,6 +149,10 @@ struct RelightCounts {
   std::size_t emitter_direct_reused = 0;        // 1: emission unchanged, the last emitter direct reused
   std::size_t surfel_emitter_reused = 0;       // 1: emission unchanged, the surfels' emitter light reused
   std::size_t grid_emitter_reused = 0;         // 1: emission and bands unchanged, the grid's emitter SH reused
+  // Emitter products (surfels, texels, direct layer, grid) rescaled from their per-material
+  // layers instead of sampled: the emission changed in strength or colour only. They also
+  // count as reused above.
+  std::size_t emitter_rescaled = 0;
   std::size_t texels = 0, texels_filled = 0;    // texels with a value after fill + dilation
   std::size_t surfels_without_gather = 0;       // bounces: no lightmap texel nor grid to read
 };
