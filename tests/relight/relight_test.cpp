@@ -472,13 +472,16 @@ TEST(RelightIncremental, EmissionOnlyWorkIsReusedWhileEmissionIsUnchanged) {
   EXPECT_EQ(moved->passes.grid_lighting, grid_gathered ? 4 : 1);
   EXPECT_EQ(moved->passes.cache_lighting, 4);
 
-  // An emission change recomputes; invalidate(kLightState) keeps, invalidate() does not.
+  // An emission change of strength rescales the kept emitter light (no sampling);
+  // invalidate(kLightState) keeps it, invalidate() does not.
   LightSet brighter = set;
   ASSERT_TRUE(brighter.setEmissive({.material = 1, .mode = EmissiveOverride::Mode::kScale, .value = glm::vec3(2.0f)}));
   auto glow = r.relight(brighter, opt);
   ASSERT_TRUE(glow);
-  EXPECT_EQ(glow->passes.surfel_emitter, 1);
-  EXPECT_EQ(glow->passes.emissive_direct, 1);
+  EXPECT_EQ(glow->passes.surfel_emitter, 0);
+  EXPECT_EQ(glow->passes.emissive_direct, 0);
+  EXPECT_GE(glow->counts.emitter_rescaled, 2u);
+  EXPECT_NE(glow->lightmap_sh, moved->lightmap_sh);
   r.invalidate(Relighter::Forget::kLightState);
   auto kept = r.relight(brighter, opt);
   ASSERT_TRUE(kept);
