@@ -6,7 +6,8 @@
 #
 # Runs level_bench on each shared game level (and zdm2) at each preset with the light sets
 # of tests/levels/lights, then the ~1M-triangle level (forge tiled --tile x --tile, default
-# 4, medium). Writes OUT_DIR/<level>_<preset>.json and OUT_DIR/levels.md, a markdown table.
+# 4, medium). Writes OUT_DIR/<level>_<preset>.json; `scripts/bench results levels` runs this into
+# docs/data/levels and renders the table of docs/results.md from it.
 set -euo pipefail
 here="$(cd "$(dirname "${BASH_SOURCE[0]}")" && pwd)"
 lights="$here/../../tests/levels/lights"
@@ -37,4 +38,3 @@ if [ "$tile" -gt 1 ]; then
   "$bin" "$scenes/sauerbraten_forge_obj/forge.obj" --preset medium --lights "$lights/forge.json" --tile "$tile" \
     --repeats 3 --json "$out/forge_x${tile}_medium.json" >/dev/null
 fi
-python3 "$here/levels_table.py" "$out"

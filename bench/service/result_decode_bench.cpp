@@ -24,6 +24,7 @@
 #include <grpcpp/support/byte_buffer.h>
 #include <grpcpp/support/slice.h>
 #include <grpcpp/impl/codegen/proto_utils.h>
+#include <nlohmann/json.hpp>
 
 #include "clients/client/textures.h"
 #include "proto/lightlink.pb.h"
@@ -110,6 +111,7 @@ int main(int argc, char** argv) {
   int repeats = 200;
   std::size_t slice_kib = 16;
   bool as_float = false;
+  std::string json_path;
   for (int i = 1; i < argc; i += 2) {
     if (std::strcmp(argv[i], "--float") == 0) {
       as_float = true;
@@ -119,8 +121,9 @@ int main(int argc, char** argv) {
       return 2;
     } else if (std::strcmp(argv[i], "--repeats") == 0) repeats = std::max(1, std::atoi(argv[i + 1]));
     else if (std::strcmp(argv[i], "--slice-kib") == 0) slice_kib = std::max(1, std::atoi(argv[i + 1]));
+    else if (std::strcmp(argv[i], "--json") == 0) json_path = argv[i + 1];
     else {
-      std::fprintf(stderr, "usage: result_decode_bench [--repeats N] [--slice-kib K] [--float]\n");
+      std::fprintf(stderr, "usage: result_decode_bench [--repeats N] [--slice-kib K] [--float] [--json OUT]\n");
       return 2;
     }
   }
@@ -144,5 +147,20 @@ int main(int argc, char** argv) {
   std::printf("%-22s %10s %10s\n", "decoder", "us/result", "GB/s");
   std::printf("%-22s %10.1f %10.2f\n", "generated (protobuf)", generated, mb * 1e3 / generated);
   std::printf("(checksum %llu)\n", static_cast<unsigned long long>(sum));
+  if (!json_path.empty()) {
+    const nlohmann::ordered_json doc = {
+        {"benchmark", "result_decode_bench"},
+        {"machine", {{"cpu", cpuModel()}, {"hardware_threads", std::thread::hardware_concurrency()}}},
+        {"result", {{"width", 256}, {"height", 256}, {"bands", 3}, {"precision", as_float ? "float" : "half"},
+                    {"messages", messages.size()}, {"megabytes", mb}, {"slice_kib", slice_kib}}},
+        {"repeats", repeats},
+        {"generated_us_per_result", generated}};
+    std::ofstream out(json_path);
+    out << doc.dump(2) << "\n";
+    if (!out) {
+      std::fprintf(stderr, "result_decode_bench: cannot write %s\n", json_path.c_str());
+      return 1;
+    }
+  }
   return 0;
 }
