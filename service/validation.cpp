@@ -1,6 +1,5 @@
 #include "service/validation.h"
 
-#include <cmath>
 #include <map>
 
 #include <fmt/format.h>
@@ -9,14 +8,6 @@ namespace lightlink::service {
 namespace {
 
 glm::vec3 toVec(const v1::Vec3& v) { return {v.x(), v.y(), v.z()}; }
-
-// Proto vectors of emissive overrides and the sky, before core's whole-value checks.
-Status checkFiniteVec(const v1::Vec3& v, const std::string& path) {
-  const float c[3] = {v.x(), v.y(), v.z()};
-  for (int i = 0; i < 3; ++i)
-    if (!std::isfinite(c[i])) return invalidInput("{}.{}: {} is not a finite number", path, "xyz"[i], c[i]);
-  return {};
-}
 
 Expected<scene::Light::Kind> kindFrom(v1::LightType type, const std::string& path) {
   switch (type) {
@@ -151,11 +142,9 @@ Status applyUpdate(const v1::UpdateLightsRequest& r, std::size_t material_count,
     relight::EmissiveOverride o;
     o.material = e.material();
     if (e.has_scale()) {
-      if (Status s = checkFiniteVec(e.scale(), path + ".scale"); !s) return s;
       o.mode = relight::EmissiveOverride::Mode::kScale;
       o.value = toVec(e.scale());
     } else if (e.has_radiance()) {
-      if (Status s = checkFiniteVec(e.radiance(), path + ".radiance"); !s) return s;
       o.mode = relight::EmissiveOverride::Mode::kRadiance;
       o.value = toVec(e.radiance());
     } else {
@@ -165,19 +154,16 @@ Status applyUpdate(const v1::UpdateLightsRequest& r, std::size_t material_count,
     if (Status s = lights.setEmissive(o); !s) return s;
   }
   if (r.has_sky()) {
+    // Every value, finiteness included, is checked by core's light-set rules below.
     relight::Sky sky;
     if (r.sky().has_radiance()) {
-      if (Status s = checkFiniteVec(r.sky().radiance(), "sky.radiance"); !s) return s;
       sky.radiance = toVec(r.sky().radiance());
     }
     if (r.sky().sh_size() != 0) {
       if (r.sky().sh_size() != 9)
         return invalidInput("sky.sh: {} coefficients given, expected 0 or 9", r.sky().sh_size());
       std::array<glm::vec3, 9> sh{};
-      for (int i = 0; i < 9; ++i) {
-        if (Status s = checkFiniteVec(r.sky().sh(i), fmt::format("sky.sh[{}]", i)); !s) return s;
-        sh[i] = toVec(r.sky().sh(i));
-      }
+      for (int i = 0; i < 9; ++i) sh[i] = toVec(r.sky().sh(i));
       sky.sh = sh;
     }
     if (Status s = relight::LightSet::validate(sky, "sky"); !s) return s;

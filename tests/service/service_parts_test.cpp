@@ -1,6 +1,7 @@
 // The daemon's parts in process: address classification, tokens, request validation,
 // payload encoding and tile deltas.
 #include <cmath>
+#include <limits>
 
 #include <gtest/gtest.h>
 
@@ -109,11 +110,32 @@ TEST(ServiceValidation, UpdateErrorsNameTheField) {
   ASSERT_FALSE(s);
   EXPECT_NE(s.message().find("emissive[0].material"), std::string::npos) << s.message();
 
+  // Non-finite emission and sky values are refused by core's light-set rules, named as a
+  // light-set file's would be.
+  e->set_material(1);
+  e->mutable_scale()->set_y(std::numeric_limits<float>::infinity());
+  s = applyUpdate(r, 4, lights);
+  ASSERT_FALSE(s);
+  EXPECT_NE(s.message().find("emissive[0].scale[1]"), std::string::npos) << s.message();
+
   r.clear_emissive();
   r.mutable_sky()->add_sh();
   s = applyUpdate(r, 4, lights);
   ASSERT_FALSE(s);
   EXPECT_NE(s.message().find("sky.sh"), std::string::npos) << s.message();
+
+  r.clear_sky();
+  r.mutable_sky()->mutable_radiance()->set_z(std::nanf(""));
+  s = applyUpdate(r, 4, lights);
+  ASSERT_FALSE(s);
+  EXPECT_NE(s.message().find("sky.radiance[2]"), std::string::npos) << s.message();
+
+  r.clear_sky();
+  for (int i = 0; i < 9; ++i) r.mutable_sky()->add_sh();
+  r.mutable_sky()->mutable_sh(4)->set_x(-std::numeric_limits<float>::infinity());
+  s = applyUpdate(r, 4, lights);
+  ASSERT_FALSE(s);
+  EXPECT_NE(s.message().find("sky.sh[4][0]"), std::string::npos) << s.message();
 }
 
 TEST(ServiceValidation, ModifyChangesOnlyPresentFieldsAndReplaceLights) {
