@@ -516,6 +516,7 @@ Status GpuPasses::surfelDirect(const RelightFrame& f, std::span<const glm::vec3>
         light_surfels.set("u_count", std::uint32_t(ns));
         light_surfels.set("u_light_count", !given_e.empty() || !f.plan.punctual ? 0 : int(f.lights.lights().size()));
         light_surfels.set("u_use_given", use_given ? 1 : 0);
+        light_surfels.set("u_keep_out2", f.warm ? 1 : 0);
         dispatch(light_surfels, ns, 64);
         return {};
       });

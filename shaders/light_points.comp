@@ -1,5 +1,6 @@
 // Direct light of the punctual lights at a set of points, shadowed by the shadow maps.
-// MODE_SURFELS: out = rho * sum_lights E (the surfels' direct radiosity b0), out2 = out.
+// MODE_SURFELS: out = rho * sum_lights E (the surfels' direct radiosity b0), out2 = out
+// unless u_keep_out2 (a warm start keeps b, the last solution, in out2).
 // MODE_CACHES: out = sum over *baked* lights of E at valid lightmap caches (baked direct).
 // Lights are summed in light-set order, as the CPU relight sums its per-light arrays.
 #version 450
@@ -21,6 +22,7 @@ layout(binding = kLpShadowUnit) uniform sampler2DArray shadow_map;
 uniform uint u_count;
 uniform int u_light_count;
 uniform int u_use_given;  // surfels: E given per point (parity runs); caches: emitter E to add
+uniform int u_keep_out2;  // surfels: 1 leaves out2 as it is
 uniform float u_bias;        // constant depth bias, metres (relative to the scene size)
 uniform float u_normal_offset;  // texels of normal offset
 uniform float u_slope_bias;     // texels of depth bias
@@ -91,7 +93,7 @@ void main() {
 #ifdef MODE_SURFELS
   vec4 b0 = vec4(albedo[i].rgb * e, 0.0);
   result[i] = b0;
-  result2[i] = b0;
+  if (u_keep_out2 == 0) result2[i] = b0;
 #else
   result[i] = vec4(e, 0.0);
 #endif

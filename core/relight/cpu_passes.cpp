@@ -123,7 +123,7 @@ Status CpuPasses::surfelDirect(const RelightFrame& f, std::span<const glm::vec3>
     for (std::size_t s = 0; s < ns; ++s) direct_e_[s] += surfel_emit[s];
   b0_.resize(ns);
   for (std::size_t s = 0; s < ns; ++s) b0_[s] = p_.surfels.albedo[s] * direct_e_[s];
-  b_ = b0_;
+  if (!f.warm || b_.size() != ns) b_ = b0_;
   return {};
 }
 

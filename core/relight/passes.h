@@ -7,7 +7,9 @@
 // work counts into the result.
 //
 // One full relight calls: begin, setEmission (when it changed), surfelDirect, pullAndLight,
-// then per bounce gather, bounceSums and pullAndLight, then cacheDirect and texels. A relight
+// then per bounce gather, bounceSums and pullAndLight, then cacheDirect and texels; a warm
+// one (RelightFrame::warm) skips the first pullAndLight, its first gather reading the caches
+// of the last relight. A relight
 // where exactly one light changed calls begin, relightChange and texels on a backend that
 // supports it; an unchanged light set calls begin and texels only. Between relights a
 // backend keeps its per-cache state (the pipeline relies on it for both shortcuts).
@@ -39,6 +41,9 @@ struct RelightFrame {
   // Per channel, the nc_out x nc_links matrix turning a cache's sky visibility into sky
   // radiance (pipeline.cpp); set when plan.sky.
   const std::vector<float>* sky_matrix = nullptr;
+  // Warm start (RelightOptions::warm_start): surfelDirect keeps b, the last solution, for the
+  // first gather to measure its change against, and that gather reads the kept caches.
+  bool warm = false;
 };
 
 // A bounce's stop test inputs: flux the bounce added and the total, summed in a fixed order.
@@ -80,9 +85,9 @@ class RelightPasses {
   virtual Status begin(const RelightFrame& frame) = 0;
   // The emitted radiosity pi * L_e per surfel (after overrides); `generation` changes with it.
   virtual Status setEmission(std::span<const glm::vec3> emission_b, std::uint64_t generation) = 0;
-  // (a) Surfel direct radiosity b0 = albedo * E and b = b0, with E the punctual lights'
-  // irradiance (or options.surfel_irradiance when given) plus `surfel_emit`, the emitters'.
-  // frame.sky_matrix is ready by then.
+  // (a) Surfel direct radiosity b0 = albedo * E and b = b0 (frame.warm: b is kept), with E
+  // the punctual lights' irradiance (or options.surfel_irradiance when given) plus
+  // `surfel_emit`, the emitters'. frame.sky_matrix is ready by then.
   virtual Status surfelDirect(const RelightFrame& frame, std::span<const glm::vec3> surfel_emit,
                               RelightResult& res) = 0;
   // (b) Pull b up the tree, (c) light the lightmap caches through their links (and the sky),

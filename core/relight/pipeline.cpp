@@ -217,11 +217,14 @@ Status RelightPipeline::relightInto(const LightSet& lights, const RelightOptions
   const int bands = o.bands == 0 ? link_bands : o.bands;
   if (Status s = validateRequest(lights, o, link_bands, t_.surfelCount(), t_.scene.materials.size()); !s) return s;
   resetResult(lights, o, bands, res);
-  const RelightFrame f{lights, o, res.plan, bands, std::size_t(3) * bands * bands, !layer_.active(), sky_matrix_};
   // Until this relight completes, the kept state is no base for a shortcut.
   const Memo* memo = memo_.valid ? &memo_ : nullptr;
+  const bool warm = o.warm_start && memo && res.plan.bounces && warmBase(o, bands);
+  const RelightFrame f{lights, o, res.plan, bands, std::size_t(3) * bands * bands, !layer_.active(), sky_matrix_,
+                       warm};
   Status st = passes_->begin(f);
-  if (st && memo && unchanged(lights, o, bands)) {
+  // A warm relight of an unchanged light set is one more iteration towards convergence.
+  if (st && memo && !warm && unchanged(lights, o, bands)) {
     // The kept per-cache state *is* the answer, bounces included: only the texels are written.
     res.passes.unchanged = 1;
     res.bounce_log = memo_.bounce_log;
@@ -247,6 +250,13 @@ Status RelightPipeline::relightInto(const LightSet& lights, const RelightOptions
   return {};
 }
 
+bool RelightPipeline::warmBase(const RelightOptions& o, int bands) const {
+  const Memo& m = memo_;
+  const int last_bands = m.options.bands ? m.options.bands : t_.lm_links.bands;
+  return o.surfel_irradiance.empty() && o.link_form == m.options.link_form && bands == last_bands &&
+         o.kernel == m.options.kernel;
+}
+
 bool RelightPipeline::sameSetting(const LightSet& lights, const RelightOptions& o, int bands) const {
   const Memo& m = memo_;
   const int last_bands = m.options.bands ? m.options.bands : t_.lm_links.bands;
@@ -263,7 +273,8 @@ bool RelightPipeline::sameEntry(const LightEntry& e, std::size_t j) const {
 bool RelightPipeline::unchanged(const LightSet& lights, const RelightOptions& o, int bands) const {
   // Every option that changes the result must match, the bounce options included.
   const auto& L = lights.lights();
-  if (!sameSetting(lights, o, bands) || o.max_bounces != memo_.options.max_bounces ||
+  // A warm relight's answer depends on the one before it: no base for "unchanged".
+  if (memo_.warm || !sameSetting(lights, o, bands) || o.max_bounces != memo_.options.max_bounces ||
       o.bounce_threshold != memo_.options.bounce_threshold || L.size() != memo_.ids.size())
     return false;
   for (std::size_t i = 0; i < L.size(); ++i)
@@ -330,7 +341,10 @@ Status RelightPipeline::fullRelight(const RelightFrame& f, RelightResult& res) {
   // Grid caches are read by the output and by surfels that gather from the grid. When no
   // surfel does, only the last lighting pass's grid values survive: intermediate passes skip
   // the grid (the same final values, one grid pass per relight instead of one per bounce).
-  if (Status s = passes_->pullAndLight(f, "", plan.grid && (!plan.bounces || t_.grid_gathered), res); !s) return s;
+  // Warm, the first gather reads the last relight's caches instead of freshly lit ones.
+  res.passes.warm = f.warm ? 1 : 0;
+  if (!f.warm)
+    if (Status s = passes_->pullAndLight(f, "", plan.grid && (!plan.bounces || t_.grid_gathered), res); !s) return s;
   if (!(plan.punctual || plan.emissive || plan.sky)) res.bounce_stop = "no light";
   else if (f.options.max_bounces == 0) res.bounce_stop = "disabled";
   else res.bounce_stop = "cap";  // replaced by "threshold" when a bounce adds too little
@@ -437,6 +451,7 @@ void RelightPipeline::remember(const RelightFrame& f, const RelightResult& res) 
   m.options = f.options;
   m.options.surfel_irradiance = {};  // a view into the caller's memory: not kept
   m.bounced = f.plan.bounces;
+  m.warm = f.warm;
   m.bounce_log = res.bounce_log;
   m.bounce_stop = res.bounce_stop;
   m.valid = f.options.surfel_irradiance.empty();  // a given irradiance is not a light state to build on

@@ -48,6 +48,7 @@ class RelightPipeline {
   struct Memo {
     bool valid = false;
     bool bounced = false;
+    bool warm = false;                 // started from the relight before it
     std::vector<scene::Light> lights;  // parallel to ids and baked
     std::vector<std::string> ids;
     std::vector<std::uint8_t> baked;
@@ -62,6 +63,8 @@ class RelightPipeline {
   // Both shortcuts need the same options and light-set fields but the lights (bounce
   // options aside); sameEntry compares a light with the memo's j-th.
   bool sameSetting(const LightSet& lights, const RelightOptions& o, int bands) const;
+  // The last relight's caches can start a warm one with these options.
+  bool warmBase(const RelightOptions& o, int bands) const;
   bool sameEntry(const LightEntry& e, std::size_t j) const;
   bool unchanged(const LightSet& lights, const RelightOptions& o, int bands) const;
   std::optional<LightChange> oneChange(const LightSet& lights, const RelightOptions& o, const EffectsPlan& plan,

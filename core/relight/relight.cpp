@@ -55,8 +55,9 @@ nlohmann::ordered_json RelightResult::report() const {
   j["bands"] = bands;
   j["lightmap"] = {{"width", width}, {"height", height}};
   j["effects_plan"] = plan.toJson();
-  j["passes"] = {{"surfel_direct", passes.surfel_direct}, {"emission", passes.emission}, {"pulls", passes.pulls},
-                 {"cache_lighting", passes.cache_lighting}, {"grid_lighting", passes.grid_lighting},
+  j["passes"] = {{"warm", passes.warm}, {"surfel_direct", passes.surfel_direct}, {"emission", passes.emission},
+                 {"pulls", passes.pulls}, {"cache_lighting", passes.cache_lighting},
+                 {"grid_lighting", passes.grid_lighting},
                  {"sky", passes.sky}, {"bounces", passes.bounces}, {"baked_direct", passes.baked_direct},
                  {"emissive_direct", passes.emissive_direct}, {"surfel_emitter", passes.surfel_emitter},
                  {"grid_emitter", passes.grid_emitter},

@@ -71,6 +71,14 @@ struct RelightOptions {
   int max_bounces = 100;
   float bounce_threshold = 1e-3f;  // stop when a bounce adds less than this fraction of the total flux
   bool incremental = true;         // allow incremental relight when exactly one light changed
+  // Start the bounce iteration from the last relight's solution (its caches) instead of from
+  // the direct light alone, as seed 000's progressive multi-bounce does from frame to frame:
+  // after a small light move one iteration is close to the converged answer, and each further
+  // iteration (a warm relight of the same light set) converges it. Applies when the last
+  // relight completed at the same bands, link form and kernel (RelightPasses::warm); the
+  // bounce log then holds each iteration's change against the one before, and max_bounces
+  // caps this call's iterations.
+  bool warm_start = false;
   Kernel kernel = Kernel::kAuto;
   // Samples (one shadow ray each) per lightmap texel for the direct light of emissive
   // surfaces, 1..4096; the Monte Carlo noise of a texel's direct falls as 1/sqrt(samples).
@@ -109,6 +117,7 @@ struct EffectsPlan {
 // Passes executed (incremented when a pass runs) by one relight, so tests and reports can
 // see what was skipped.
 struct PassCounts {
+  int warm = 0;              // 1: the bounces started from the last relight's solution
   int surfel_direct = 0;     // punctual-light evaluation over surfels
   int emission = 0;          // emission added to surfel radiosity
   int pulls = 0;

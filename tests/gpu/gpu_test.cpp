@@ -329,5 +329,42 @@ TEST(GpuBackend, UnchangedLightSetRewritesOnlyTheTexels) {
   EXPECT_NE(again.lightmap_sh, first.lightmap_sh);
 }
 
+// Warm start on the GPU: b and the caches kept on the device start the next relight's bounce
+// iteration, and warm relights of the same light set converge to the GPU's cold answer.
+TEST(GpuBackend, WarmStartConvergesToTheColdAnswer) {
+  REQUIRE_GPU();
+  const Fixture& f = demo();
+  auto gpu = makeGpuBackend(f.scene, *f.accel, f.p, f.p.lightmap_links.view(), f.p.grid_links.view());
+  ASSERT_TRUE(gpu) << gpu.status().toString();
+  relight::LightSet lights = relight::LightSet::fromSceneLights(f.scene.lights);
+  relight::RelightOptions cold;
+  cold.max_bounces = 100;
+  cold.bounce_threshold = 1e-5f;
+  cold.emitter_samples = 2;
+  relight::RelightResult r, target;
+  ASSERT_OK((*gpu)->relightInto(lights, cold, r));
+  relight::LightEntry moved = lights.lights().front();
+  moved.light.position += glm::vec3(0.05f, 0.0f, 0.0f) * f.scene.scale;
+  ASSERT_OK(lights.modify(moved));
+  relight::RelightOptions warm = cold;
+  warm.max_bounces = 1;
+  warm.bounce_threshold = 0.0f;
+  warm.warm_start = true;
+  double change = 1.0;
+  for (int k = 0; k < 60 && change > 1e-5; ++k) {
+    ASSERT_OK((*gpu)->relightInto(lights, warm, r));
+    ASSERT_EQ(r.passes.warm, 1);
+    ASSERT_EQ(r.bounce_log.size(), 1u);
+    change = r.bounce_log[0].added_flux / r.bounce_log[0].total_flux;
+  }
+  EXPECT_LE(change, 1e-5);
+  auto fresh = makeGpuBackend(f.scene, *f.accel, f.p, f.p.lightmap_links.view(), f.p.grid_links.view());
+  ASSERT_TRUE(fresh);
+  ASSERT_OK((*fresh)->relightInto(lights, cold, target));
+  EXPECT_EQ(target.passes.warm, 0);
+  EXPECT_LT(relRms(r.lightmap_sh, target.lightmap_sh), 1e-3);
+  EXPECT_LT(relRms(r.grid_sh, target.grid_sh), 1e-3);
+}
+
 }  // namespace
 }  // namespace lightlink::gpu
