@@ -168,8 +168,8 @@ void declareFlags(CLI::App& app, DaemonConfig& c, std::string& config_path, std:
       ->capture_default_str();
   app.add_option("--bounces", c.relight_bounces, "Indirect bounce cap of every relight (0..256); relights stop earlier once converged")->capture_default_str();
   app.add_flag("--progressive", c.progressive,
-               "Publish a bounce-free preview of each light change first, then the converged result as the next "
-               "version");
+               "Publish each light change after one bounce iteration started from the last solution, then more "
+               "iterations as new versions until converged");
   app.add_flag("--no-restore", no_restore, "Do not re-open the scenes recorded in <cache-dir>/sessions.json");
   app.add_option("--shared-memory-dir", c.shared_memory_dir,
                  "Base directory (a memory file system) for results handed to clients on this machine through "

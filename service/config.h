@@ -53,7 +53,7 @@ struct DaemonConfig {
   std::size_t max_send_bytes = 4u << 20;      // largest response message
   double drain_seconds = 5.0;              // SIGTERM: how long open streams may take to finish
   int relight_bounces = relight::RelightOptions{}.max_bounces;  // relight options of every scene
-  bool progressive = false;                // bounce-free preview first, then the converged result
+  bool progressive = false;                // one warm iteration first, then more as new versions
   bool restore_sessions = true;            // re-open the scenes of sessions.json at start
   // Bytes the cache's artifacts and inline scenes may take; closed scenes' files are
   // evicted least recently used first beyond it (service/cache_quota.h). 0: no limit.

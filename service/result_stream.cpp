@@ -65,6 +65,8 @@ void fillHeader(const Snapshot& s, const EncodedResult& e, const HeaderExtras& e
   h->set_skipped_versions(extras.skipped_versions);
   h->set_coalesced_updates(s.coalesced);
   h->set_preview(s.preview);
+  h->set_residual(s.residual);
+  h->set_iterations(static_cast<std::uint32_t>(std::max(0, s.iterations)));
 }
 
 bool sendFull(const Snapshot& s, const EncodedResult& e, const HeaderExtras& extras, std::size_t chunk_bytes,

@@ -189,8 +189,6 @@ void SceneSession::workerLoop() {
   relight::RelightResult result;
   std::uint64_t last_relit = 0;
   const bool progressive = progressive_ && options_.max_bounces > 0;
-  relight::RelightOptions preview_options = options_;
-  preview_options.max_bounces = 0;
   while (true) {
     relight::LightSet lights;
     std::uint64_t v = 0;
@@ -204,44 +202,68 @@ void SceneSession::workerLoop() {
       relit_version_ = v;
     }
     const std::uint64_t coalesced = last_relit == 0 || v <= last_relit ? 0 : v - last_relit - 1;
-    if (!relightAndPublish(lights, v, coalesced, progressive ? preview_options : options_, progressive, result))
-      continue;  // wait for the next update rather than retrying a failing state in a loop
+    if (!progressive) {
+      if (relightAndPublish(lights, v, coalesced, options_, nullptr, result)) last_relit = v;
+      continue;  // on failure: wait for the next update rather than retrying a failing state in a loop
+    }
+    // Progressive: one bounce iteration started from the last solution, published at once;
+    // then, while no update waits, more iterations (1, 2, 4, ... per version) until the
+    // iteration converges; when the bounce cap comes first, the cold relight the daemon
+    // would give without --progressive ends it. Each result after the first takes a version
+    // of its own.
+    Progress progress;
+    relight::RelightOptions warm = options_;
+    warm.warm_start = true;
+    warm.max_bounces = 1;
+    if (!relightAndPublish(lights, v, coalesced, warm, &progress, result)) continue;
     last_relit = v;
-    if (!progressive) continue;
-    // The converged result of the same lights, under a version of its own, unless a newer
-    // light set is waiting (then its preview comes first).
-    std::uint64_t converged = 0;
-    UpdateJournal::Ticket ticket;
-    {
-      std::lock_guard lock(mutex_);
-      if (journal_) settleInFlight();
-      if (stop_ || version_ != v || !in_flight_.empty()) continue;
-      converged = v + 1;
-      relit_version_ = converged;
-      if (journal_) {
-        // Clients will see this version: durable first, like an update's.
-        ticket = journal_->append({identity_.id, converged, lights.toJson()}, nullptr);
-        in_flight_.push_back({converged, lights, ticket});
-      } else {
-        version_ = converged;
-      }
+    int step = 1;
+    while (!progress.converged) {
+      const std::uint64_t next = takeVersion(v, lights);
+      if (next == 0) break;  // a newer light set waits, or the version could not be made durable
+      v = next;
+      step *= 2;
+      const bool last = progress.iterations + step >= options_.max_bounces;
+      warm.max_bounces = step;
+      if (last) progress.final_cold = true;
+      if (!relightAndPublish(lights, v, 0, last ? options_ : warm, &progress, result)) break;
+      last_relit = v;
     }
-    if (ticket) {
-      const Status persisted = journal_->wait(ticket);
-      std::lock_guard lock(mutex_);
-      settleInFlight();
-      if (!persisted) {
-        // Not durable, so not published: the next update takes the number, and is relit.
-        relit_version_ = v;
-        continue;
-      }
-    }
-    if (relightAndPublish(lights, converged, 0, options_, false, result)) last_relit = converged;
   }
 }
 
+std::uint64_t SceneSession::takeVersion(std::uint64_t v, const relight::LightSet& lights) {
+  std::uint64_t next = 0;
+  UpdateJournal::Ticket ticket;
+  {
+    std::lock_guard lock(mutex_);
+    if (journal_) settleInFlight();
+    if (stop_ || version_ != v || !in_flight_.empty()) return 0;
+    next = v + 1;
+    relit_version_ = next;
+    if (journal_) {
+      // Clients will see this version: durable first, like an update's.
+      ticket = journal_->append({identity_.id, next, lights.toJson()}, nullptr);
+      in_flight_.push_back({next, lights, ticket});
+    } else {
+      version_ = next;
+    }
+  }
+  if (ticket) {
+    const Status persisted = journal_->wait(ticket);
+    std::lock_guard lock(mutex_);
+    settleInFlight();
+    if (!persisted) {
+      // Not durable, so not published: the next update takes the number, and is relit.
+      relit_version_ = v;
+      return 0;
+    }
+  }
+  return next;
+}
+
 bool SceneSession::relightAndPublish(const relight::LightSet& lights, std::uint64_t v, std::uint64_t coalesced,
-                                     const relight::RelightOptions& options, bool preview,
+                                     const relight::RelightOptions& options, Progress* progress,
                                      relight::RelightResult& result) {
   const auto t0 = Clock::now();
   Status s;
@@ -259,9 +281,22 @@ bool SceneSession::relightAndPublish(const relight::LightSet& lights, std::uint6
     // Readers waiting for this version run into their deadline.
     return false;
   }
+  bool preview = false;
+  float residual = 0.0f;
+  int iterations = 0;
+  if (progress) {
+    // The change of the last iteration over the total flux says how converged the result is.
+    const auto& log = result.bounce_log;
+    residual = log.empty() || !(log.back().total_flux > 0.0) ? 0.0f
+                                                             : float(log.back().added_flux / log.back().total_flux);
+    progress->iterations = progress->final_cold ? result.passes.bounces : progress->iterations + result.passes.bounces;
+    progress->converged = progress->final_cold || result.bounce_stop != "cap";
+    preview = !progress->converged;
+    iterations = progress->iterations;
+  }
   std::shared_ptr<const Snapshot> snap;
   try {
-    snap = buildSnapshot(result, v, coalesced, ms, preview);
+    snap = buildSnapshot(result, v, coalesced, ms, preview, residual, iterations);
   } catch (const std::bad_alloc&) {
     std::lock_guard lock(mutex_);
     ++relight_errors_;
@@ -290,13 +325,16 @@ bool SceneSession::relightAndPublish(const relight::LightSet& lights, std::uint6
             {"coalesced", coalesced},
             {"backend", backend_name_},
             {"preview", preview},
+            {"iterations", iterations},
+            {"residual", residual},
             {"incremental", result.passes.incremental != 0},
             {"stages_ms", stages}});
   return true;
 }
 
 std::shared_ptr<const Snapshot> SceneSession::buildSnapshot(const relight::RelightResult& r, std::uint64_t version,
-                                                            std::uint64_t coalesced, double ms, bool preview) {
+                                                            std::uint64_t coalesced, double ms, bool preview,
+                                                            float residual, int iterations) {
   auto s = std::make_shared<Snapshot>();
   s->scene_id = identity_.id;
   s->version = version;
@@ -306,6 +344,8 @@ std::shared_ptr<const Snapshot> SceneSession::buildSnapshot(const relight::Relig
   }
   s->coalesced = coalesced;
   s->preview = preview;
+  s->residual = residual;
+  s->iterations = iterations;
   s->relight_ms = ms;
   s->backend = r.backend;
   s->bands = r.bands;

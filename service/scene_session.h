@@ -16,13 +16,16 @@
 // Results are published as immutable shared snapshots; waiting readers are woken on each
 // publish.
 //
-// Progressive (SessionOptions::progressive, with bounces enabled): the worker first relights
-// the newest light set without bounces and publishes that `preview`; then, if no update
-// arrived meanwhile, it takes the next version itself (under the same lock as updates, so
-// versions stay unique and increasing), relights the same lights with bounces and publishes
-// the converged result under it. An update that arrives during the converged relight waits
-// for it (at most one bounced relight); one that arrives before it skips it, so a designer
-// dragging a light sees previews and gets the converged result when the drag stops.
+// Progressive (SessionOptions::progressive, with bounces enabled): the worker relights the
+// newest light set with one bounce iteration started from the last solution
+// (RelightOptions::warm_start: seed 000's progressive multi-bounce) and publishes it as a
+// `preview`; then, while no update arrives, it takes the next version itself (under the same
+// lock as updates, so versions stay unique and increasing) and publishes more iterations
+// under it — 2, 4, 8 ... per version — until the iteration converges (bounce_threshold) or
+// the bounce cap is near, when the cold relight a non-progressive daemon gives ends it. Each
+// result says its `residual` and `iterations`. An update that arrives during a relight waits
+// for it; one that arrives before the next skips the rest, so a designer dragging a light
+// sees one-iteration previews and the converged result when the drag stops.
 #pragma once
 
 #include <atomic>
@@ -62,7 +65,7 @@ struct SessionIdentity {
 struct SessionOptions {
   std::string backend;                 // auto | cpu | gpu
   relight::RelightOptions relight;     // max_bounces: the converged result's bounce cap
-  bool progressive = false;            // bounce-free preview first (only when max_bounces > 0)
+  bool progressive = false;            // one-iteration preview first, then more (only when max_bounces > 0)
   // Where new versions are made durable before they are visible (the progressive converged
   // version too: clients see it, so a restarted daemon must not hand it out again). Null:
   // versions are visible at once (in-process tools and tests).
@@ -72,7 +75,7 @@ struct SessionOptions {
 struct SessionStats {
   std::uint64_t version = 0, result_version = 0;
   std::uint64_t updates = 0, relights = 0, coalesced = 0, relight_errors = 0;
-  std::uint64_t previews = 0;  // progressive: bounce-free results among `relights`
+  std::uint64_t previews = 0;  // progressive: results not yet converged among `relights`
   double last_relight_ms = 0.0, mean_relight_ms = 0.0;
   std::uint64_t resident_bytes = 0, artifact_bytes = 0;
   std::uint32_t subscribers = 0;
@@ -135,10 +138,21 @@ class SceneSession {
   void settleInFlight() const;
   // One relight of `lights` for version `v`, published as a snapshot; false when it failed
   // (logged, counted).
+  // Where a progressive light change's iterations stand.
+  struct Progress {
+    int iterations = 0;       // bounce iterations since the light change
+    bool converged = false;   // the last result is final (threshold met, or the cold relight)
+    bool final_cold = false;  // the next relight is the cold one that ends the progression
+  };
+  // `progress` (progressive only) is advanced and decides the result's preview flag.
   bool relightAndPublish(const relight::LightSet& lights, std::uint64_t v, std::uint64_t coalesced,
-                         const relight::RelightOptions& options, bool preview, relight::RelightResult& result);
+                         const relight::RelightOptions& options, Progress* progress, relight::RelightResult& result);
+  // The version after `v` for the same lights, taken by the worker (durable first with a
+  // journal); 0 when an update arrived meanwhile or it could not be persisted.
+  std::uint64_t takeVersion(std::uint64_t v, const relight::LightSet& lights);
   std::shared_ptr<const Snapshot> buildSnapshot(const relight::RelightResult& r, std::uint64_t version,
-                                                std::uint64_t coalesced, double ms, bool preview);
+                                                std::uint64_t coalesced, double ms, bool preview, float residual,
+                                                int iterations);
 
   SessionIdentity identity_;
   precompute::ResidentScene resident_;

@@ -72,7 +72,9 @@ class Snapshot {
   std::uint64_t version = 0;       // light-set version this result is for
   std::uint64_t sequence = 0;      // 1 for the scene's first result, +1 per result
   std::uint64_t coalesced = 0;     // updates folded into this result besides its own
-  bool preview = false;            // progressive: bounce-free, the converged result follows
+  bool preview = false;            // progressive: not converged yet, more iterations follow
+  float residual = 0.0f;           // progressive: last iteration's change over the total flux
+  int iterations = 0;              // progressive: bounce iterations since the light change
   double relight_ms = 0.0;
   std::string backend;             // "cpu" or "gpu"
   int bands = 0;

@@ -74,6 +74,8 @@ ResultInfo ResultInfo::fromProto(const v1::ResultHeader& h) {
   r.coalesced_updates = h.coalesced_updates();
   r.shared = h.has_shared();
   r.preview = h.preview();
+  r.residual = h.residual();
+  r.iterations = h.iterations();
   return r;
 }
 

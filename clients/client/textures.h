@@ -67,7 +67,9 @@ struct ResultInfo {
   double relight_ms = 0.0;
   std::uint64_t skipped_versions = 0;
   std::uint64_t coalesced_updates = 0;
-  bool preview = false;  // progressive daemon: bounce-free result, the converged one follows
+  bool preview = false;  // progressive daemon: not converged yet, more iterations follow
+  float residual = 0.0f; // progressive daemon: last iteration's change over the total flux
+  std::uint32_t iterations = 0;  // progressive daemon: bounce iterations since the light change
   bool shared = false;   // the chunks came through a shared-memory file (ConnectOptions::shared_memory)
 
   int coeffCount() const { return bands * bands; }

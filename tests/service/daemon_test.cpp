@@ -65,8 +65,16 @@ relight::LightEntry pointEntry(const std::string& id, float x, float y, float z,
 }
 
 // The same relight in this process: the artifact the daemon wrote, the same light set.
-relight::RelightResult relightInProcess(const fs::path& cache, const relight::LightSet& lights,
-                                        int bounces = kBounces) {
+// One relight step of relightSequenceInProcess.
+struct RelightStep {
+  relight::LightSet lights;
+  int bounces = kBounces;
+  bool warm = false;  // RelightOptions::warm_start
+};
+
+// The daemon's relights done in process on the artifact it wrote, one relighter for the
+// steps in order; the last step's result.
+relight::RelightResult relightSequenceInProcess(const fs::path& cache, const std::vector<RelightStep>& steps) {
   auto options = precompute::preset("draft");
   EXPECT_TRUE(options);
   options->surfels = 2048;
@@ -81,11 +89,20 @@ relight::RelightResult relightInProcess(const fs::path& cache, const relight::Li
   auto r = relight::Relighter::create(resident->scene(), resident->accel(), resident->precomputation(),
                                       resident->lightmapLinks(), resident->gridLinks());
   EXPECT_TRUE(r);
-  relight::RelightOptions o;
-  o.max_bounces = bounces;
-  auto result = r->relight(lights, o);
-  EXPECT_TRUE(result) << result.status().message();
-  return std::move(result).value();
+  relight::RelightResult result;
+  for (const RelightStep& step : steps) {
+    relight::RelightOptions o;
+    o.max_bounces = step.bounces;
+    o.warm_start = step.warm;
+    const Status s = r->relightInto(step.lights, o, result);
+    EXPECT_TRUE(s) << s.message();
+  }
+  return result;
+}
+
+relight::RelightResult relightInProcess(const fs::path& cache, const relight::LightSet& lights,
+                                        int bounces = kBounces) {
+  return relightSequenceInProcess(cache, {{lights, bounces, false}});
 }
 
 void expectClose(const std::vector<float>& got, const std::vector<float>& want, const char* what) {
@@ -468,7 +485,7 @@ std::vector<Result> readUntilConverged(ResultReader& reader, std::uint64_t versi
   return seen;
 }
 
-TEST(Daemon, ProgressivePublishesAPreviewThenTheConvergedResultAsTheNextVersion) {
+TEST(Daemon, ProgressivePublishesAWarmIterationThenTheConvergedResultAsTheNextVersion) {
   Fixture f;
   auto flags = quickFlags();
   flags.push_back("--progressive");
@@ -483,11 +500,13 @@ TEST(Daemon, ProgressivePublishesAPreviewThenTheConvergedResultAsTheNextVersion)
   auto ctx = context(60000);
   auto stream = rpc->Subscribe(ctx.get(), sub);
   ResultReader reader(stream.get());
-  // The initial light set too: a preview (version 1), then its converged result (version 2).
+  // The initial light set too: one iteration (version 1), then, the cap of kBounces being
+  // near, the cold relight as its converged result (version 2).
   auto initial = readUntilConverged(reader, 1);
   ASSERT_FALSE(initial.empty());
   const std::uint64_t converged0 = initial.back().header.version();
   EXPECT_EQ(converged0, 2u);
+  EXPECT_EQ(initial.back().header.iterations(), std::uint32_t(kBounces));
 
   v1::UpdateLightsRequest up;
   *up.mutable_scene() = refOf(opened);
@@ -505,26 +524,27 @@ TEST(Daemon, ProgressivePublishesAPreviewThenTheConvergedResultAsTheNextVersion)
   const Result& converged = results.back();
   EXPECT_EQ(converged.header.version(), ur.version() + 1);
   EXPECT_FALSE(converged.header.preview());
-  // The worker relit the update's version as a preview first (its log says so); a stream
-  // still sending it when the converged result is published skips it (skipped_versions).
+  // The worker relit the update's version as a one-iteration preview first (its log says
+  // so); a stream still sending it when the converged result is published skips it.
   bool logged_preview = false;
   std::istringstream log(d.log());
   for (std::string line; std::getline(log, line);)
     logged_preview |= line.find(" relight ") != std::string::npos &&
                       line.find(fmt::format("version={} ", ur.version())) != std::string::npos &&
-                      line.find("preview=true") != std::string::npos;
+                      line.find("preview=true") != std::string::npos && line.find("iterations=1 ") != std::string::npos;
   EXPECT_TRUE(logged_preview) << d.log();
   if (results.size() == 1) {
     EXPECT_EQ(converged.header.skipped_versions(), 1u);
   }
 
-  // The preview is the bounce-free relight, the converged result the full one, of the same lights.
+  // The same sequence in process: the converged result is the cold relight of the new lights,
+  // the preview one warm iteration from the initial set's converged solution.
   auto scene = scene::loadGltf((sourceDir() / "clients/demo/cornell_box.gltf").string());
   ASSERT_TRUE(scene);
-  auto lights = relight::LightSet::fromSceneLights(scene->lights);
+  const auto before = relight::LightSet::fromSceneLights(scene->lights);
+  auto lights = before;
   ASSERT_TRUE(lights.add(pointEntry("key", 0.2f, 0.4f, 0.3f, 2.0f)));
   const auto full = relightInProcess(f.cache, lights);
-  const auto quick = relightInProcess(f.cache, lights, 0);
   expectClose(decodeValues(converged.payloads.at(v1::PAYLOAD_LIGHTMAP_SH), v1::PRECISION_FLOAT), full.lightmap_sh,
               "converged lightmap_sh");
   expectClose(decodeValues(converged.payloads.at(v1::PAYLOAD_GRID_SH), v1::PRECISION_FLOAT), full.grid_sh,
@@ -533,7 +553,10 @@ TEST(Daemon, ProgressivePublishesAPreviewThenTheConvergedResultAsTheNextVersion)
     const Result& preview = results.front();
     EXPECT_EQ(preview.header.version(), ur.version());
     EXPECT_TRUE(preview.header.preview());
-    expectClose(decodeValues(preview.payloads.at(v1::PAYLOAD_LIGHTMAP_SH), v1::PRECISION_FLOAT), quick.lightmap_sh,
+    EXPECT_EQ(preview.header.iterations(), 1u);
+    EXPECT_GT(preview.header.residual(), 0.0f);
+    const auto warm = relightSequenceInProcess(f.cache, {{before, 1, false}, {before, kBounces, false}, {lights, 1, true}});
+    expectClose(decodeValues(preview.payloads.at(v1::PAYLOAD_LIGHTMAP_SH), v1::PRECISION_FLOAT), warm.lightmap_sh,
                 "preview lightmap_sh");
   }
   ctx->TryCancel();
