@@ -705,6 +705,8 @@ grpc::Status LightlinkService::Stats(grpc::ServerContext* ctx, const v1::StatsRe
     out->set_artifact_bytes(st.artifact_bytes);
     out->set_subscribers(st.subscribers);
     out->set_previews(st.previews);
+    out->set_backend(s->backendName());
+    out->set_backend_note(s->backendNote());
   }
   return grpc::Status::OK;
 }

@@ -23,6 +23,7 @@
 #include "core/precompute/resident.h"
 #include "core/relight/relight.h"
 #include "core/scene/load.h"
+#include "gpu/backend_factory.h"
 #include "tests/common/testing.h"
 #include "tests/service/daemon_harness.h"
 
@@ -71,10 +72,12 @@ struct RelightStep {
   int bounces = kBounces;
   bool warm = false;  // RelightOptions::warm_start
 };
+enum class InProcessBackend { kCpu, kGpu };
 
 // The daemon's relights done in process on the artifact it wrote, one relighter for the
 // steps in order; the last step's result.
-relight::RelightResult relightSequenceInProcess(const fs::path& cache, const std::vector<RelightStep>& steps) {
+relight::RelightResult relightSequenceInProcess(const fs::path& cache, const std::vector<RelightStep>& steps,
+                                                InProcessBackend backend = InProcessBackend::kCpu) {
   auto options = precompute::preset("draft");
   EXPECT_TRUE(options);
   options->surfels = 2048;
@@ -86,15 +89,16 @@ relight::RelightResult relightSequenceInProcess(const fs::path& cache, const std
   auto resident = precompute::ResidentScene::open(rr);
   EXPECT_TRUE(resident) << resident.status().message();
   EXPECT_TRUE(resident->reused()) << "the daemon's artifact should match this key: " << resident->note();
-  auto r = relight::Relighter::create(resident->scene(), resident->accel(), resident->precomputation(),
-                                      resident->lightmapLinks(), resident->gridLinks());
-  EXPECT_TRUE(r);
+  auto r = gpu::makeBackend(backend == InProcessBackend::kGpu ? gpu::BackendChoice::kGpu : gpu::BackendChoice::kCpu,
+                            resident->scene(), resident->accel(), resident->precomputation(), resident->lightmapLinks(),
+                            resident->gridLinks());
+  EXPECT_TRUE(r) << r.status().message();
   relight::RelightResult result;
   for (const RelightStep& step : steps) {
     relight::RelightOptions o;
     o.max_bounces = step.bounces;
     o.warm_start = step.warm;
-    const Status s = r->relightInto(step.lights, o, result);
+    const Status s = (*r)->relightInto(step.lights, o, result);
     EXPECT_TRUE(s) << s.message();
   }
   return result;
@@ -471,6 +475,65 @@ TEST(Daemon, LongPollRejectsAbsurdWaits) {
   const Polled ok = getTextures(*rpc, g);
   ASSERT_TRUE(ok.status.ok()) << ok.status.error_message();
   EXPECT_FALSE(ok.result.header.not_modified()) << "last_seen 0: the newest result at once";
+}
+
+// The daemon on the GPU backend (llvmpipe in CI): Health and the scene say so, and its
+// results are the GPU backend's own, relit in process from the same artifact.
+TEST(Daemon, GpuBackendServesTheGpuRelight) {
+  const gpu::GpuProbe& probe = gpu::probeGpu();
+  if (!probe.available) GTEST_SKIP() << "no usable EGL display / GL 4.5: " << probe.error;
+  Fixture f;
+  auto flags = quickFlags();
+  flags[1] = "gpu";  // --backend gpu
+  DaemonProcess d(f.cache, flags);
+  ASSERT_TRUE(d.ok()) << d.error();
+  auto rpc = d.rpc();
+  v1::HealthResponse health;
+  ASSERT_TRUE(rpc->Health(context().get(), v1::HealthRequest{}, &health).ok());
+  EXPECT_TRUE(health.gpu_available());
+  EXPECT_EQ(health.gpu_renderer(), probe.renderer);
+  auto open = cornellRequest();
+  open.set_backend(v1::BACKEND_AUTO);  // the daemon's default, --backend gpu
+  v1::SceneOpened opened;
+  ASSERT_TRUE(openScene(*rpc, open, &opened).ok()) << d.log();
+  EXPECT_EQ(opened.backend(), "gpu");
+
+  v1::UpdateLightsRequest up;
+  *up.mutable_scene() = refOf(opened);
+  *up.add_add() = pointLight("key", 0.2f, 0.4f, 0.3f, 2.0f);
+  up.set_wait_ms(30000);
+  v1::UpdateLightsResponse ur;
+  ASSERT_TRUE(rpc->UpdateLights(context().get(), up, &ur).ok());
+  ASSERT_TRUE(ur.relit());
+  v1::RelightRequest rq;
+  *rq.mutable_scene() = refOf(opened);
+  rq.set_version(ur.version());
+  rq.mutable_spec()->set_precision(v1::PRECISION_FLOAT);
+  auto ctx = context();
+  auto reader = rpc->Relight(ctx.get(), rq);
+  Result res;
+  std::string err;
+  ASSERT_TRUE(readOne(reader.get(), res, &err).ok());
+  ASSERT_TRUE(err.empty()) << err;
+  EXPECT_EQ(res.header.backend(), "gpu");
+
+  v1::StatsRequest sr;
+  *sr.mutable_scene() = refOf(opened);
+  v1::StatsResponse stats;
+  ASSERT_TRUE(rpc->Stats(context().get(), sr, &stats).ok());
+  EXPECT_EQ(stats.scene(0).backend(), "gpu");
+  EXPECT_FALSE(stats.scene(0).backend_note().empty());
+
+  auto scene = scene::loadGltf((sourceDir() / "clients/demo/cornell_box.gltf").string());
+  ASSERT_TRUE(scene);
+  const auto before = relight::LightSet::fromSceneLights(scene->lights);
+  auto lights = before;
+  ASSERT_TRUE(lights.add(pointEntry("key", 0.2f, 0.4f, 0.3f, 2.0f)));
+  // The daemon's relighter saw the initial set, then the update.
+  const auto want = relightSequenceInProcess(f.cache, {{before}, {lights}}, InProcessBackend::kGpu);
+  EXPECT_EQ(want.backend, "gpu");
+  expectClose(decodeValues(res.payloads[v1::PAYLOAD_LIGHTMAP_SH], v1::PRECISION_FLOAT), want.lightmap_sh, "lightmap_sh");
+  expectClose(decodeValues(res.payloads[v1::PAYLOAD_GRID_SH], v1::PRECISION_FLOAT), want.grid_sh, "grid_sh");
 }
 
 // Results of a Subscribe stream until one that is not a preview with version >= `version`.
