@@ -31,6 +31,7 @@
 #include "bench/common/bench_common.h"
 #include "bench/common/flicker.h"
 #include "bench/rt/throughput.h"
+#include "core/common/half.h"
 #include "core/precompute/precompute.h"
 #include "core/relight/relight.h"
 #include "core/scene/light_eval.h"
@@ -198,6 +199,35 @@ nlohmann::ordered_json report(const char* layer, const bench::FlickerLayer& m, i
   return j;
 }
 
+// The largest share of a cache's view one surfel holds: over its links, the link's L00 form
+// factor over the node's surfel count, as a fraction of the cache's total. A surfel whose
+// shadow ray flips moves the cache by that much of its light, so caches with fine cuts next
+// to a surface jump most. Medians over the popping texels and over every texel with a cache.
+nlohmann::ordered_json cutReport(const precompute::Precomputation& p, const bench::FlickerLayer& m) {
+  const links::LinksView links = p.lightmap_links.view();
+  const std::size_t nc = std::size_t(links.bands * links.bands);
+  auto share = [&](std::size_t texel) {
+    const std::int32_t c = p.lightmap.cache_of_texel[texel];
+    if (c < 0) return 0.0;
+    double total = 0.0, most = 0.0;
+    for (std::uint32_t k = links.offsets[std::size_t(c)]; k < links.offsets[std::size_t(c) + 1]; ++k) {
+      const double f = fromHalf(links.coeffs[k * nc]);
+      const std::uint32_t node = links.node[k];
+      total += f;
+      most = std::max(most, f / double(p.tree.end[node] - p.tree.begin[node]));
+    }
+    return total > 0.0 ? most / total : 0.0;
+  };
+  std::vector<double> popping, all;
+  for (std::size_t t : m.popping) popping.push_back(share(t));
+  for (std::size_t t = 0; t < p.lightmap.cache_of_texel.size(); ++t)
+    if (p.lightmap.cache_of_texel[t] >= 0) all.push_back(share(t));
+  fmt::print("    largest share of a cache's view one surfel holds (median): {:.2f} % at popping texels, {:.2f} % at "
+             "every texel\n",
+             100.0 * bench::median(popping), 100.0 * bench::median(all));
+  return {{"popping_median", bench::median(popping)}, {"all_median", bench::median(all)}};
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -308,8 +338,9 @@ int main(int argc, char** argv) {
     r["incremental_frames"] = run.incremental;
     r["bounces"] = run.bounces;
     r["direct"] = report("direct", bench::measureFlicker(run.direct), direct_width, direct_texels, run.bounces);
-    r["indirect"] = report("indirect", bench::measureFlicker(run.indirect), p->lightmap.width, p->lightmap,
-                           run.bounces);
+    const bench::FlickerLayer indirect = bench::measureFlicker(run.indirect);
+    r["indirect"] = report("indirect", indirect, p->lightmap.width, p->lightmap, run.bounces);
+    if (indirect.popping_texels) r["indirect"]["surfel_share"] = cutReport(*p, indirect);
     j["runs"].push_back(r);
     fmt::print("\n");
   }
