@@ -75,6 +75,9 @@ struct FlickerLayer {
   double ratio_smooth = 0.0;
   std::vector<std::size_t> popping;       // the popping texels, ascending
   std::vector<std::size_t> popping_step;  // for each: its largest |d1| is from frame k to k + 1
+  // A popping texel's largest |d1| at s/2 relative to its mean: how far it jumps, median and
+  // largest over the popping texels.
+  double popping_jump_median = 0.0, popping_jump_max = 0.0;
   std::vector<FlickerTexel> worst;        // largest |d2| first
 };
 
@@ -178,10 +181,13 @@ inline FlickerLayer measureFlicker(const FlickerFrames& f, const FlickerOptions&
            t.max_d1_fine > 0.0;
   };
   Accum fine_smooth, coarse_smooth;
+  std::vector<float> jumps;
   for (const Texel& t : texels) {
     if (pops(t)) {
       out.popping.push_back(t.texel);
       out.popping_step.push_back(t.d1_frame);
+      jumps.push_back(float(t.max_d1_fine));
+      out.popping_jump_max = std::max(out.popping_jump_max, t.max_d1_fine);
       continue;
     }
     for (std::size_t k = 0; k < frames; ++k) x[k] = f.at(k, t.texel) / mean[t.texel];
@@ -191,6 +197,7 @@ inline FlickerLayer measureFlicker(const FlickerFrames& f, const FlickerOptions&
     x.resize(frames);
   }
   out.popping_texels = out.popping.size();
+  out.popping_jump_median = percentile(jumps, 0.5);
   out.fine_smooth = finish(fine_smooth);
   out.coarse_smooth = finish(coarse_smooth);
   out.ratio_smooth = ratio(out.fine_smooth, out.coarse_smooth);

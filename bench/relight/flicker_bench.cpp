@@ -164,7 +164,10 @@ nlohmann::ordered_json report(const char* layer, const bench::FlickerLayer& m, i
              m.fine.p999_d2, m.popping_texels,
              m.lit_texels ? 100.0 * double(m.popping_texels) / double(m.lit_texels) : 0.0, at_bounce_change,
              m.ratio_smooth);
-  if (m.popping_texels) fmt::print("    popping texels per step: {}\n", fmt::join(per_step, " "));
+  if (m.popping_texels)
+    fmt::print("    popping texels per step: {}; a popping texel jumps by {:.1f} % of its mean (median), {:.0f} % at "
+               "most\n",
+               fmt::join(per_step, " "), 100.0 * m.popping_jump_median, 100.0 * m.popping_jump_max);
   nlohmann::ordered_json j;
   j["texels_with_value"] = m.texels_with_value;
   j["lit_texels"] = m.lit_texels;
@@ -174,6 +177,7 @@ nlohmann::ordered_json report(const char* layer, const bench::FlickerLayer& m, i
   j["popping_texels"] = m.popping_texels;
   j["popping_per_step"] = per_step;
   j["popping_at_bounce_change"] = at_bounce_change;
+  j["popping_jump"] = {{"median", m.popping_jump_median}, {"max", m.popping_jump_max}};
   j["without_popping"] = {{"step", stepJson(m.coarse_smooth)}, {"half_step", stepJson(m.fine_smooth)},
                           {"ratio", m.ratio_smooth}};
   j["worst"] = nlohmann::ordered_json::array();
