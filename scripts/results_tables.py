@@ -197,6 +197,76 @@ def relight():
     return "\n".join(out)
 
 
+TEMPORAL_RUNS = {"default": "default options", "fixed_bounces": "same bounce count every frame",
+                 "surfels_unshadowed": "same bounce count, surfels lit without shadow rays"}
+
+
+def temporal_row(label, what, m):
+    lit = m["lit_texels"]
+    return [label, what, f"{m['step']['roughness']:.3f}", f"{m['half_step']['roughness']:.3f}", f"**{m['ratio']:.2f}**",
+            f"{m['step']['p999_d2']:.1f} / {m['half_step']['p999_d2']:.1f}",
+            f"{m['popping_texels']:,} of {lit:,} ({100 * m['popping_texels'] / max(lit, 1):.1f} %)",
+            f"{m['without_popping']['ratio']:.2f}"]
+
+
+def temporal():
+    """Lightmaps along a moving light's path (bench/relight/flicker_bench)."""
+    out = provenance("temporal")
+    out += ["Ratio = R(s/2) / R(s), R = RMS of the second difference over RMS of the first, per texel relative to "
+            "its mean over the path, over lit texels: 0.5 when the lightmap follows the light smoothly, about 0.7 "
+            "at kinks, 1 or more when texels jump. p99.9: the 99.9th percentile of |d2| over the RMS of d1, at s and "
+            "s/2. Popping: texels whose largest change does not shrink when the step halves. The direct layer is the "
+            "same in every run.", ""]
+    rows, notes, default, smooth = [], [], {}, {}
+    for f, label in (("cornell.json", "Cornell (bundled), medium"), ("zdm2.json", "zdm2, medium preset")):
+        d = load("temporal", f)
+        path, light = d["path"], d["light"]
+        moved = (f"{light['id']} ({light['kind']}) along {path['length_m']:.3g} m in {path['steps']} steps"
+                 if path["kind"] == "line" else
+                 f"{light['id']} ({light['kind']}) turned {path['angle_rad']:.3g} rad in {path['steps']} steps")
+        runs = {r["name"]: r for r in d["runs"]}
+        rows.append(temporal_row(f"{label}: {moved}", "direct", runs["default"]["direct"]))
+        for name, what in TEMPORAL_RUNS.items():
+            if name in runs:
+                rows.append(temporal_row("", f"indirect, {what}", runs[name]["indirect"]))
+        run = runs["default"]
+        ind = run["indirect"]
+        default[label] = ind["ratio"]
+        if "surfels_unshadowed" in runs:
+            smooth[label] = runs["surfels_unshadowed"]["indirect"]["ratio"]
+        if ind["popping_texels"]:
+            lo, hi = min(run["bounces"]), max(run["bounces"])
+            note = (f"{label}: {ind['popping_texels']:,} indirect texels pop with the default options "
+                    f"({lo if lo == hi else f'{lo}-{hi}'} bounces per frame)")
+            if "fixed_bounces" in runs:
+                note += f", {runs['fixed_bounces']['indirect']['popping_texels']:,} with the same bounce count every frame"
+            note += (f"; a popping texel jumps by {100 * ind['popping_jump']['median']:.0f} % of its light in one step "
+                     f"(median; up to {100 * ind['popping_jump']['max']:.0f} %)")
+            if "surfel_share" in ind:
+                share = ind["surfel_share"]
+                note += (f", and one surfel holds {100 * share['popping_median']:.0f} % of its cache's view (median; "
+                         f"{100 * share['all_median']:.1f} % over every texel)")
+            pops = [w for w in ind["worst"] if w["pops"]][:3]
+            at = "; ".join(f"({w['position'][0]:.2f}, {w['position'][1]:.2f}, {w['position'][2]:.2f}) normal "
+                           f"({w['normal'][0]:.2f}, {w['normal'][1]:.2f}, {w['normal'][2]:.2f})" for w in pops)
+            notes.append(note + (f". The largest jumps: {at}." if at else "."))
+        if "incremental_vs_full" in d:
+            inc, full = runs["no_bounce_incremental"], runs["no_bounce_full"]
+            notes.append(f"{label}, no bounce: incremental relights give ratios {inc['indirect']['ratio']:.2f} "
+                         f"(indirect) and {inc['direct']['ratio']:.2f} (direct), full ones {full['indirect']['ratio']:.2f} "
+                         f"and {full['direct']['ratio']:.2f}; the largest difference between them is "
+                         f"{max(d['incremental_vs_full'].values()):.2g} of the largest value.")
+    out += table(["scene, light path", "layer, run", "R(s)", "R(s/2)", "ratio", "p99.9 at s / s/2", "popping texels",
+                  "ratio without them"], rows)
+    out += [""] + [f"- {n}" for n in notes]
+    listed = ", ".join(f"{v:.2f}" for v in default.values())
+    listed_smooth = ", ".join(f"{v:.2f}" for v in smooth.values())
+    out += ["", f"Target: a light moving smoothly gives a smoothly changing indirect (ratio <= 0.7): "
+                f"{verdict(max(default.values()) <= 0.7)} ({listed}); with the surfels lit without shadow rays: "
+                f"{verdict(bool(smooth) and max(smooth.values()) <= 0.7)} ({listed_smooth})."]
+    return "\n".join(out)
+
+
 def service():
     """Light change to a polling client over the daemon (bench/service/service_bench)."""
     out = provenance("service")
@@ -363,7 +433,7 @@ def accuracy():
 
 
 RENDERERS = {"rays": rays, "charts": charts, "scenes": scenes, "precompute": precompute, "relight": relight,
-             "service": service, "gpu": gpu, "levels": levels, "accuracy": accuracy}
+             "temporal": temporal, "service": service, "gpu": gpu, "levels": levels, "accuracy": accuracy}
 BLOCK = re.compile(r"(<!-- generated: (\w+) -->\n)(.*?)(<!-- end generated -->)", re.S)
 
 
