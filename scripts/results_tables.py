@@ -246,10 +246,7 @@ def temporal():
                 share = ind["surfel_share"]
                 note += (f", and one surfel holds {100 * share['popping_median']:.0f} % of its cache's view (median; "
                          f"{100 * share['all_median']:.1f} % over every texel)")
-            pops = [w for w in ind["worst"] if w["pops"]][:3]
-            at = "; ".join(f"({w['position'][0]:.2f}, {w['position'][1]:.2f}, {w['position'][2]:.2f}) normal "
-                           f"({w['normal'][0]:.2f}, {w['normal'][1]:.2f}, {w['normal'][2]:.2f})" for w in pops)
-            notes.append(note + (f". The largest jumps: {at}." if at else "."))
+            notes.append(note + ".")
         if "incremental_vs_full" in d:
             inc, full = runs["no_bounce_incremental"], runs["no_bounce_full"]
             notes.append(f"{label}, no bounce: incremental relights give ratios {inc['indirect']['ratio']:.2f} "
