@@ -13,6 +13,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include "bench/rt/throughput.h"
 #include "core/charts/test_meshes.h"
 #include "core/charts/unwrap.h"
 #include "core/scene/load.h"
@@ -21,12 +22,6 @@ using namespace lightlink;
 
 namespace {
 
-std::string cpuModel() {
-  std::ifstream in("/proc/cpuinfo");
-  for (std::string line; std::getline(in, line);)
-    if (line.rfind("model name", 0) == 0) return line.substr(line.find(':') + 2);
-  return "unknown";
-}
 
 bool row(const std::string& label, const scene::Scene& loaded, nlohmann::ordered_json& rows) {
   double best = 1e30;
@@ -106,7 +101,7 @@ int main(int argc, char** argv) {
   if (!json_path.empty()) {
     nlohmann::ordered_json doc = {
         {"benchmark", "charts_bench"},
-        {"machine", {{"cpu", cpuModel()}, {"hardware_threads", std::thread::hardware_concurrency()}}},
+        {"machine", {{"cpu", bench::cpuModel()}, {"hardware_threads", std::thread::hardware_concurrency()}}},
         {"rows", rows}};
     std::ofstream out(json_path);
     out << doc.dump(2) << "\n";

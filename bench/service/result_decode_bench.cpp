@@ -26,6 +26,7 @@
 #include <grpcpp/impl/codegen/proto_utils.h>
 #include <nlohmann/json.hpp>
 
+#include "bench/rt/throughput.h"
 #include "clients/client/textures.h"
 #include "proto/lightlink.pb.h"
 #include "service/snapshot.h"
@@ -98,13 +99,6 @@ double medianMicroseconds(const std::vector<grpc::ByteBuffer>& messages, int rep
   return us[us.size() / 2];
 }
 
-std::string cpuModel() {
-  std::ifstream in("/proc/cpuinfo");
-  for (std::string line; std::getline(in, line);)
-    if (line.rfind("model name", 0) == 0) return line.substr(line.find(':') + 2);
-  return "unknown";
-}
-
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -141,7 +135,7 @@ int main(int argc, char** argv) {
 
   std::uint64_t sum = 0;
   const double generated = medianMicroseconds(messages, repeats, decodeGenerated, &sum);
-  std::printf("machine: %s, %u threads\n", cpuModel().c_str(), std::thread::hardware_concurrency());
+  std::printf("machine: %s, %u threads\n", bench::cpuModel().c_str(), std::thread::hardware_concurrency());
   std::printf("result: 256x256 texels, 3 bands, %s, lightmap only: %zu messages, %.3f MB, %zu KiB slices\n",
               as_float ? "float" : "half", messages.size(), mb, slice_kib);
   std::printf("%-22s %10s %10s\n", "decoder", "us/result", "GB/s");
@@ -150,7 +144,7 @@ int main(int argc, char** argv) {
   if (!json_path.empty()) {
     const nlohmann::ordered_json doc = {
         {"benchmark", "result_decode_bench"},
-        {"machine", {{"cpu", cpuModel()}, {"hardware_threads", std::thread::hardware_concurrency()}}},
+        {"machine", {{"cpu", bench::cpuModel()}, {"hardware_threads", std::thread::hardware_concurrency()}}},
         {"result", {{"width", 256}, {"height", 256}, {"bands", 3}, {"precision", as_float ? "float" : "half"},
                     {"messages", messages.size()}, {"megabytes", mb}, {"slice_kib", slice_kib}}},
         {"repeats", repeats},
