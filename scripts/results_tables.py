@@ -268,7 +268,7 @@ def service():
     """Light change to a polling client over the daemon (bench/service/service_bench)."""
     out = provenance("service")
     rows, at50 = [], {}
-    for f, label in (("bounces.json", "daemon default (up to 8 bounces)"), ("no_bounce.json", "no bounce")):
+    for f, label in (("bounces.json", "daemon default (bounces to convergence)"), ("no_bounce.json", "no bounce")):
         d = load("service", f)
         first = True
         for s in d["latency"]:
@@ -285,6 +285,20 @@ def service():
             "the new lightmap.", ""]
     out += table(["daemon relight", "mode", "clients", "latency p50 / p99 ms", "minus relight p50 / p99 ms",
                   "not-modified poll p50 ms"], rows)
+    prog = load("service", "progressive.json")
+    prow = []
+    for s_ in prog["latency"]:
+        lat, conv = s_["latency_ms"], s_["latency_converged_ms"]
+        prow.append([s_["mode"], s_["clients"], f"{lat['p50']:.1f} / {lat['p99']:.1f}",
+                     f"{conv['p50']:.1f} / {conv['p99']:.1f}"])
+    first1 = next((s_["latency_ms"]["p50"] for s_ in prog["latency"] if s_["clients"] == 1), float("nan"))
+    out += ["", f"Progressive daemon (`--progressive`, default bounces): the first result of a light change is one "
+                f"bounce iteration from the last solution, further iterations follow as new versions (mean relight "
+                f"{prog['relight']['mean_relight_ms']:.1f} ms, {prog['relight']['previews']} of "
+                f"{prog['relight']['relights']} results unconverged):", ""]
+    out += table(["mode", "clients", "first result p50 / p99 ms", "converged p50 / p99 ms"], prow)
+    out += ["", f"Target light move to the first published version <= 10 ms (one client): {verdict(first1 <= 10)} "
+                f"({first1:.1f} ms p50)."]
     tp, mem = last["throughput"], last["memory"]
     best = at50.get("no_bounce.json", {"p50": float("nan"), "p99": float("nan")})
     dh, df = load("service", "decode_half.json"), load("service", "decode_float.json")

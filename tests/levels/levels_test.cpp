@@ -1,10 +1,12 @@
 // The acceptance set of issue 45: every scene under ../shared/scenes that lightlink accepts
 // bakes with `lightlink bake` at draft, medium and high and exits 0, as a user runs it; the
 // five game levels and zdm2 (no lights of their own) with the light sets in lights/, made
-// by bench/levels/suggest_lights. Skips, visibly, when ../shared/scenes is absent.
+// by bench/levels/suggest_lights. Skips, visibly, when ../shared/scenes is absent; in CI the
+// high preset runs on the game levels and two small scenes only (highInCi).
 #include <sys/wait.h>
 
 #include <array>
+#include <cstdlib>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
@@ -70,10 +72,26 @@ void bakeShared(const fs::path& scene, const std::string& preset, nlohmann::json
   report = nlohmann::json::parse(in);
 }
 
+// In CI (2 cores, a time budget) the high preset runs on the game levels and two small
+// scenes, where its bakes take 35-70 s each; LIGHTLINK_FULL_ACCEPTANCE=1 runs every scene.
+bool highInCi(const std::string& scene_name) {
+  static const char* const kHighInCi[] = {"redeclipse_", "tesseract_", "sauerbraten_", "cornell_box_original_gltf/",
+                                          "khronos_LightsPunctualLamp/"};
+  for (const char* prefix : kHighInCi)
+    if (scene_name.rfind(prefix, 0) == 0) return true;
+  return false;
+}
+
 TEST_P(SharedSceneBake, ExitsZeroWithAReport) {
   const auto [scene_name, preset] = GetParam();
   const fs::path shared = testing::sharedScenesDir();
   if (shared.empty()) GTEST_SKIP() << "../shared/scenes not found: the shared scenes' bakes are not run";
+  const char* ci = std::getenv("CI");
+  const char* full = std::getenv("LIGHTLINK_FULL_ACCEPTANCE");
+  if (std::string(preset) == "high" && ci && std::string(ci) == "true" && !(full && std::string(full) == "1") &&
+      !highInCi(scene_name))
+    GTEST_SKIP() << "CI runs the high preset on the game levels and two small scenes only; "
+                    "LIGHTLINK_FULL_ACCEPTANCE=1 bakes this one too";
   nlohmann::json report;
   ASSERT_NO_FATAL_FAILURE(bakeShared(shared / scene_name, preset, report));
   const auto& counts = report["precompute"]["counts"];
