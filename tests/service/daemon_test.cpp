@@ -142,6 +142,19 @@ struct CornellDaemon {
   }
 };
 
+// The result of `version` through Relight, full precision.
+void relightResult(LightlinkRpc& rpc, const v1::SceneOpened& opened, std::uint64_t version, Result& res) {
+  v1::RelightRequest rq;
+  *rq.mutable_scene() = refOf(opened);
+  rq.set_version(version);
+  rq.mutable_spec()->set_precision(v1::PRECISION_FLOAT);
+  auto ctx = context();
+  auto reader = rpc.Relight(ctx.get(), rq);
+  std::string err;
+  ASSERT_TRUE(readOne(reader.get(), res, &err).ok());
+  ASSERT_TRUE(err.empty()) << err;
+}
+
 TEST(Daemon, RoundTripOpenUpdateRelightMatchesInProcess) {
   Fixture f;
   DaemonProcess d(f.cache, quickFlags());
@@ -505,16 +518,8 @@ TEST(Daemon, GpuBackendServesTheGpuRelight) {
   v1::UpdateLightsResponse ur;
   ASSERT_TRUE(rpc->UpdateLights(context().get(), up, &ur).ok());
   ASSERT_TRUE(ur.relit());
-  v1::RelightRequest rq;
-  *rq.mutable_scene() = refOf(opened);
-  rq.set_version(ur.version());
-  rq.mutable_spec()->set_precision(v1::PRECISION_FLOAT);
-  auto ctx = context();
-  auto reader = rpc->Relight(ctx.get(), rq);
   Result res;
-  std::string err;
-  ASSERT_TRUE(readOne(reader.get(), res, &err).ok());
-  ASSERT_TRUE(err.empty()) << err;
+  ASSERT_NO_FATAL_FAILURE(relightResult(*rpc, opened, ur.version(), res));
   EXPECT_EQ(res.header.backend(), "gpu");
 
   v1::StatsRequest sr;
