@@ -313,7 +313,7 @@ int main(int argc, char** argv) {
 
   // ---- incremental: one point light moved, with a range (a few surfels) and without one
   // (every surfel: the daemon's case when a client drags the scene's light) -------------
-  auto incremental = [&](float range, const char* key) -> int {
+  auto incremental = [&](float range, bool bounces, const char* key) -> int {
     relight::LightSet inc = lights;
     relight::LightEntry lamp;
     lamp.id = "bench_lamp";
@@ -322,13 +322,16 @@ int main(int argc, char** argv) {
     lamp.light.range = range;
     lamp.light.intensity = 100.0f;
     if (Status s = inc.add(lamp); !s) return 2;
-    const relight::RelightOptions o{.max_bounces = 0};
+    // With bounces: the defaults (to convergence), the change propagated through them.
+    relight::RelightOptions o;
+    if (!bounces) o.max_bounces = 0;
     relighter->invalidate(relight::Relighter::Forget::kLightState);  // steady state: emission kept
     auto full = relighter->relight(inc, o);
     if (!full) return 2;
     std::vector<double> t;
     std::map<std::string, std::vector<double>> stage_ms;
-    std::size_t lit = 0, pulled = 0, summed = 0;
+    std::size_t lit = 0, pulled = 0, summed = 0, gathered = 0;
+    int rounds = 0;
     relight::RelightResult res;
     for (int r = 0; r <= args.repeats; ++r) {
       lamp.light.position.x += 0.002f * scene->scale * ((r & 1) ? -1.0f : 1.0f);
@@ -338,6 +341,7 @@ int main(int argc, char** argv) {
       t.push_back(res.totalSeconds());
       for (const auto& st : res.timings) stage_ms[st.stage].push_back(st.seconds * 1e3);
       lit = res.counts.surfels_lit, pulled = res.counts.nodes_pulled, summed = res.counts.caches_summed;
+      gathered = res.counts.surfels_gathered, rounds = res.passes.bounces;
     }
     std::string stages;
     nlohmann::ordered_json sj;
@@ -345,21 +349,26 @@ int main(int argc, char** argv) {
       stages += fmt::format(" {} {:.3f}", name, median(v));
       sj[name] = median(v);
     }
-    fmt::print("{}incremental (point light, range {}, moved): {:.3f} ms vs full {:.3f} ms; surfels {}/{}, "
-               "nodes {}/{}, caches {}/{}; stages (ms):{}\n",
+    fmt::print("{}incremental (point light, range {}, moved{}): {:.3f} ms vs full {:.3f} ms; surfels {}/{}, "
+               "nodes {}/{}, caches {}/{}, gathered {} (full {}), rounds {} (full bounces {}); stages (ms):{}\n",
                range > 0.0f ? "\n" : "", range > 0.0f ? fmt::format("{:.2f} m", range) : std::string("none"),
-               median(t) * 1e3, full->totalSeconds() * 1e3, lit, full->counts.surfels, pulled, full->counts.nodes,
-               summed, full->counts.caches, stages);
-    j[key] = {{"range_m", range},            {"ms", median(t) * 1e3},
-              {"full_ms", full->totalSeconds() * 1e3},
+               bounces ? ", bounces" : "", median(t) * 1e3, full->totalSeconds() * 1e3, lit, full->counts.surfels,
+               pulled, full->counts.nodes, summed, full->counts.caches, gathered, full->counts.surfels_gathered,
+               rounds, full->passes.bounces, stages);
+    j[key] = {{"range_m", range},            {"bounces", bounces},
+              {"ms", median(t) * 1e3},       {"full_ms", full->totalSeconds() * 1e3},
               {"surfels_lit", lit},          {"surfels", full->counts.surfels},
               {"nodes_pulled", pulled},      {"nodes", full->counts.nodes},
               {"caches_summed", summed},     {"caches", full->counts.caches},
+              {"surfels_gathered", gathered}, {"full_surfels_gathered", full->counts.surfels_gathered},
+              {"rounds", rounds},            {"full_bounces", full->passes.bounces},
               {"stages_ms", sj}};
     return 0;
   };
-  if (int rc = incremental(0.1f * scene->scale, "incremental"); rc) return rc;
-  if (int rc = incremental(0.0f, "incremental_unranged"); rc) return rc;
+  if (int rc = incremental(0.1f * scene->scale, false, "incremental"); rc) return rc;
+  if (int rc = incremental(0.0f, false, "incremental_unranged"); rc) return rc;
+  if (int rc = incremental(0.1f * scene->scale, true, "incremental_bounces"); rc) return rc;
+  if (int rc = incremental(0.0f, true, "incremental_bounces_unranged"); rc) return rc;
 
   // ---- bounces ------------------------------------------------------------------------------
   {

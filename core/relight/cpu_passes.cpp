@@ -49,14 +49,21 @@ class CpuPasses final : public RelightPasses {
   Status cacheDirect(const RelightFrame& f, const EmitterTexels& emitter, RelightResult& res) override;
   Status texels(const RelightFrame& f, RelightResult& res) override;
   bool incremental() const override { return true; }
+  bool incrementalBounces() const override { return true; }
   Status relightChange(const RelightFrame& f, const LightChange& change, std::span<const glm::vec3> surfel_emit,
                        const EmitterTexels& emitter, RelightResult& res) override;
+  Expected<BounceSums> propagateChange(const RelightFrame& f, int round, RelightResult& res) override;
 
  private:
   // Incremental steps: the surfels the change reaches (re-lit), the tree nodes above them
   // (re-pulled), the caches linked to those nodes (re-lit), the changed light's baked direct.
-  std::vector<std::uint32_t> changeSurfels(const LightChange& c, std::span<const glm::vec3> surfel_emit,
+  std::vector<std::uint32_t> changeSurfels(const LightChange& c, std::span<const glm::vec3> surfel_emit, bool bounced,
                                            RelightResult& res);
+  // With bounces: pull the surfels whose b changed, and relight the caches linked to nodes
+  // whose radiosity moved by more than the tolerance since their caches last read it.
+  void pushChange(const RelightFrame& f, const std::vector<std::uint32_t>& changed, const std::string& prefix,
+                  RelightResult& res);
+  void buildGatherInverse();
   std::vector<std::uint32_t> changeTree(const std::vector<std::uint32_t>& touched, bool dense, RelightResult& res);
   void changeCaches(const RelightFrame& f, const std::vector<std::uint32_t>& changed_nodes, bool dense,
                     RelightResult& res);
@@ -91,6 +98,14 @@ class CpuPasses final : public RelightPasses {
   // Inverted index node -> caches (built on the first sparse incremental relight).
   bool inverted_built_ = false;
   std::vector<std::uint32_t> lm_inv_begin_, lm_inv_, grid_inv_begin_, grid_inv_;
+  // Incremental relight with bounces. Per node, the radiosity (R, G, B, 0) every cache linked
+  // to it last read; the caches relit since the last gather round (all: relit_all_); the
+  // inverse of the gather tables, cache -> surfels reading it, lightmap and grid.
+  std::vector<float> rad_lit_;
+  std::vector<std::uint32_t> relit_lm_, relit_grid_;
+  bool relit_all_ = false;
+  bool gather_inverse_built_ = false;
+  std::vector<std::uint32_t> lm_readers_begin_, lm_readers_, grid_readers_begin_, grid_readers_;
 };
 
 Status CpuPasses::surfelDirect(const RelightFrame& f, std::span<const glm::vec3> surfel_emit, RelightResult& res) {
@@ -136,6 +151,7 @@ Status CpuPasses::pullAndLight(const RelightFrame& f, const std::string& prefix,
   });
   timedStage(res, prefix + "cache_lighting", [&] {
     lightCaches(f, t_.lm_links, lm_sh_, p_.lightmap.valid, nullptr);
+    rad_lit_ = rad_rgbx_;  // what every cache read (the grid's are lit at least on the last pass)
     res.passes.cache_lighting++;
     res.passes.sky += f.plan.sky ? 1 : 0;
     res.counts.caches_summed = t_.lm_links.cacheCount();
@@ -279,13 +295,20 @@ Status CpuPasses::relightChange(const RelightFrame& f, const LightChange& c, std
                                 const EmitterTexels& emitter, RelightResult& res) {
   const std::size_t ns = p_.surfels.size();
   const bool surfels_change = !sameLight(c.old_light, c.new_light);
+  const bool bounced = f.plan.bounces;
   std::vector<std::uint32_t> touched;
   timedStage(res, "surfel_direct", [&] {
-    if (surfels_change) touched = changeSurfels(c, surfel_emit, res);
+    if (surfels_change) touched = changeSurfels(c, surfel_emit, bounced, res);
   });
   if (!surfels_change) {
     if (c.kind == LightChange::Kind::kRemoved) per_light_surfel_.erase(per_light_surfel_.begin() + c.index);
     if (c.kind == LightChange::Kind::kAdded) per_light_surfel_.emplace_back(ns, glm::vec3(0.0f));
+  }
+  if (bounced) {
+    relit_lm_.clear(), relit_grid_.clear(), relit_all_ = false;
+    pushChange(f, touched, "", res);
+    timedStage(res, "baked_direct", [&] { changeDirect(f, c, surfels_change, emitter, res); });
+    return {};
   }
   // A change that reaches most surfels (a directional or an unranged point light) changes
   // nearly every node and cache, and the sparse walks (serial path marking and sort, the
@@ -302,7 +325,7 @@ Status CpuPasses::relightChange(const RelightFrame& f, const LightChange& c, std
 }
 
 std::vector<std::uint32_t> CpuPasses::changeSurfels(const LightChange& c, std::span<const glm::vec3> surfel_emit,
-                                                    RelightResult& res) {
+                                                    bool bounced, RelightResult& res) {
   const std::size_t ns = p_.surfels.size();
   // In parallel over fixed chunks, concatenated in order: the same list for any thread count.
   std::vector<std::uint32_t> touched;
@@ -334,13 +357,208 @@ std::vector<std::uint32_t> CpuPasses::changeSurfels(const LightChange& c, std::s
       for (const auto& pl : per_light_surfel_) e += pl[s];
       if (!surfel_emit.empty()) e += surfel_emit[s];  // the kept emitter direct
       direct_e_[s] = e;
-      b0_[s] = p_.surfels.albedo[s] * e;
-      b_[s] = b0_[s];
+      const glm::vec3 nb0 = p_.surfels.albedo[s] * e;
+      // With bounces, b keeps its gathered indirect part: b = b0 + rho * E_indirect.
+      b_[s] = bounced ? b_[s] + (nb0 - b0_[s]) : nb0;
+      b0_[s] = nb0;
       setLeafFlux(s);
     }
   });
   res.counts.surfels_lit = touched.size();
   return touched;
+}
+
+void CpuPasses::pushChange(const RelightFrame& f, const std::vector<std::uint32_t>& changed,
+                           const std::string& prefix, RelightResult& res) {
+  const auto& t = p_.tree;
+  const std::size_t ns = p_.surfels.size(), nodes = t.nodeCount();
+  const bool dense = changed.size() * 2 > ns;
+  std::vector<std::uint32_t> marked;
+  bool all_marked = false;
+  timedStage(res, prefix + "pull", [&] {
+    const std::size_t pulled_before = res.counts.nodes_pulled;
+    const int pulls_before = res.passes.pulls;
+    const std::vector<std::uint32_t> path = changeTree(changed, dense, res);
+    res.counts.nodes_pulled += pulled_before;
+    res.passes.pulls = pulls_before + 1;
+    // A node's change reaches its caches only when it exceeds the tolerance: the root holds
+    // the scene's mean radiosity, the scale of the tolerance. What is held back stays in
+    // rad_lit_'s difference, so small changes add up until they are pushed (no drift).
+    const float* root = rad_rgbx_.data();
+    const float tol = f.options.bounce_threshold * std::max({root[0], root[1], root[2]});
+    auto moved = [&](std::size_t n) {
+      for (int ch = 0; ch < 3; ++ch)
+        if (std::abs(rad_rgbx_[4 * n + ch] - rad_lit_[4 * n + ch]) > tol) return true;
+      return false;
+    };
+    if (dense) {
+      for (std::size_t n = 0; n < nodes; ++n)
+        if (moved(n)) marked.push_back(std::uint32_t(n));
+    } else {
+      for (std::uint32_t n : path)
+        if (moved(n)) marked.push_back(n);
+      std::sort(marked.begin(), marked.end());
+    }
+  });
+  timedStage(res, prefix + "cache_lighting", [&] {
+    if (marked.empty()) return;
+    if (!inverted_built_) buildInverted();
+    const auto& lm = t_.lm_links;
+    std::size_t marked_links = 0;
+    for (std::uint32_t n : marked) marked_links += lm_inv_begin_[n + 1] - lm_inv_begin_[n];
+    // Most links touched: the full pass costs less than listing the caches.
+    all_marked = marked_links * 2 > lm.linkCount();
+    auto affected = [&](const std::vector<std::uint32_t>& begin, const std::vector<std::uint32_t>& inv,
+                        std::size_t count) {
+      std::vector<std::uint8_t> hit(count, 0);
+      for (std::uint32_t n : marked)
+        for (std::uint32_t k = begin[n]; k < begin[n + 1]; ++k) hit[inv[k]] = 1;
+      std::vector<std::uint32_t> list;
+      for (std::size_t c = 0; c < count; ++c)
+        if (hit[c]) list.push_back(std::uint32_t(c));
+      return list;
+    };
+    if (all_marked) {
+      lightCaches(f, lm, lm_sh_, p_.lightmap.valid, nullptr);
+      res.counts.caches_summed += lm.cacheCount();
+      res.counts.links_read += lm.linkCount();
+      if (f.plan.grid) {
+        lightCaches(f, t_.grid_links, grid_sh_, p_.grid.valid, nullptr);
+        res.counts.grid_caches_summed += t_.grid_links.cacheCount();
+        res.counts.links_read += t_.grid_links.linkCount();
+      }
+      rad_lit_ = rad_rgbx_;
+      relit_all_ = true;
+    } else {
+      const auto lm_list = affected(lm_inv_begin_, lm_inv_, lm.cacheCount());
+      lightCaches(f, lm, lm_sh_, p_.lightmap.valid, &lm_list);
+      res.counts.caches_summed += lm_list.size();
+      for (std::uint32_t c : lm_list) res.counts.links_read += lm.offsets[c + 1] - lm.offsets[c];
+      relit_lm_.insert(relit_lm_.end(), lm_list.begin(), lm_list.end());
+      if (f.plan.grid) {
+        const auto& g = t_.grid_links;
+        const auto g_list = affected(grid_inv_begin_, grid_inv_, g.cacheCount());
+        lightCaches(f, g, grid_sh_, p_.grid.valid, &g_list);
+        res.counts.grid_caches_summed += g_list.size();
+        for (std::uint32_t c : g_list) res.counts.links_read += g.offsets[c + 1] - g.offsets[c];
+        relit_grid_.insert(relit_grid_.end(), g_list.begin(), g_list.end());
+      }
+      for (std::uint32_t n : marked) std::memcpy(&rad_lit_[4 * n], &rad_rgbx_[4 * n], 4 * sizeof(float));
+    }
+    res.passes.cache_lighting++;
+    res.passes.grid_lighting += f.plan.grid ? 1 : 0;
+    res.passes.sky = f.plan.sky ? 1 : 0;
+  });
+}
+
+void CpuPasses::buildGatherInverse() {
+  const std::size_t ns = p_.surfels.size();
+  auto invert = [&](bool grid, std::size_t caches, std::vector<std::uint32_t>& begin,
+                    std::vector<std::uint32_t>& out) {
+    begin.assign(caches + 1, 0);
+    for (std::size_t s = 0; s < ns; ++s)
+      if (bool(t_.gather_from_grid[s]) == grid)
+        for (std::uint32_t g = t_.gather_begin[s]; g < t_.gather_begin[s + 1]; ++g) ++begin[t_.gather_cache[g] + 1];
+    for (std::size_t c = 0; c < caches; ++c) begin[c + 1] += begin[c];
+    out.resize(begin[caches]);
+    std::vector<std::uint32_t> fill(begin.begin(), begin.end() - 1);
+    for (std::size_t s = 0; s < ns; ++s)
+      if (bool(t_.gather_from_grid[s]) == grid)
+        for (std::uint32_t g = t_.gather_begin[s]; g < t_.gather_begin[s + 1]; ++g)
+          out[fill[t_.gather_cache[g]]++] = std::uint32_t(s);
+  };
+  invert(false, p_.lightmap.size(), lm_readers_begin_, lm_readers_);
+  invert(true, p_.has_grid ? p_.grid.size() : 0, grid_readers_begin_, grid_readers_);
+  gather_inverse_built_ = true;
+}
+
+Expected<BounceSums> CpuPasses::propagateChange(const RelightFrame& f, int round, RelightResult& res) {
+  const std::size_t ns = p_.surfels.size(), stride = f.stride;
+  const int bands = f.bands, nc = bands * bands;
+  std::vector<std::uint32_t> changed;
+  BounceSums sums;
+  timedStage(res, "bounce" + std::to_string(round) + "_gather", [&] {
+    if (!gather_inverse_built_) buildGatherInverse();
+    // Invalid caches take their value from the fill plan, so a changed source changes them.
+    auto spread = [&](const caches::FillPlan& plan, float* data, std::vector<std::uint8_t>& flag) {
+      detail::applyFill(plan, data, stride);
+      for (std::size_t i = 0; i < plan.target.size(); ++i)
+        for (std::uint32_t k = plan.source_begin[i]; k < plan.source_begin[i + 1] && !flag[plan.target[i]]; ++k)
+          if (flag[plan.source[k]]) flag[plan.target[i]] = 1;
+    };
+    std::vector<std::uint32_t> list;  // surfels to gather again, in order
+    if (relit_all_) {
+      detail::applyFill(p_.lightmap_fill, lm_sh_.data(), stride);
+      if (t_.grid_gathered) detail::applyFill(p_.grid_fill, grid_sh_.data(), stride);
+      list.resize(ns);
+      for (std::size_t s = 0; s < ns; ++s) list[s] = std::uint32_t(s);
+    } else {
+      std::vector<std::uint8_t> lm_flag(p_.lightmap.size(), 0), reads(ns, 0);
+      for (std::uint32_t c : relit_lm_) lm_flag[c] = 1;
+      spread(p_.lightmap_fill, lm_sh_.data(), lm_flag);
+      for (std::size_t c = 0; c < lm_flag.size(); ++c)
+        if (lm_flag[c])
+          for (std::uint32_t k = lm_readers_begin_[c]; k < lm_readers_begin_[c + 1]; ++k) reads[lm_readers_[k]] = 1;
+      if (t_.grid_gathered) {
+        std::vector<std::uint8_t> g_flag(p_.grid.size(), 0);
+        for (std::uint32_t c : relit_grid_) g_flag[c] = 1;
+        spread(p_.grid_fill, grid_sh_.data(), g_flag);
+        for (std::size_t c = 0; c < g_flag.size(); ++c)
+          if (g_flag[c])
+            for (std::uint32_t k = grid_readers_begin_[c]; k < grid_readers_begin_[c + 1]; ++k)
+              reads[grid_readers_[k]] = 1;
+      }
+      for (std::size_t s = 0; s < ns; ++s)
+        if (reads[s]) list.push_back(std::uint32_t(s));
+    }
+    relit_lm_.clear(), relit_grid_.clear(), relit_all_ = false;
+    // Gather as the full bounce does; fixed chunks and fixed-order sums.
+    const std::size_t chunks = (list.size() + kChunk - 1) / kChunk;
+    std::vector<std::vector<std::uint32_t>> part(chunks);
+    chunk_added_.assign(chunks, 0.0);
+    forChunks(list.size(), kChunk, [&](std::size_t chunk, std::size_t begin, std::size_t end) {
+      double added = 0.0;
+      float acc[3 * sh::kMaxCoeffs];
+      for (std::size_t i = begin; i < end; ++i) {
+        const std::uint32_t s = list[i];
+        std::fill(acc, acc + stride, 0.0f);
+        const float* base = t_.gather_from_grid[s] ? grid_sh_.data() : lm_sh_.data();
+        for (std::uint32_t g = t_.gather_begin[s]; g < t_.gather_begin[s + 1]; ++g) {
+          const float* src = base + std::size_t(t_.gather_cache[g]) * stride;
+          const float wt = t_.gather_weight[g];
+          for (std::size_t k = 0; k < stride; ++k) acc[k] += wt * src[k];
+        }
+        const glm::vec3 n = p_.surfels.normal[s];
+        const glm::vec3 e(sh::irradiance(bands, acc, n), sh::irradiance(bands, acc + nc, n),
+                          sh::irradiance(bands, acc + 2 * nc, n));
+        const glm::vec3 nb = b0_[s] + p_.surfels.albedo[s] * e;
+        if (nb == b_[s]) continue;
+        const glm::vec3 d = glm::abs(nb - b_[s]) * p_.surfels.area[s];
+        added += double(d.x) + d.y + d.z;
+        b_[s] = nb;
+        setLeafFlux(s);
+        part[chunk].push_back(s);
+      }
+      chunk_added_[chunk] = added;
+    });
+    for (std::size_t c = 0; c < chunks; ++c) sums.added += chunk_added_[c];
+    for (const auto& q : part) changed.insert(changed.end(), q.begin(), q.end());
+    res.counts.surfels_gathered += list.size();
+    // The total flux, as the full bounce sums it (fixed chunks over every surfel).
+    const std::size_t all_chunks = (ns + kChunk - 1) / kChunk;
+    chunk_total_.assign(all_chunks, 0.0);
+    forChunks(ns, kChunk, [&](std::size_t chunk, std::size_t begin, std::size_t end) {
+      double total = 0.0;
+      for (std::size_t s = begin; s < end; ++s) {
+        const glm::vec3 phi = (b_[s] + emission_b_[s]) * p_.surfels.area[s];
+        total += double(phi.x) + phi.y + phi.z;
+      }
+      chunk_total_[chunk] = total;
+    });
+    for (std::size_t c = 0; c < all_chunks; ++c) sums.total += chunk_total_[c];
+  });
+  pushChange(f, changed, "bounce" + std::to_string(round) + "_", res);
+  return sums;
 }
 
 std::vector<std::uint32_t> CpuPasses::changeTree(const std::vector<std::uint32_t>& touched, bool dense,
@@ -512,6 +730,10 @@ void CpuPasses::lightCaches(const RelightFrame& f, const links::LinksView& view,
 Status RelightPasses::relightChange(const RelightFrame&, const LightChange&, std::span<const glm::vec3>,
                                     const EmitterTexels&, RelightResult&) {
   return internalError("relight: the {} backend has no incremental relight", backend());
+}
+
+Expected<BounceSums> RelightPasses::propagateChange(const RelightFrame&, int, RelightResult&) {
+  return internalError("relight: the {} backend has no incremental relight with bounces", backend());
 }
 
 std::unique_ptr<RelightPasses> makeCpuPasses(const SceneTables& tables) {

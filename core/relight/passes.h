@@ -11,8 +11,9 @@
 // one (RelightFrame::warm) skips the first pullAndLight, its first gather reading the caches
 // of the last relight. A relight
 // where exactly one light changed calls begin, relightChange and texels on a backend that
-// supports it; an unchanged light set calls begin and texels only. Between relights a
-// backend keeps its per-cache state (the pipeline relies on it for both shortcuts).
+// supports it — with bounces on (incrementalBounces), propagateChange per round between the
+// two; an unchanged light set calls begin and texels only. Between relights a backend keeps
+// its per-cache state (the pipeline relies on it for both shortcuts).
 #pragma once
 
 #include <chrono>
@@ -109,11 +110,20 @@ class RelightPasses {
   // reflected part b), and the texel counts.
   virtual Status texels(const RelightFrame& frame, RelightResult& res) = 0;
 
-  // Incremental relight of one changed light (bounces off): only what the change reaches.
+  // Incremental relight of one changed light: only what the change reaches. With bounces
+  // off, the surfels it lights, their tree paths and the caches linked to them are rewritten
+  // (the same sums as a full relight). With bounces on (frame.plan.bounces), relightChange
+  // adds the change of direct light to the last converged solution and pushes it to the
+  // caches, then each propagateChange round lets the surfels that read a changed cache gather
+  // again and pushes their change on, until the pipeline's stop rule ends it: the change
+  // travels through the bounces instead of the whole solution being iterated again.
   virtual bool incremental() const { return false; }
+  virtual bool incrementalBounces() const { return false; }
   virtual Status relightChange(const RelightFrame& frame, const LightChange& change,
                                std::span<const glm::vec3> surfel_emit, const EmitterTexels& emitter,
                                RelightResult& res);
+  // One round of the propagation: the flux it changed (`added`, as a bounce's) and the total.
+  virtual Expected<BounceSums> propagateChange(const RelightFrame& frame, int round, RelightResult& res);
 };
 
 }  // namespace lightlink::relight

@@ -235,6 +235,7 @@ Status RelightPipeline::relightInto(const LightSet& lights, const RelightOptions
     if (change) {
       res.passes.incremental = 1;
       st = passes_->relightChange(f, *change, emission_.surfels(), emission_.texels(), res);
+      if (st && res.plan.bounces) st = changeLoop(f, res);
     } else {
       st = fullRelight(f, res);
     }
@@ -285,7 +286,12 @@ bool RelightPipeline::unchanged(const LightSet& lights, const RelightOptions& o,
 std::optional<LightChange> RelightPipeline::oneChange(const LightSet& lights, const RelightOptions& o,
                                                       const EffectsPlan& plan, int bands) const {
   const Memo& m = memo_;
-  if (!sameSetting(lights, o, bands) || plan.bounces || m.bounced) return std::nullopt;
+  if (!sameSetting(lights, o, bands) || plan.bounces != m.bounced) return std::nullopt;
+  // With bounces, the change is propagated on top of the last solution: it must be a
+  // converged one, at the same bounce options.
+  if (plan.bounces && (!passes_->incrementalBounces() || m.bounce_stop != "threshold" ||
+                       o.max_bounces != m.options.max_bounces || o.bounce_threshold != m.options.bounce_threshold))
+    return std::nullopt;
   const auto& L = lights.lights();
   auto same = [&](std::size_t i, std::size_t j) { return sameEntry(L[i], j); };
   scene::Light dark;  // stands for "no light": reaches() is false for zero intensity
@@ -362,6 +368,7 @@ Status RelightPipeline::bounceLoop(const RelightFrame& f, RelightResult& res) {
   for (int k = 1; k <= plan.max_bounces; ++k) {
     const auto t0 = Clock::now();
     if (Status s = passes_->gather(f, k, plan.grid && t_.grid_gathered, res); !s) return s;
+    res.counts.surfels_gathered += t_.surfelCount();
     std::optional<BounceSums> sums;
     if (!passes_->sumsLag()) {
       auto got = passes_->bounceSums();
@@ -382,6 +389,24 @@ Status RelightPipeline::bounceLoop(const RelightFrame& f, RelightResult& res) {
     res.passes.bounces++;
     res.bounce_log.push_back({k, sums->added, sums->total, secondsSince(t0)});
     if (sums->added < threshold * sums->total) {
+      res.bounce_stop = "threshold";
+      break;
+    }
+  }
+  return {};
+}
+
+Status RelightPipeline::changeLoop(const RelightFrame& f, RelightResult& res) {
+  // The same stop rule as the bounce loop's, on the flux each round of the change moves.
+  const double threshold = double(f.options.bounce_threshold);
+  res.bounce_stop = "cap";
+  for (int k = 1; k <= f.plan.max_bounces; ++k) {
+    const auto t0 = Clock::now();
+    auto sums = passes_->propagateChange(f, k, res);
+    if (!sums) return sums.status();
+    res.passes.bounces++;
+    res.bounce_log.push_back({k, sums->added, sums->total, secondsSince(t0)});
+    if (sums->added == 0.0 || sums->added < threshold * sums->total) {
       res.bounce_stop = "threshold";
       break;
     }
@@ -434,7 +459,7 @@ void RelightPipeline::finish(const RelightFrame& f, RelightResult& res) {
     }
   });
   if (layer_.active()) layer_.compute(f.lights, o, f.plan, res);
-  if (res.passes.incremental) res.bounce_stop = "disabled";
+  if (res.passes.incremental && !f.plan.bounces) res.bounce_stop = "disabled";
   if (res.passes.unchanged) res.bounce_stop = memo_.bounce_stop;
   if (t_.surfels_without_gather > 0 && f.plan.bounces)
     res.warnings.push_back(fmt::format("{} surfels have no lightmap texel or grid cache to gather bounces from",

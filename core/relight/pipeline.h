@@ -71,6 +71,8 @@ class RelightPipeline {
                                        int bands) const;
   Status fullRelight(const RelightFrame& f, RelightResult& res);
   Status bounceLoop(const RelightFrame& f, RelightResult& res);
+  // Incremental relight with bounces: propagateChange rounds until the stop rule.
+  Status changeLoop(const RelightFrame& f, RelightResult& res);
   void emitterTexels(const RelightFrame& f, RelightResult& res);
   void gridEmitter(const RelightFrame& f, RelightResult& res);
   void finish(const RelightFrame& f, RelightResult& res);

@@ -67,6 +67,7 @@ nlohmann::ordered_json RelightResult::report() const {
                  {"nodes_pulled", counts.nodes_pulled}, {"caches", counts.caches},
                  {"caches_summed", counts.caches_summed}, {"grid_caches", counts.grid_caches},
                  {"grid_caches_summed", counts.grid_caches_summed}, {"links_read", counts.links_read},
+                 {"surfels_gathered", counts.surfels_gathered},
                  {"shadow_rays", counts.shadow_rays}, {"emitter_triangles", counts.emitter_triangles},
                  {"emitter_direct_reused", counts.emitter_direct_reused},
                  {"surfel_emitter_reused", counts.surfel_emitter_reused},

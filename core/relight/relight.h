@@ -70,7 +70,12 @@ struct RelightOptions {
   // albedo is near 1 (0 = direct + emission only). The one default of bake, open and the daemon.
   int max_bounces = 100;
   float bounce_threshold = 1e-3f;  // stop when a bounce adds less than this fraction of the total flux
-  bool incremental = true;         // allow incremental relight when exactly one light changed
+  // Allow incremental relight when exactly one light changed. With bounces on it needs the
+  // last relight converged (bounce_stop "threshold") at the same bounce options, and it
+  // propagates the change until a round adds less than bounce_threshold of the total flux;
+  // node radiosity changes below bounce_threshold of the scene's mean radiosity are not
+  // pushed to the caches (the error this leaves is of the order of the full relight's).
+  bool incremental = true;
   // Start the bounce iteration from the last relight's solution (its caches) instead of from
   // the direct light alone, as seed 000's progressive multi-bounce does from frame to frame:
   // after a small light move one iteration is close to the converged answer, and each further
@@ -153,6 +158,7 @@ struct RelightCounts {
   std::size_t caches = 0, caches_summed = 0;    // lightmap caches
   std::size_t grid_caches = 0, grid_caches_summed = 0;
   std::size_t links_read = 0;
+  std::size_t surfels_gathered = 0;             // bounce gathers summed over bounces (incremental: the rounds')
   std::size_t shadow_rays = 0;                  // punctual and emitter shadow rays
   std::size_t emitter_triangles = 0;            // triangles sampled for emitter direct light
   std::size_t emitter_direct_reused = 0;        // 1: emission unchanged, the last emitter direct reused

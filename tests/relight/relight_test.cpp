@@ -435,7 +435,8 @@ TEST(RelightIncremental, OneLightChangeMatchesAFullRelight) {
   EXPECT_EQ(two->passes.incremental, 0);
 }
 
-// Bounces on, so every light change is a full relight; emission unchanged, so what depends
+// Bounces to a cap (not a converged solution to propagate a change on), so every light change
+// is a full relight; emission unchanged, so what depends
 // on emission alone (the emitters' sampled light at the surfels and texels) is computed once
 // and reused, bit-identical to a fresh relighter's result. Intermediate bounce passes light
 // the grid only when some surfel gathers from it: only the last pass's grid values are output.
@@ -494,6 +495,86 @@ TEST(RelightIncremental, EmissionOnlyWorkIsReusedWhileEmissionIsUnchanged) {
   EXPECT_EQ(all->passes.surfel_emitter, 1);
   EXPECT_EQ(all->passes.emissive_direct, 1);
   EXPECT_EQ(all->lightmap_sh, glow->lightmap_sh);
+}
+
+// Relative L1 distance of two SH arrays, and the largest difference over the largest value.
+std::pair<double, double> shDistance(const std::vector<float>& a, const std::vector<float>& b) {
+  double diff = 0.0, sum = 0.0, worst = 0.0, peak = 0.0;
+  for (std::size_t i = 0; i < a.size() && i < b.size(); ++i) {
+    diff += std::abs(double(a[i]) - b[i]), sum += std::abs(double(b[i]));
+    worst = std::max(worst, std::abs(double(a[i]) - b[i])), peak = std::max(peak, std::abs(double(b[i])));
+  }
+  return {sum > 0.0 ? diff / sum : diff, peak > 0.0 ? worst / peak : worst};
+}
+
+// Bounces on (the defaults: to convergence): one light's change is propagated through the
+// bounces on top of the last solution, and equals a full relight within the bounce
+// threshold's tolerance, also after a chain of changes (nothing drifts).
+TEST(RelightIncremental, WithBouncesPropagatesTheChangeAndMatchesAFullRelight) {
+  const auto& rm = room();
+  ASSERT_TRUE(rm.baked);
+  Relighter inc = rm.baked->relighter();
+  LightSet set;
+  ASSERT_TRUE(set.add(pointLight("a", {1, 1, 1}, 3.0f, 1.5f)));
+  ASSERT_TRUE(set.add(pointLight("b", {5, 1, 1}, 2.0f, 1.5f, /*baked=*/false)));
+  const RelightOptions opt;
+  auto first = inc.relight(set, opt);
+  ASSERT_TRUE(first);
+  ASSERT_EQ(first->bounce_stop, "threshold");
+  EXPECT_EQ(first->passes.incremental, 0);
+
+  auto check = [&](const char* what) -> RelightResult {
+    auto r = inc.relight(set, opt);
+    EXPECT_TRUE(r);
+    if (!r) return {};
+    EXPECT_EQ(r->passes.incremental, 1) << what;
+    EXPECT_EQ(r->bounce_stop, "threshold") << what;
+    auto full = rm.baked->relighter().relight(set, opt);
+    EXPECT_TRUE(full);
+    if (!full) return {};
+    const auto [lm_l1, lm_max] = shDistance(r->lightmap_sh, full->lightmap_sh);
+    const auto [grid_l1, grid_max] = shDistance(r->grid_sh, full->grid_sh);
+    std::printf("%-12s rounds %d, surfels gathered %zu (full %zu), caches summed %zu (full %zu); lightmap L1 %.2e "
+                "max %.2e, grid L1 %.2e max %.2e\n",
+                what, r->passes.bounces, r->counts.surfels_gathered, full->counts.surfels_gathered,
+                r->counts.caches_summed, full->counts.caches_summed, lm_l1, lm_max, grid_l1, grid_max);
+    EXPECT_LT(lm_l1, 2e-3) << what;
+    EXPECT_LT(lm_max, 1e-2) << what;
+    EXPECT_LT(grid_l1, 2e-3) << what;
+    EXPECT_LT(grid_max, 1e-2) << what;
+    EXPECT_EQ(r->direct, full->direct) << what;
+    EXPECT_GT(r->passes.bounces, 0) << what;
+    return std::move(r).value();
+  };
+  ASSERT_TRUE(set.modify(pointLight("a", {1.5f, 1, 1}, 3.0f, 1.5f)));
+  const RelightResult moved = check("move");
+  EXPECT_LT(moved.counts.surfels_lit, moved.counts.surfels / 2);
+  // A chain of moves, an added and a removed light: each built on the last.
+  for (int i = 0; i < 6; ++i) {
+    ASSERT_TRUE(set.modify(pointLight("a", {1.5f + 0.3f * float(i), 1, 1}, 3.0f, 1.5f)));
+    ASSERT_TRUE(inc.relight(set, opt));
+  }
+  ASSERT_TRUE(set.modify(pointLight("a", {3.4f, 1, 1}, 3.0f, 1.5f)));
+  check("chain");
+  ASSERT_TRUE(set.add(pointLight("c", {3, 1, 1.5f}, 1.0f, 1.0f)));
+  check("add");
+  ASSERT_TRUE(set.remove("b"));
+  check("remove");
+  // A solution that stopped at the cap is no base: the next change is a full relight.
+  const RelightOptions capped{.max_bounces = 2, .bounce_threshold = 0.0f};
+  ASSERT_TRUE(inc.relight(set, capped));
+  ASSERT_TRUE(set.modify(pointLight("a", {2, 1, 1}, 3.0f, 1.5f)));
+  auto after_cap = inc.relight(set, capped);
+  ASSERT_TRUE(after_cap);
+  EXPECT_EQ(after_cap->passes.incremental, 0);
+  // Off by option.
+  RelightOptions off = opt;
+  off.incremental = false;
+  ASSERT_TRUE(inc.relight(set, off));
+  ASSERT_TRUE(set.modify(pointLight("a", {2.2f, 1, 1}, 3.0f, 1.5f)));
+  auto full_again = inc.relight(set, off);
+  ASSERT_TRUE(full_again);
+  EXPECT_EQ(full_again->passes.incremental, 0);
 }
 
 TEST(RelightIncremental, UnchangedLightSetReEmitsTheKeptResult) {
