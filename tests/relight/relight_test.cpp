@@ -532,16 +532,25 @@ TEST(RelightIncremental, WithBouncesPropagatesTheChangeAndMatchesAFullRelight) {
     auto full = rm.baked->relighter().relight(set, opt);
     EXPECT_TRUE(full);
     if (!full) return {};
+    // Both stop at the threshold short of the fixed point: measured against one converged
+    // much further, the incremental answer is about as close as the full relight's.
+    const RelightOptions tight{.max_bounces = 1000, .bounce_threshold = 1e-7f};
+    auto ref = rm.baked->relighter().relight(set, tight);
+    EXPECT_TRUE(ref);
+    if (!ref) return {};
     const auto [lm_l1, lm_max] = shDistance(r->lightmap_sh, full->lightmap_sh);
     const auto [grid_l1, grid_max] = shDistance(r->grid_sh, full->grid_sh);
-    std::printf("%-12s rounds %d, surfels gathered %zu (full %zu), caches summed %zu (full %zu); lightmap L1 %.2e "
-                "max %.2e, grid L1 %.2e max %.2e\n",
-                what, r->passes.bounces, r->counts.surfels_gathered, full->counts.surfels_gathered,
-                r->counts.caches_summed, full->counts.caches_summed, lm_l1, lm_max, grid_l1, grid_max);
-    EXPECT_LT(lm_l1, 2e-3) << what;
+    const double inc_ref = shDistance(r->lightmap_sh, ref->lightmap_sh).first;
+    const double full_ref = shDistance(full->lightmap_sh, ref->lightmap_sh).first;
+    std::printf("%-8s rounds %d, surfels gathered %zu (full %zu); against the full relight: lightmap L1 %.2e max "
+                "%.2e, grid L1 %.2e max %.2e; against the converged one: incremental %.2e, full %.2e\n",
+                what, r->passes.bounces, r->counts.surfels_gathered, full->counts.surfels_gathered, lm_l1, lm_max,
+                grid_l1, grid_max, inc_ref, full_ref);
+    EXPECT_LT(lm_l1, 5e-3) << what;
     EXPECT_LT(lm_max, 1e-2) << what;
-    EXPECT_LT(grid_l1, 2e-3) << what;
+    EXPECT_LT(grid_l1, 5e-3) << what;
     EXPECT_LT(grid_max, 1e-2) << what;
+    EXPECT_LT(inc_ref, 2.0 * full_ref + 1e-4) << what;
     EXPECT_EQ(r->direct, full->direct) << what;
     EXPECT_GT(r->passes.bounces, 0) << what;
     return std::move(r).value();
