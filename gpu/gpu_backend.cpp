@@ -19,6 +19,9 @@ class GpuBackend final : public relight::RelightBackend {
                      relight::RelightResult& out) override {
     return relighter_->relightInto(lights, options, out);
   }
+  bool incrementalFor(const relight::LightSet& lights, const relight::RelightOptions& options) const override {
+    return relighter_->incrementalFor(lights, options);
+  }
   void invalidate() override { relighter_->invalidate(); }
 
  private:

@@ -802,6 +802,10 @@ EffectsPlan GpuRelighter::plan(const LightSet& lights, const RelightOptions& opt
   return impl_->pipeline->plan(lights, options);
 }
 
+bool GpuRelighter::incrementalFor(const LightSet& lights, const RelightOptions& options) const {
+  return impl_->pipeline->incrementalFor(lights, options);
+}
+
 void GpuRelighter::invalidate() { impl_->pipeline->invalidate(true); }
 
 Status GpuRelighter::relightInto(const LightSet& lights, const RelightOptions& o, RelightResult& res) {

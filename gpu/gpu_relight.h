@@ -54,6 +54,7 @@ class GpuRelighter {
   GpuRelighter& operator=(const GpuRelighter&) = delete;
 
   relight::EffectsPlan plan(const relight::LightSet& lights, const relight::RelightOptions& options) const;
+  bool incrementalFor(const relight::LightSet& lights, const relight::RelightOptions& options) const;
   // RelightResult::timings holds GPU time per stage (timer queries) and host time for the
   // CPU parts (emitter direct, readback).
   Status relightInto(const relight::LightSet& lights, const relight::RelightOptions& options,

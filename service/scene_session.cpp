@@ -212,6 +212,13 @@ void SceneSession::workerLoop() {
     // would give without --progressive ends it. Each result after the first takes a version
     // of its own.
     Progress progress;
+    // One light changed on a converged solution: the incremental relight propagates the
+    // change through the bounces and converges in this one call.
+    if (backend_->incrementalFor(lights, options_)) {
+      progress.final_cold = true;
+      if (relightAndPublish(lights, v, coalesced, options_, &progress, result)) last_relit = v;
+      continue;
+    }
     relight::RelightOptions warm = options_;
     warm.warm_start = true;
     warm.max_bounces = 1;

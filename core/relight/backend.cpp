@@ -15,6 +15,9 @@ class CpuBackend final : public RelightBackend {
     if (s) out.backend = "cpu";
     return s;
   }
+  bool incrementalFor(const LightSet& lights, const RelightOptions& options) const override {
+    return relighter_.incrementalFor(lights, options);
+  }
   void invalidate() override { relighter_.invalidate(); }
 
  private:

@@ -25,6 +25,8 @@ class RelightBackend {
   virtual std::string_view name() const = 0;
   virtual EffectsPlan plan(const LightSet& lights, const RelightOptions& options) const = 0;
   virtual Status relightInto(const LightSet& lights, const RelightOptions& options, RelightResult& out) = 0;
+  // Whether relightInto with these would relight one changed light incrementally.
+  virtual bool incrementalFor(const LightSet& lights, const RelightOptions& options) const = 0;
   // Forgets the last light set: the next relight is a full one.
   virtual void invalidate() = 0;
 };

@@ -251,6 +251,13 @@ Status RelightPipeline::relightInto(const LightSet& lights, const RelightOptions
   return {};
 }
 
+bool RelightPipeline::incrementalFor(const LightSet& lights, const RelightOptions& o) const {
+  if (!memo_.valid || !passes_->incremental()) return false;
+  const int bands = o.bands == 0 ? t_.lm_links.bands : o.bands;
+  if (!validateRequest(lights, o, t_.lm_links.bands, t_.surfelCount(), t_.scene.materials.size())) return false;
+  return !unchanged(lights, o, bands) && oneChange(lights, o, plan(lights, o), bands).has_value();
+}
+
 bool RelightPipeline::warmBase(const RelightOptions& o, int bands) const {
   const Memo& m = memo_;
   const int last_bands = m.options.bands ? m.options.bands : t_.lm_links.bands;
@@ -287,10 +294,10 @@ std::optional<LightChange> RelightPipeline::oneChange(const LightSet& lights, co
                                                       const EffectsPlan& plan, int bands) const {
   const Memo& m = memo_;
   if (!sameSetting(lights, o, bands) || plan.bounces != m.bounced) return std::nullopt;
-  // With bounces, the change is propagated on top of the last solution: it must be a
-  // converged one, at the same bounce options.
+  // With bounces, the change is propagated on top of the last solution: it must be one
+  // converged to the same threshold (a warm relight's included; the cap may differ).
   if (plan.bounces && (!passes_->incrementalBounces() || m.bounce_stop != "threshold" ||
-                       o.max_bounces != m.options.max_bounces || o.bounce_threshold != m.options.bounce_threshold))
+                       o.bounce_threshold != m.options.bounce_threshold))
     return std::nullopt;
   const auto& L = lights.lights();
   auto same = [&](std::size_t i, std::size_t j) { return sameEntry(L[i], j); };

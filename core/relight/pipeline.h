@@ -34,6 +34,8 @@ class RelightPipeline {
   ~RelightPipeline();
 
   EffectsPlan plan(const LightSet& lights, const RelightOptions& options) const;
+  // Whether relightInto(lights, options) would relight one changed light incrementally.
+  bool incrementalFor(const LightSet& lights, const RelightOptions& options) const;
   // Relights into `res`, reusing its arrays' capacity. On error `res` is unspecified.
   Status relightInto(const LightSet& lights, const RelightOptions& options, RelightResult& res);
   // kLightState: the next relight is a full one, but what depends on emission alone is

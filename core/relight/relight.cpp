@@ -162,6 +162,10 @@ EffectsPlan Relighter::plan(const LightSet& lights, const RelightOptions& option
   return impl_->pipeline.plan(lights, options);
 }
 
+bool Relighter::incrementalFor(const LightSet& lights, const RelightOptions& options) const {
+  return impl_->pipeline.incrementalFor(lights, options);
+}
+
 Expected<RelightResult> Relighter::relight(const LightSet& lights, const RelightOptions& o) {
   RelightResult res;
   if (Status s = relightInto(lights, o, res); !s) return s;

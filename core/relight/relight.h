@@ -71,7 +71,7 @@ struct RelightOptions {
   int max_bounces = 100;
   float bounce_threshold = 1e-3f;  // stop when a bounce adds less than this fraction of the total flux
   // Allow incremental relight when exactly one light changed. With bounces on it needs the
-  // last relight converged (bounce_stop "threshold") at the same bounce options, and it
+  // last relight converged (bounce_stop "threshold") at the same bounce_threshold, and it
   // propagates the change until a round adds less than bounce_threshold of the total flux;
   // node radiosity changes below bounce_threshold of the scene's mean radiosity are not
   // pushed to the caches (the error this leaves is of the order of the full relight's).
@@ -246,6 +246,9 @@ class Relighter {
   ~Relighter();
 
   EffectsPlan plan(const LightSet& lights, const RelightOptions& options) const;
+  // Whether relightInto(lights, options) would relight one changed light incrementally
+  // (bounces included: then it converges in one call, where a warm start would not).
+  bool incrementalFor(const LightSet& lights, const RelightOptions& options) const;
   Expected<RelightResult> relight(const LightSet& lights, const RelightOptions& options = {});
   // Same, into `out`, reusing its arrays' capacity: the steady state of a daemon or an editor
   // session relighting the same scene allocates nothing. On error `out` is unspecified.

@@ -647,6 +647,51 @@ TEST(Daemon, ProgressivePublishesAWarmIterationThenTheConvergedResultAsTheNextVe
   EXPECT_EQ(list.scenes(0).version(), ur.version() + 1);
 }
 
+// Bounces to convergence: once the initial set converged (by the threshold, not the cap), a
+// change of one light is propagated incrementally and published converged at once, as the
+// update's own version; no preview, no version taken by the session.
+TEST(Daemon, ProgressivePublishesAnIncrementalChangeConvergedAtOnce) {
+  Fixture f;
+  DaemonProcess d(f.cache, {"--backend", "cpu", "--bounces", "100", "--progressive", "--log-level", "debug"});
+  ASSERT_TRUE(d.ok()) << d.error();
+  auto rpc = d.rpc();
+  v1::SceneOpened opened;
+  ASSERT_TRUE(openScene(*rpc, cornellRequest(), &opened).ok()) << d.log();
+  v1::SubscribeRequest sub;
+  *sub.mutable_scene() = refOf(opened);
+  auto ctx = context(60000);
+  auto stream = rpc->Subscribe(ctx.get(), sub);
+  ResultReader reader(stream.get());
+  auto initial = readUntilConverged(reader, 1);
+  ASSERT_FALSE(initial.empty());
+  ASSERT_LT(initial.back().header.iterations(), 100u) << "the initial set converged by the threshold";
+
+  v1::UpdateLightsRequest up;
+  *up.mutable_scene() = refOf(opened);
+  *up.add_add() = pointLight("key", 0.2f, 0.4f, 0.3f, 2.0f);
+  v1::UpdateLightsResponse ur;
+  ASSERT_TRUE(rpc->UpdateLights(context().get(), up, &ur).ok());
+  auto results = readUntilConverged(reader, ur.version());
+  ASSERT_FALSE(results.empty());
+  const Result& r = results.back();
+  EXPECT_EQ(r.header.version(), ur.version());
+  EXPECT_FALSE(r.header.preview());
+  EXPECT_GT(r.header.iterations(), 0u);
+  bool logged = false;
+  std::istringstream log(d.log());
+  for (std::string line; std::getline(log, line);)
+    logged |= line.find(" relight ") != std::string::npos &&
+              line.find(fmt::format("version={} ", ur.version())) != std::string::npos &&
+              line.find("incremental=true") != std::string::npos && line.find("preview=false") != std::string::npos;
+  EXPECT_TRUE(logged) << d.log();
+  ctx->TryCancel();
+  v1::StatsRequest sr;
+  *sr.mutable_scene() = refOf(opened);
+  v1::StatsResponse stats;
+  ASSERT_TRUE(rpc->Stats(context().get(), sr, &stats).ok());
+  EXPECT_EQ(stats.scene(0).version(), ur.version());
+}
+
 TEST(Daemon, TwentyConcurrentClientsLoseNoUpdateAndSeeNoTornResult) {
   Fixture f;
   DaemonProcess d(f.cache, quickFlags());
