@@ -25,6 +25,7 @@ using detail::reaches;
 class CpuPasses final : public RelightPasses {
  public:
   explicit CpuPasses(const SceneTables& tables) : t_(tables), p_(tables.p) {
+    detail::footprintNeighbours(p_.surfels.position, p_.surfels.area, neighbour_begin_, neighbour_);
     const std::size_t nodes = p_.tree.nodeCount();
     for (auto& f : flux_) f.assign(nodes, 0.0f);
     rad_rgbx_.assign(4 * nodes, 0.0f);
@@ -58,7 +59,7 @@ class CpuPasses final : public RelightPasses {
   // Incremental steps: the surfels the change reaches (re-lit), the tree nodes above them
   // (re-pulled), the caches linked to those nodes (re-lit), the changed light's baked direct.
   std::vector<std::uint32_t> changeSurfels(const LightChange& c, std::span<const glm::vec3> surfel_emit, bool bounced,
-                                           RelightResult& res);
+                                           int shadow_rays, RelightResult& res);
   // With bounces: pull the surfels whose b changed, and relight the caches linked to nodes
   // whose radiosity moved by more than the tolerance since their caches last read it.
   void pushChange(const RelightFrame& f, const std::vector<std::uint32_t>& changed, const std::string& prefix,
@@ -71,8 +72,8 @@ class CpuPasses final : public RelightPasses {
                     RelightResult& res);
   void sumCacheDirect(const EmitterTexels& emitter);
 
-  void lightSurfels(const scene::Light& light, std::vector<glm::vec3>& out, const std::vector<std::uint32_t>* subset,
-                    std::size_t& rays) const;
+  void lightSurfels(const scene::Light& light, int shadow_rays, std::vector<glm::vec3>& out,
+                    const std::vector<std::uint32_t>* subset, std::size_t& rays) const;
   void bakedDirect(const scene::Light& light, std::vector<glm::vec3>& out, std::size_t& rays) const;
   void setLeafFlux(std::size_t s);
   void pullAll();
@@ -102,6 +103,8 @@ class CpuPasses final : public RelightPasses {
   // to it last read; the caches relit since the last gather round (all: relit_all_); the
   // inverse of the gather tables, cache -> surfels reading it, lightmap and grid.
   std::vector<float> rad_lit_;
+  // Each surfel's neighbours, for the footprint shadow rays near shadow edges (Footprint).
+  std::vector<std::uint32_t> neighbour_begin_, neighbour_;
   std::vector<std::uint32_t> relit_lm_, relit_grid_;
   bool relit_all_ = false;
   bool gather_inverse_built_ = false;
@@ -127,7 +130,7 @@ Status CpuPasses::surfelDirect(const RelightFrame& f, std::span<const glm::vec3>
         per_light_surfel_[i].assign(ns, glm::vec3(0.0f));
         continue;
       }
-      lightSurfels(L[i].light, per_light_surfel_[i], nullptr, res.counts.shadow_rays);
+      lightSurfels(L[i].light, f.options.surfel_shadow_rays, per_light_surfel_[i], nullptr, res.counts.shadow_rays);
       res.passes.surfel_direct = 1;
     }
     for (std::size_t i = 0; i < L.size(); ++i)
@@ -298,7 +301,7 @@ Status CpuPasses::relightChange(const RelightFrame& f, const LightChange& c, std
   const bool bounced = f.plan.bounces;
   std::vector<std::uint32_t> touched;
   timedStage(res, "surfel_direct", [&] {
-    if (surfels_change) touched = changeSurfels(c, surfel_emit, bounced, res);
+    if (surfels_change) touched = changeSurfels(c, surfel_emit, bounced, f.options.surfel_shadow_rays, res);
   });
   if (!surfels_change) {
     if (c.kind == LightChange::Kind::kRemoved) per_light_surfel_.erase(per_light_surfel_.begin() + c.index);
@@ -325,7 +328,7 @@ Status CpuPasses::relightChange(const RelightFrame& f, const LightChange& c, std
 }
 
 std::vector<std::uint32_t> CpuPasses::changeSurfels(const LightChange& c, std::span<const glm::vec3> surfel_emit,
-                                                    bool bounced, RelightResult& res) {
+                                                    bool bounced, int shadow_rays, RelightResult& res) {
   const std::size_t ns = p_.surfels.size();
   // In parallel over fixed chunks, concatenated in order: the same list for any thread count.
   std::vector<std::uint32_t> touched;
@@ -346,7 +349,7 @@ std::vector<std::uint32_t> CpuPasses::changeSurfels(const LightChange& c, std::s
     std::vector<glm::vec3>& contrib = per_light_surfel_[c.index];
     std::fill(contrib.begin(), contrib.end(), glm::vec3(0.0f));
     // Every surfel: the full pass, which visits them in the same order and chunks.
-    lightSurfels(c.new_light, contrib, touched.size() == ns ? nullptr : &touched, res.counts.shadow_rays);
+    lightSurfels(c.new_light, shadow_rays, contrib, touched.size() == ns ? nullptr : &touched, res.counts.shadow_rays);
     res.passes.surfel_direct = 1;
   }
   // Re-sum in light order, exactly as the full relight does (per surfel: any order).
@@ -640,13 +643,13 @@ void CpuPasses::changeDirect(const RelightFrame& f, const LightChange& c, bool s
 
 // ---- kernels -------------------------------------------------------------------------------
 
-void CpuPasses::lightSurfels(const scene::Light& light, std::vector<glm::vec3>& out,
+void CpuPasses::lightSurfels(const scene::Light& light, int shadow_rays, std::vector<glm::vec3>& out,
                              const std::vector<std::uint32_t>* subset, std::size_t& rays) const {
   // Surfels in tree order are spatial neighbours and every ray ends at the same light (or is
   // parallel to its neighbours): 16-ray packets traverse nearly the same nodes. Lightmap
   // caches jump between charts, so their rays stay on the stream path (relight_bench).
   detail::shadowedLight(t_.accel, light, p_.surfels.position, p_.surfels.normal, {}, subset, out, rays,
-                        rt::Coherence::kCoherent);
+                        rt::Coherence::kCoherent, {p_.surfels.area, shadow_rays, neighbour_begin_, neighbour_});
 }
 
 void CpuPasses::bakedDirect(const scene::Light& light, std::vector<glm::vec3>& out, std::size_t& rays) const {

@@ -49,12 +49,96 @@ rt::Ray shadowRay(const rt::Accel& accel, const scene::Light& light, glm::vec3 p
   return ray;
 }
 
+void footprintNeighbours(std::span<const glm::vec3> position, std::span<const float> area,
+                         std::vector<std::uint32_t>& begin, std::vector<std::uint32_t>& neighbour) {
+  const std::size_t n = position.size();
+  begin.assign(n + 1, 0);
+  neighbour.clear();
+  if (n == 0) return;
+  constexpr float kReach = 4.0f;
+  constexpr std::size_t kMost = 24;
+  std::vector<float> radius(n);
+  for (std::size_t i = 0; i < n; ++i) radius[i] = std::sqrt(std::max(area[i], 0.0f) / 3.14159265f);
+  std::vector<float> sorted(radius);
+  std::nth_element(sorted.begin(), sorted.begin() + n / 2, sorted.end());
+  const float cell = std::max(kReach * sorted[n / 2], 1e-6f);
+  // Points sorted by grid cell; a cell's points are one equal range.
+  auto cellOf = [&](const glm::vec3& p) { return glm::ivec3(glm::floor(p / cell)); };
+  auto key = [](glm::ivec3 c) {
+    return (std::uint64_t(std::uint32_t(c.x) & 0x1fffff) << 42) | (std::uint64_t(std::uint32_t(c.y) & 0x1fffff) << 21) |
+           std::uint64_t(std::uint32_t(c.z) & 0x1fffff);
+  };
+  std::vector<std::pair<std::uint64_t, std::uint32_t>> order(n);
+  for (std::size_t i = 0; i < n; ++i) order[i] = {key(cellOf(position[i])), std::uint32_t(i)};
+  std::sort(order.begin(), order.end());
+  std::vector<std::vector<std::uint32_t>> part((n + kChunk - 1) / kChunk);
+  forChunks(n, kChunk, [&](std::size_t chunk, std::size_t b, std::size_t e) {
+    std::vector<std::pair<float, std::uint32_t>> near;
+    auto& out = part[chunk];
+    for (std::size_t i = b; i < e; ++i) {
+      const float reach = kReach * radius[i];
+      const int span = int(std::ceil(reach / cell));
+      const glm::ivec3 c = cellOf(position[i]);
+      near.clear();
+      for (int dz = -span; dz <= span; ++dz)
+        for (int dy = -span; dy <= span; ++dy)
+          for (int dx = -span; dx <= span; ++dx) {
+            const std::uint64_t k = key(c + glm::ivec3(dx, dy, dz));
+            auto lo = std::lower_bound(order.begin(), order.end(), std::make_pair(k, std::uint32_t(0)));
+            for (; lo != order.end() && lo->first == k; ++lo) {
+              if (lo->second == i) continue;
+              const glm::vec3 d = position[lo->second] - position[i];
+              const float d2 = glm::dot(d, d);
+              if (d2 <= reach * reach) near.push_back({d2, lo->second});
+            }
+          }
+      std::sort(near.begin(), near.end());
+      if (near.size() > kMost) near.resize(kMost);
+      out.push_back(std::uint32_t(near.size()));
+      for (const auto& [d2, j] : near) out.push_back(j);
+    }
+  });
+  std::size_t i = 0;
+  for (const auto& q : part)
+    for (std::size_t at = 0; at < q.size(); at += 1 + q[at], ++i) {
+      begin[i + 1] = begin[i] + q[at];
+      neighbour.insert(neighbour.end(), q.begin() + std::ptrdiff_t(at) + 1, q.begin() + std::ptrdiff_t(at + 1 + q[at]));
+    }
+}
+
+namespace {
+
+// The footprint's ray origins: a Vogel (golden-angle) spiral of `count` points over the disk
+// of radius `radius` in the plane of nrm, turned by a per-point angle so that neighbouring
+// surfels' patterns differ.
+void footprintOrigins(glm::vec3 pos, glm::vec3 nrm, float radius, int count, std::uint32_t salt, glm::vec3* out) {
+  glm::vec3 t, b;
+  orthonormalBasis(nrm, t, b);
+  constexpr float kGolden = 2.39996323f;  // pi * (3 - sqrt(5))
+  const float turn = 6.28318531f * unitFloat32(mixBits32(salt ^ 0x9e3779b9U));
+  for (int i = 0; i < count; ++i) {
+    const float r = radius * std::sqrt((float(i) + 0.5f) / float(count));
+    const float a = turn + kGolden * float(i);
+    out[i] = pos + r * (std::cos(a) * t + std::sin(a) * b);
+  }
+}
+
+// Where a surfel's footprint rays start, as a fraction of its disk's radius: inside, so that
+// a surfel at a corner does not test from behind the neighbouring wall.
+constexpr float kFootprintRadius = 0.6f;
+
+}  // namespace
+
 void shadowedLight(const rt::Accel& accel, const scene::Light& light, std::span<const glm::vec3> position,
                    std::span<const glm::vec3> normal, std::span<const std::uint8_t> valid,
                    const std::vector<std::uint32_t>* subset, std::vector<glm::vec3>& out, std::size_t& rays,
-                   rt::Coherence coherence) {
+                   rt::Coherence coherence, Footprint footprint) {
   const std::size_t n = subset ? subset->size() : position.size();
   out.resize(position.size());
+  const bool soft = footprint.rays > 1 && footprint.area.size() == position.size() &&
+                    footprint.neighbour_begin.size() == position.size() + 1;
+  // Per point, when soft: 0 no light, 1 centre lit, 2 centre shadowed.
+  std::vector<std::uint8_t> seen_from_centre(soft ? position.size() : 0, 0);
   std::vector<std::size_t> chunk_rays((n + kChunk - 1) / kChunk, 0);
   forChunks(n, kChunk, [&](std::size_t chunk, std::size_t begin, std::size_t end) {
     std::array<rt::Ray, kChunk> ray_buf;
@@ -73,13 +157,52 @@ void shadowedLight(const rt::Accel& accel, const scene::Light& light, std::span<
       who[count++] = k;
     }
     accel.occluded(std::span(ray_buf.data(), count), std::span(blocked.data(), count), coherence);
-    for (std::size_t k = 0; k < count; ++k)
+    for (std::size_t k = 0; k < count; ++k) {
       if (blocked[k]) out[who[k]] = glm::vec3(0.0f);
+      if (soft) seen_from_centre[who[k]] = blocked[k] ? 2 : 1;
+    }
     chunk_rays[chunk] = count;
   });
+  if (soft) {
+    // Points near a shadow edge test their footprint (every centre is known by now).
+    const int m = std::min(footprint.rays, 64);
+    std::vector<std::size_t> soft_rays((n + kChunk - 1) / kChunk, 0);
+    forChunks(n, kChunk, [&](std::size_t chunk, std::size_t begin, std::size_t end) {
+      std::vector<rt::Ray> ray_buf;
+      std::vector<std::uint8_t> blocked;
+      std::vector<std::uint32_t> who;
+      std::vector<glm::vec3> e_of;
+      std::array<glm::vec3, 64> origin;
+      for (std::size_t i = begin; i < end; ++i) {
+        const std::uint32_t k = subset ? (*subset)[i] : std::uint32_t(i);
+        const std::uint8_t mine = seen_from_centre[k];
+        if (mine == 0) continue;
+        bool edge = false;
+        for (std::uint32_t a = footprint.neighbour_begin[k]; a < footprint.neighbour_begin[k + 1] && !edge; ++a) {
+          const std::uint8_t theirs = seen_from_centre[footprint.neighbour[a]];
+          edge = theirs != 0 && theirs != mine;
+        }
+        if (!edge) continue;
+        const glm::vec3 pos = position[k], nrm = normal[k];
+        const float radius = kFootprintRadius * std::sqrt(std::max(footprint.area[k], 0.0f) / 3.14159265f);
+        footprintOrigins(pos, nrm, radius, m, k, origin.data());
+        for (int j = 0; j < m; ++j) ray_buf.push_back(shadowRay(accel, light, origin[j], nrm));
+        who.push_back(k);
+        e_of.push_back(scene::irradianceFrom(light, pos, nrm));
+      }
+      blocked.resize(ray_buf.size());
+      accel.occluded(std::span(ray_buf.data(), ray_buf.size()), std::span(blocked.data(), blocked.size()), coherence);
+      for (std::size_t w = 0; w < who.size(); ++w) {
+        int visible = 0;
+        for (int j = 0; j < m; ++j) visible += blocked[w * m + j] ? 0 : 1;
+        out[who[w]] = e_of[w] * (float(visible) / float(m));
+      }
+      soft_rays[chunk] = ray_buf.size();
+    });
+    for (std::size_t c : soft_rays) rays += c;
+  }
   for (std::size_t c : chunk_rays) rays += c;
 }
-
 
 void sampleEmitters(const EmitterSampler& sampler, const caches::LightmapCaches& points, int samples,
                     std::uint64_t salt, std::vector<float>& layers, std::size_t& rays) {

@@ -46,13 +46,32 @@ bool reaches(const scene::Light& l, const glm::vec3& p);
 // The shadow ray from surface point pos (geometric normal nrm) to `light`.
 rt::Ray shadowRay(const rt::Accel& accel, const scene::Light& light, glm::vec3 pos, glm::vec3 nrm);
 
+// Where the shadow rays of a point start. Every point tests its centre; with a footprint, a
+// point whose centre's visibility differs from a neighbour's (a shadow edge runs near it)
+// then tests `rays` points spread over the disk of area area[k] around it (a surfel's
+// footprint), and their visible fraction scales its light. A surfel lit from its centre alone
+// switches between lit and dark at once as a shadow edge sweeps over it, and the indirect
+// light it sends pops (docs/quality.md, "Temporal stability"); over its footprint it fades.
+// The neighbours (footprintNeighbours) lie all around a point, further than its footprint's
+// radius, so an edge reaches the footprint only after it has passed between two centres.
+struct Footprint {
+  std::span<const float> area;  // empty: every ray from the centre
+  int rays = 1;
+  std::span<const std::uint32_t> neighbour_begin, neighbour;  // CSR over the points
+};
+
+// Up to 24 nearest points within 4 disk radii (sqrt(area / pi)) of each point, as CSR.
+void footprintNeighbours(std::span<const glm::vec3> position, std::span<const float> area,
+                         std::vector<std::uint32_t>& begin, std::vector<std::uint32_t>& neighbour);
+
 // Shadowed direct irradiance of one light at a set of points (surfels or lightmap caches):
-// irradianceFrom() times one shadow ray, batched per chunk. `valid` (optional) masks points
-// that get no light; `subset` (optional) restricts the work to those indices.
+// irradianceFrom() times the visible fraction of the footprint's shadow rays, batched per
+// chunk. `valid` (optional) masks points that get no light; `subset` (optional) restricts
+// the work to those indices.
 void shadowedLight(const rt::Accel& accel, const scene::Light& light, std::span<const glm::vec3> position,
                    std::span<const glm::vec3> normal, std::span<const std::uint8_t> valid,
                    const std::vector<std::uint32_t>* subset, std::vector<glm::vec3>& out, std::size_t& rays,
-                   rt::Coherence coherence);
+                   rt::Coherence coherence, Footprint footprint = {});
 
 // The emitters' direct irradiance at every valid point (0 at invalid ones) per sampler layer
 // (RGB at layers[3 * (point * layers + layer)]), `samples` shadow rays each, seeded by the

@@ -83,6 +83,8 @@ Status validateRequest(const LightSet& lights, const RelightOptions& o, int link
   if (o.max_bounces < 0 || o.max_bounces > 1000) return invalidInput("relight: max_bounces {} not in 0..1000", o.max_bounces);
   if (!(o.bounce_threshold >= 0.0f) || !std::isfinite(o.bounce_threshold))
     return invalidInput("relight: bounce_threshold {} must be finite and >= 0", o.bounce_threshold);
+  if (o.surfel_shadow_rays < 1 || o.surfel_shadow_rays > 64)
+    return invalidInput("relight: surfel_shadow_rays {} not in 1..64", o.surfel_shadow_rays);
   if (o.emitter_samples < 1 || o.emitter_samples > 4096)
     return invalidInput("relight: emitter_samples {} not in 1..4096", o.emitter_samples);
   if (!o.surfel_irradiance.empty() && o.surfel_irradiance.size() != surfels)
@@ -270,6 +272,7 @@ bool RelightPipeline::sameSetting(const LightSet& lights, const RelightOptions& 
   const int last_bands = m.options.bands ? m.options.bands : t_.lm_links.bands;
   return o.incremental && o.surfel_irradiance.empty() && o.link_form == m.options.link_form &&
          bands == last_bands && o.kernel == m.options.kernel && o.emitter_samples == m.options.emitter_samples &&
+         o.surfel_shadow_rays == m.options.surfel_shadow_rays &&
          lights.sky().radiance == m.sky.radiance && lights.sky().sh == m.sky.sh &&
          sameEmissive(lights.emissive(), m.emissive) && lights.emissiveBaked() == m.emissive_baked;
 }

@@ -85,6 +85,13 @@ struct RelightOptions {
   // caps this call's iterations.
   bool warm_start = false;
   Kernel kernel = Kernel::kAuto;
+  // Shadow rays, 1..64, spread over the footprint of a surfel near a shadow edge (its centre's
+  // visibility differs from a neighbour's; the others test their centre only): the visible
+  // fraction scales its punctual light. With one, a surfel switches between lit and dark at
+  // once as a shadow edge crosses it and the indirect light pops from frame to frame while a
+  // light moves (docs/quality.md, "Temporal stability"). The CPU backend's; the GPU filters
+  // its shadow maps (3x3 PCF) instead.
+  int surfel_shadow_rays = 32;
   // Samples (one shadow ray each) per lightmap texel for the direct light of emissive
   // surfaces, 1..4096; the Monte Carlo noise of a texel's direct falls as 1/sqrt(samples).
   int emitter_samples = 32;

@@ -88,7 +88,7 @@ struct LightPath {
   FlickerFrames direct, indirect;                  // the relight's own surfel light
   FlickerFrames smooth_direct, smooth_indirect;    // surfels lit without shadow rays
 
-  LightPath() {
+  explicit LightPath(int rays = RelightOptions{}.surfel_shadow_rays) {
     scene::Scene s;
     const int grey = addMaterial(s, glm::vec3(0.6f));
     const int red = addMaterial(s, glm::vec3(0.7f, 0.2f, 0.2f));
@@ -110,7 +110,7 @@ struct LightPath {
     for (int t = 0; t <= 2 * kSteps; ++t) {
       lamp.light.position = glm::vec3(-0.125f + 0.25f * float(t) / float(2 * kSteps), 1.4f, 0.6f);
       EXPECT_TRUE(lights.modify(lamp));
-      Status st = r.relightInto(lights, RelightOptions{}, res);
+      Status st = r.relightInto(lights, RelightOptions{.surfel_shadow_rays = rays}, res);
       EXPECT_TRUE(st) << st.toString();
       if (!st) return;
       bench::appendFlickerFrame(res, baked->p, direct, indirect);
@@ -161,19 +161,26 @@ TEST(Flicker, SmoothSurfelLightGivesSmoothLightmapsWhateverTheCuts) {
   }
 }
 
-TEST(Flicker, TheSurfelsShadowRaysMakeTheIndirectPop) {
-  // A known limit (docs/quality.md, "Temporal stability"): a surfel's direct light is one
-  // shadow ray from its centre, so as the block's shadow edge sweeps the floor each surfel it
-  // crosses switches from lit to dark at once, and caches close to it (those at the block's
-  // and the wall's foot, linked to fine nodes holding few surfels) jump. The direct layer is
-  // the same with or without the surfels' shadows. When surfel visibility becomes smooth this
-  // fails: then the indirect should meet the bound of the test above.
+TEST(Flicker, FootprintShadowRaysKeepTheIndirectFromPopping) {
+  // docs/quality.md, "Temporal stability": a surfel lit through one shadow ray from its centre
+  // switches between lit and dark at once as the block's shadow edge sweeps the floor, and
+  // caches close to it (at the block's and the wall's foot, linked to fine nodes holding few
+  // surfels) jump. Surfels near a shadow edge test their footprint instead (the default
+  // surfel_shadow_rays), and their light fades as the edge crosses them. The direct layer is
+  // the same either way.
   const LightPath& path = lightPath();
   ASSERT_TRUE(path.baked);
-  const auto indirect = measureFlicker(path.indirect);
-  EXPECT_GT(indirect.ratio, 0.9);
-  EXPECT_GT(indirect.popping_texels, 0u);
+  const LightPath centre(1);
+  ASSERT_TRUE(centre.baked);
+  const auto soft = measureFlicker(path.indirect), hard = measureFlicker(centre.indirect);
+  std::printf("indirect: ratio %.3f, %zu of %zu texels pop; one ray per surfel: ratio %.3f, %zu pop\n", soft.ratio,
+              soft.popping_texels, soft.lit_texels, hard.ratio, hard.popping_texels);
+  EXPECT_GT(hard.popping_texels, hard.lit_texels / 5);
+  EXPECT_LT(soft.popping_texels, soft.lit_texels / 50);
+  EXPECT_LT(soft.popping_texels * 10, hard.popping_texels);
+  EXPECT_LT(soft.ratio, 0.95);
   EXPECT_EQ(path.direct.values, path.smooth_direct.values);
+  EXPECT_EQ(centre.direct.values, path.direct.values);
 }
 
 TEST(Flicker, AJumpInTheRelitSequenceIsDetected) {
