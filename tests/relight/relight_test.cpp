@@ -703,6 +703,31 @@ TEST(RelightDeterminism, OneAndTwoThreadsAreBitIdentical) {
   for (std::size_t k = 0; k < one.bounce_log.size(); ++k) EXPECT_EQ(one.bounce_log[k].added_flux, two.bounce_log[k].added_flux);
 }
 
+TEST(RelightDeterminism, IncrementalWithBouncesIsBitIdenticalForAnyThreadCount) {
+  const auto& rm = room();
+  ASSERT_TRUE(rm.baked);
+  auto run = [&](int threads) {
+    tbb::global_control limit(tbb::global_control::max_allowed_parallelism, threads);
+    Relighter r = rm.baked->relighter();
+    LightSet set;
+    EXPECT_TRUE(set.add(pointLight("a", {1, 1, 1}, 3.0f, 2.0f)));
+    EXPECT_TRUE(r.relight(set));
+    EXPECT_TRUE(set.modify(pointLight("a", {1.6f, 1, 1.2f}, 3.0f, 2.0f)));
+    auto res = r.relight(set);
+    EXPECT_TRUE(res);
+    EXPECT_EQ(res->passes.incremental, 1);
+    return std::move(res).value();
+  };
+  const RelightResult one = run(1), two = run(2);
+  ASSERT_EQ(one.lightmap_sh.size(), two.lightmap_sh.size());
+  EXPECT_EQ(0, std::memcmp(one.lightmap_sh.data(), two.lightmap_sh.data(), one.lightmap_sh.size() * sizeof(float)));
+  EXPECT_EQ(0, std::memcmp(one.grid_sh.data(), two.grid_sh.data(), one.grid_sh.size() * sizeof(float)));
+  EXPECT_EQ(one.surfel_radiosity, two.surfel_radiosity);
+  EXPECT_EQ(one.counts.surfels_gathered, two.counts.surfels_gathered);
+  ASSERT_EQ(one.bounce_log.size(), two.bounce_log.size());
+  for (std::size_t k = 0; k < one.bounce_log.size(); ++k) EXPECT_EQ(one.bounce_log[k].added_flux, two.bounce_log[k].added_flux);
+}
+
 // The pull's areas: a surfel no cache sees adds no area to its nodes; with every surfel seen
 // (or no flags at all) they are the tree's own areas, bit for bit.
 TEST(RelightPull, UnseenSurfelsAddNoAreaToTheirNodes) {
