@@ -23,8 +23,10 @@
 //   memory      daemon RSS before and after the scene is resident, and the scene's
 //               resident_bytes / artifact_bytes (Stats).
 //
-// Fixed scene (the bundled Cornell box, preset medium), fixed light path (a circle below the
-// ceiling). JSON to --json; a summary to stdout.
+// Scene: the bundled Cornell box at preset medium, its light moved on a circle below the
+// ceiling; or --scene F [--lights FILE --light ID --radius R]: the light set FILE sent after
+// the open, and its light ID moved on a circle of radius R (metres) around its position.
+// JSON to --json; a summary to stdout.
 //
 // CPU placement (an isolated many-core machine): --daemon-cpus 0-1 runs the started daemon
 // on CPUs 0 and 1 only (sched_setaffinity in the child before exec), --client-cpus 2-15 runs
@@ -40,6 +42,7 @@
 #include <map>
 #include <mutex>
 #include <numbers>
+#include <set>
 #include <thread>
 
 #include <fmt/format.h>
@@ -76,6 +79,7 @@ struct Args {
   double gap_ms = 10.0;
   double burst_s = 3.0;
   float cx = 0.278f, cy = 0.45f, cz = 0.28f, radius = 0.15f;  // light circle (Cornell box, metres)
+  std::string lights_file, light_id;  // --lights, --light: a light set sent after the open, the light moved
   std::string json;
 };
 
@@ -390,6 +394,9 @@ Args parseArgs(int argc, char** argv) {
       else if (k == "--daemon-flag") a.daemon_flags.push_back(val());
       else if (k == "--scene") a.scene = val();
       else if (k == "--preset") a.preset = val();
+      else if (k == "--lights") a.lights_file = val();
+      else if (k == "--light") a.light_id = val();
+      else if (k == "--radius") a.radius = std::stof(val());
       else if (k == "--clients") a.clients = parseList(val());
       else if (k == "--wait-ms") a.wait_ms = parseList(val());
       else if (k == "--update-clients") a.update_clients = parseList(val());
@@ -404,7 +411,7 @@ Args parseArgs(int argc, char** argv) {
       else if (k == "--help" || k == "-h") {
         std::printf(
             "service_bench [--target host:port | --daemon PATH --cache-dir DIR --bounces N --progressive]\n"
-            "              [--scene F] [--preset P]\n"
+            "              [--scene F] [--preset P] [--lights FILE --light ID] [--radius M]\n"
             "              [--clients 1,50] [--wait-ms 0,2000] [--updates N] [--poll-ms MS] [--gap-ms MS]\n"
             "              [--burst-s S] [--daemon-cpus LIST] [--client-cpus LIST] [--daemon-flag F ...] [--json F]\n"
             "              [--subscribe] [--bands B] [--shared-memory] [--update-clients 1,8] [--no-latency]\n"
@@ -442,7 +449,7 @@ Args parseArgs(int argc, char** argv) {
 }  // namespace
 
 int main(int argc, char** argv) {
-  const Args a = parseArgs(argc, argv);
+  Args a = parseArgs(argc, argv);
   // Pin this process first, so every thread it creates (clients, gRPC) inherits the set.
   std::vector<int> client_cpus, daemon_cpus;
   if (!a.client_cpus.empty()) {
@@ -480,8 +487,27 @@ int main(int argc, char** argv) {
   const auto t_open = Clock::now();
   SceneHandle scene = must(driver.openScene(oo));
   const double open_s = ms(Clock::now() - t_open) / 1e3;
-  if (scene.info.light_ids_size() == 0) die(invalidInput("{}: the scene has no light to move", a.scene));
-  const std::string light = scene.info.light_ids(0);
+  std::string light = scene.info.light_ids_size() > 0 ? scene.info.light_ids(0) : std::string();
+  if (!a.lights_file.empty()) {
+    // The level's light set, then its light --light moved on a circle around where it stands.
+    std::set<std::string> known(scene.info.light_ids().begin(), scene.info.light_ids().end());
+    auto u = must(LightUpdate::fromLightSetFile(a.lights_file, &known));
+    const auto r = must(driver.updateLights(scene, u));
+    (void)must(driver.relight(scene, r.version));
+    std::ifstream in(a.lights_file);
+    const auto doc = nlohmann::json::parse(in, nullptr, false);
+    bool found = false;
+    if (doc.is_object() && doc.contains("lights") && doc["lights"].is_array())
+      for (const auto& l : doc["lights"])
+        if (l.value("id", "") == a.light_id && l.contains("position") && l["position"].is_array() &&
+            l["position"].size() == 3) {
+          a.cx = l["position"][0].get<float>(), a.cy = l["position"][1].get<float>();
+          a.cz = l["position"][2].get<float>(), found = true;
+        }
+    if (!found) die(invalidInput("--light {}: no light with that id and a position in {}", a.light_id, a.lights_file));
+    light = a.light_id;
+  }
+  if (light.empty()) die(invalidInput("{}: the scene has no light to move", a.scene));
   // Wait for the initial result so the memory figures include it.
   (void)must(driver.relight(scene, scene.info.version()));
   auto stats1 = must(driver.stats(&scene));
