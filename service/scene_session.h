@@ -142,8 +142,15 @@ class SceneSession {
   // The precomputation; only once linked() (an instant-preview session before attach() has none).
   const precompute::ResidentScene& resident() const { return *resident_; }
   bool linked() const { return linked_.load(std::memory_order_acquire); }
-  const std::string& backendName() const { return backend_name_; }
-  const std::string& backendNote() const { return backend_note_; }
+  // Copies: an instant-preview session changes them when it is linked.
+  std::string backendName() const {
+    std::lock_guard lock(mutex_);
+    return backend_name_;
+  }
+  std::string backendNote() const {
+    std::lock_guard lock(mutex_);
+    return backend_note_;
+  }
   int bands() const { return bands_; }
   std::vector<std::string> lightIds() const;
 

@@ -46,10 +46,10 @@ namespace lightlink::preview {
 
 struct PreviewOptions {
   // Rays per probe, rounded down to a square (a strata x strata stratified sphere), 4..4096.
-  int rays = 144;
+  int rays = 256;
   // Total rays over all probes at most: above it the rays per probe are lowered (to no fewer
   // than 16), so a fine grid stays within the preview's time budget.
-  std::uint64_t max_total_rays = 1u << 20;
+  std::uint64_t max_total_rays = 1u << 19;
   int bands = 3;         // SH bands of the output, 1..4
   // Radiance Hints grid-to-grid bounce iterations after the first, 0..8. Each costs an SH
   // projection, no rays; on the demo Cornell box 3 bring the mean irradiance within 1 % of the
