@@ -89,6 +89,30 @@ Status writeStagedFile(const std::string& path, std::string_view bytes) {
   return {};
 }
 
+// The progress of an open that published a preview: the caller's, and cancelled also once the
+// previewed scene was closed (CloseScene during the precompute stops the precompute).
+class PreviewedProgress final : public Progress {
+ public:
+  PreviewedProgress(Progress* inner, const std::shared_ptr<SceneSession>& previewed)
+      : inner_(inner), previewed_(previewed) {}
+  void begin(std::string_view stage, std::size_t total) override {
+    if (inner_) inner_->begin(stage, total);
+  }
+  void update(std::size_t done) override {
+    if (inner_) inner_->update(done);
+  }
+  void end() override {
+    if (inner_) inner_->end();
+  }
+  bool cancelled() const override {
+    return (inner_ && inner_->cancelled()) || (previewed_ && previewed_->closed());
+  }
+
+ private:
+  Progress* inner_;
+  const std::shared_ptr<SceneSession>& previewed_;  // set by the load callback, read while precomputing
+};
+
 // A background restore stops early when the daemon shuts down.
 class RestoreProgress final : public Progress {
  public:
@@ -346,9 +370,14 @@ Expected<std::shared_ptr<SceneSession>> SceneRegistry::openResident(SessionIdent
   // Two opens of the same scene and parameters precompute once: the second waits and reuses.
   auto mutex = openMutexFor(identity.source_path + "|" + bake_options->precompute.canonical());
   std::unique_lock open_lock(*mutex);
-  auto resident = precompute::ResidentScene::open(rr, progress);
+  PreviewedProgress open_progress(progress, previewed);
+  auto resident = precompute::ResidentScene::open(rr, on_preview ? &open_progress : progress);
   open_lock.unlock();
-  if (!resident) return resident.status();
+  if (!resident) {
+    if (previewed && previewed->closed() && resident.status().code() == Code::kCancelled)
+      return notFound("scene_id: scene '{}' was closed while its links were computed", identity.id);
+    return resident.status();
+  }
 
   auto initial = initialLights(resident->scene());
   if (!initial) return initial.status();

@@ -109,9 +109,15 @@ glm::vec3 PreviewGrid::Impl::gridIrradiance(const std::vector<float>& grid_sh, c
     total += w;
   }
   if (!(total > 0.0f)) return glm::vec3(0.0f);
-  const float inv = 1.0f / total;
-  for (std::size_t c = 0; c < st; ++c) acc[c] *= inv;
-  return {sh::irradiance(bands, acc, n), sh::irradiance(bands, acc + nc, n), sh::irradiance(bands, acc + 2 * nc, n)};
+  // E(n) = max(0, sum A_l L_lm Y_lm(n)) per channel (sh::irradiance), the basis evaluated once.
+  float y[sh::kMaxBands * sh::kMaxBands];
+  sh::evalBasis(bands, n, y);
+  glm::vec3 e(0.0f);
+  for (std::size_t i = 0; i < nc; ++i) {
+    const float w = sh::kIrradianceBandFactors[std::size_t(sh::bandOf(int(i)))] * y[i];
+    e += w * glm::vec3(acc[i], acc[nc + i], acc[2 * nc + i]);
+  }
+  return glm::max(e / total, glm::vec3(0.0f));
 }
 
 Expected<PreviewGrid> PreviewGrid::build(const scene::Scene& scene, const rt::Accel& accel,

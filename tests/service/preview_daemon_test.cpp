@@ -157,6 +157,36 @@ TEST(DaemonPreview, FirstVersionIsThePreviewThenTheLinkedResultWithTheUpdatesMad
   EXPECT_EQ(stats.scene(0).instant_previews(), 2u);
 }
 
+TEST(DaemonPreview, CloseDuringThePrecomputeStopsItAndTheOpenFails) {
+  TempDir tmp;
+  DaemonProcess d(tmp / "cache", previewFlags());
+  ASSERT_TRUE(d.ok()) << d.error();
+  auto rpc = d.rpc();
+  auto octx = context(120000);
+  auto open = rpc->OpenScene(octx.get(), slowCornell());
+  v1::OpenSceneProgress m;
+  bool closed = false;
+  Clock::time_point closed_at;
+  while (open->Read(&m)) {
+    EXPECT_FALSE(m.has_opened());
+    if (!m.has_preview()) continue;
+    v1::CloseSceneRequest c;
+    *c.mutable_scene() = refOf(m.preview());
+    v1::CloseSceneResponse cr;
+    ASSERT_TRUE(rpc->CloseScene(context().get(), c, &cr).ok());
+    closed = true;
+    closed_at = Clock::now();
+  }
+  const grpc::Status s = open->Finish();
+  ASSERT_TRUE(closed) << d.log();
+  EXPECT_EQ(s.error_code(), grpc::StatusCode::NOT_FOUND) << s.error_message();
+  // The precompute polls for cancellation per chunk: it stops soon, not after its seconds.
+  EXPECT_LT(std::chrono::duration<double>(Clock::now() - closed_at).count(), 2.0);
+  v1::ListScenesResponse list;
+  ASSERT_TRUE(rpc->ListScenes(context().get(), {}, &list).ok());
+  EXPECT_EQ(list.scenes_size(), 0);
+}
+
 TEST(DaemonPreview, OffPerRequestOrPerDaemon) {
   TempDir tmp;
   for (const bool daemon_on : {true, false}) {
