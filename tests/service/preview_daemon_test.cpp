@@ -157,6 +157,47 @@ TEST(DaemonPreview, FirstVersionIsThePreviewThenTheLinkedResultWithTheUpdatesMad
   EXPECT_EQ(stats.scene(0).instant_previews(), 2u);
 }
 
+TEST(DaemonPreview, ASubscriberGetsThePreviewThenTheLinkedResultInFull) {
+  TempDir tmp;
+  DaemonProcess d(tmp / "cache", previewFlags());
+  ASSERT_TRUE(d.ok()) << d.error();
+  auto rpc = d.rpc();
+  auto octx = context(120000);
+  auto open = rpc->OpenScene(octx.get(), slowCornell());
+  v1::OpenSceneProgress m;
+  std::optional<v1::SceneOpened> opened;
+  std::unique_ptr<grpc::ClientContext> sctx;
+  std::unique_ptr<grpc::ClientReader<v1::ResultMessage>> stream;
+  std::optional<ResultReader> reader;
+  Result r;
+  while (open->Read(&m)) {
+    if (m.has_preview()) {
+      v1::SubscribeRequest sub;
+      *sub.mutable_scene() = refOf(m.preview());
+      sub.set_deltas(true);
+      sctx = context(60000);
+      stream = rpc->Subscribe(sctx.get(), sub);
+      reader.emplace(stream.get());
+      ASSERT_TRUE(reader->next(r)) << reader->error();
+      EXPECT_EQ(r.header.kind(), v1::RESULT_KIND_INSTANT_PREVIEW);
+      EXPECT_EQ(r.header.version(), m.preview().version());
+    }
+    if (m.has_opened()) opened = m.opened();
+  }
+  ASSERT_TRUE(open->Finish().ok()) << d.log();
+  ASSERT_TRUE(reader && opened);
+  // The next result on the stream is the linked one, sent whole (its payloads differ from the
+  // preview's: a lightmap now), with every payload the header announces.
+  ASSERT_TRUE(reader->next(r)) << reader->error();
+  EXPECT_EQ(r.header.kind(), v1::RESULT_KIND_LINKED);
+  EXPECT_EQ(r.header.version(), opened->version());
+  EXPECT_FALSE(r.header.delta());
+  EXPECT_GT(r.header.lightmap().width(), 0);
+  EXPECT_EQ(r.payloads.count(v1::PAYLOAD_LIGHTMAP_SH), 1u);
+  EXPECT_EQ(r.payloads.count(v1::PAYLOAD_GRID_SH), 1u);
+  sctx->TryCancel();
+}
+
 TEST(DaemonPreview, CloseDuringThePrecomputeStopsItAndTheOpenFails) {
   TempDir tmp;
   DaemonProcess d(tmp / "cache", previewFlags());
