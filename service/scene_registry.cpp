@@ -604,6 +604,14 @@ std::size_t SceneRegistry::size() const {
   return n;
 }
 
+std::size_t SceneRegistry::sizeWithoutPreviews() const {
+  std::lock_guard lock(mutex_);
+  std::size_t n = 0;
+  for (const auto& [id, s] : scenes_) n += s->linked() ? 1 : 0;
+  for (const auto& [id, r] : restoring_) n += scenes_.count(id) == 0 ? 1 : 0;
+  return n;
+}
+
 bool SceneRegistry::close(const std::string& id) {
   std::shared_ptr<SceneSession> s;
   {

@@ -78,6 +78,9 @@ class SceneRegistry {
   std::vector<std::shared_ptr<SceneSession>> list() const;
   // Resident scenes plus those still being restored.
   std::size_t size() const;
+  // size() without the scenes showing their instant preview (their open still runs, and is
+  // counted as an open).
+  std::size_t sizeWithoutPreviews() const;
   // Removes and closes a scene. False when no such scene.
   bool close(const std::string& id);
   // Stops the background writer, writes sessions.json a last time and closes every scene.

@@ -477,7 +477,9 @@ grpc::Status LightlinkService::OpenScene(grpc::ServerContext* ctx, const v1::Ope
     std::atomic<int>& n;
     ~Release() { --n; }
   } release{opening_};
-  if (registry_.size() + static_cast<std::size_t>(opening) > static_cast<std::size_t>(config_.max_scenes))
+  // A scene showing its instant preview is resident and still opening: counted once.
+  if (registry_.sizeWithoutPreviews() + static_cast<std::size_t>(opening) >
+      static_cast<std::size_t>(config_.max_scenes))
     return grpcError(grpc::StatusCode::RESOURCE_EXHAUSTED,
                      fmt::format("scenes: the daemon holds its limit of {} scenes (--max-scenes)", config_.max_scenes));
 
