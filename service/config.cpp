@@ -102,6 +102,10 @@ Status applyConfigFile(const std::string& path, DaemonConfig& c) {
       if (!v.is_boolean()) return invalidInput("--config {}: 'progressive' must be true or false", path);
       c.progressive = v.get<bool>();
     }
+    else if (key == "preview") {
+      if (!v.is_boolean()) return invalidInput("--config {}: 'preview' must be true or false", path);
+      c.preview = v.get<bool>();
+    }
     else if (key == "shared_memory_dir") s = str(c.shared_memory_dir);
     else if (key == "restore_sessions") {
       if (!v.is_boolean()) return invalidInput("--config {}: 'restore_sessions' must be true or false", path);
@@ -170,6 +174,10 @@ void declareFlags(CLI::App& app, DaemonConfig& c, std::string& config_path, std:
   app.add_flag("--progressive", c.progressive,
                "Publish each light change after one bounce iteration started from the last solution, then more "
                "iterations as new versions until converged");
+  app.add_option("--preview", c.preview,
+                 "Instant preview: publish a grid lit without links as a new scene's first version while its "
+                 "links are computed (on | off; OpenScene's `preview` overrides it per scene)")
+      ->capture_default_str();
   app.add_flag("--no-restore", no_restore, "Do not re-open the scenes recorded in <cache-dir>/sessions.json");
   app.add_option("--shared-memory-dir", c.shared_memory_dir,
                  "Base directory (a memory file system) for results handed to clients on this machine through "

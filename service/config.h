@@ -54,6 +54,9 @@ struct DaemonConfig {
   double drain_seconds = 5.0;              // SIGTERM: how long open streams may take to finish
   int relight_bounces = relight::RelightOptions{}.max_bounces;  // relight options of every scene
   bool progressive = false;                // one warm iteration first, then more as new versions
+  // Instant preview: a new scene's first version is a grid lit without links (core/preview),
+  // published as soon as the scene is loaded; the linked result follows (OpenSceneRequest.preview).
+  bool preview = true;
   bool restore_sessions = true;            // re-open the scenes of sessions.json at start
   // Bytes the cache's artifacts and inline scenes may take; closed scenes' files are
   // evicted least recently used first beyond it (service/cache_quota.h). 0: no limit.

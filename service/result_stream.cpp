@@ -67,6 +67,7 @@ void fillHeader(const Snapshot& s, const EncodedResult& e, const HeaderExtras& e
   h->set_preview(s.preview);
   h->set_residual(s.residual);
   h->set_iterations(static_cast<std::uint32_t>(std::max(0, s.iterations)));
+  h->set_kind(s.instant_preview ? v1::RESULT_KIND_INSTANT_PREVIEW : v1::RESULT_KIND_LINKED);
 }
 
 bool sendFull(const Snapshot& s, const EncodedResult& e, const HeaderExtras& extras, std::size_t chunk_bytes,

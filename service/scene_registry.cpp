@@ -15,6 +15,8 @@
 
 #include "core/artifact/artifact.h"
 #include "core/common/private_files.h"
+#include "core/preview/preview_grid.h"
+#include "core/rt/accel.h"
 #include "service/auth.h"
 #include "service/cache_quota.h"
 #include "service/logging.h"
@@ -86,6 +88,30 @@ Status writeStagedFile(const std::string& path, std::string_view bytes) {
   }
   return {};
 }
+
+// The progress of an open that published a preview: the caller's, and cancelled also once the
+// previewed scene was closed (CloseScene during the precompute stops the precompute).
+class PreviewedProgress final : public Progress {
+ public:
+  PreviewedProgress(Progress* inner, const std::shared_ptr<SceneSession>& previewed)
+      : inner_(inner), previewed_(previewed) {}
+  void begin(std::string_view stage, std::size_t total) override {
+    if (inner_) inner_->begin(stage, total);
+  }
+  void update(std::size_t done) override {
+    if (inner_) inner_->update(done);
+  }
+  void end() override {
+    if (inner_) inner_->end();
+  }
+  bool cancelled() const override {
+    return (inner_ && inner_->cancelled()) || (previewed_ && previewed_->closed());
+  }
+
+ private:
+  Progress* inner_;
+  const std::shared_ptr<SceneSession>& previewed_;  // set by the load callback, read while precomputing
+};
 
 // A background restore stops early when the daemon shuts down.
 class RestoreProgress final : public Progress {
@@ -208,7 +234,8 @@ Expected<std::string> SceneRegistry::storeInlineScene(const std::string& bytes, 
   return path.string();
 }
 
-Expected<std::shared_ptr<SceneSession>> SceneRegistry::open(const v1::OpenSceneRequest& request, Progress* progress) {
+Expected<std::shared_ptr<SceneSession>> SceneRegistry::open(const v1::OpenSceneRequest& request, Progress* progress,
+                                                            const PreviewCallback& on_preview) {
   SessionIdentity identity;
   identity.id = randomToken();
   identity.id[0] = 's';  // ids start with a letter; 60 random bits keep them unique
@@ -246,7 +273,10 @@ Expected<std::shared_ptr<SceneSession>> SceneRegistry::open(const v1::OpenSceneR
   params.clear_source();
   params.clear_lightset_json();
   identity.params = params;
-  auto session = openResident(std::move(identity), request, nullptr, 1, request.lightset_json(), progress, staged);
+  const bool preview = request.has_preview() ? request.preview() : config_.preview;
+  const PreviewCallback none = [](const std::shared_ptr<SceneSession>&) {};
+  auto session = openResident(std::move(identity), request, nullptr, 1, request.lightset_json(), progress, staged,
+                              preview ? (on_preview ? &on_preview : &none) : nullptr);
   // The scene is durable before OpenScene answers: its updates are journaled against it.
   if (session) {
     if (Status s = persistNow(); !s) {
@@ -263,7 +293,8 @@ Expected<std::shared_ptr<SceneSession>> SceneRegistry::openResident(SessionIdent
                                                                    std::uint64_t version,
                                                                    const std::string& lightset_json,
                                                                    Progress* progress,
-                                                                   const std::string& staged_upload) {
+                                                                   const std::string& staged_upload,
+                                                                   const PreviewCallback* on_preview) {
   // The daemon's --bounces is the scene's bounce cap unless the request's options set one.
   relight::RelightOptions relight_defaults;
   relight_defaults.max_bounces = config_.relight_bounces;
@@ -293,26 +324,64 @@ Expected<std::shared_ptr<SceneSession>> SceneRegistry::openResident(SessionIdent
   rr.load.max_image_pixels = config_.max_image_pixels;
   rr.load.max_triangles = config_.max_triangles;
   rr.load.max_lights = kMaxLightsPerScene;
+  // The initial light set: the restored one, or the scene's lights with the JSON over them.
+  const auto initialLights = [&](const scene::Scene& scene) -> Expected<relight::LightSet> {
+    relight::LightSet lights;
+    if (restored_lights) {
+      lights = *restored_lights;
+    } else {
+      lights = relight::LightSet::fromSceneLights(scene.lights);
+      if (!overrides.is_null()) {
+        if (Status s = lights.apply(overrides); !s) return invalidInput("lightset_json: {}", s.message());
+      }
+    }
+    if (Status s = checkMaterials(lights, scene.materials.size(), "lightset_json"); !s) return s;
+    if (lights.lights().size() > kMaxLightsPerScene)
+      return resourceExhausted("lights: the scene and lightset_json give {} lights, above the limit of {} lights per "
+                               "scene", lights.lights().size(), kMaxLightsPerScene);
+    return lights;
+  };
+  SessionOptions so;
+  so.backend = backendChoiceName(request.backend(), config_.backend);
+  so.relight = bake_options->relight;  // every relight option of the one table, not a chosen few
+  so.progressive = config_.progressive;
+  so.journal = journal_;
+
+  // The instant preview, built from the loaded scene before the precompute starts.
+  std::shared_ptr<SceneSession> previewed;
+  if (on_preview) {
+    rr.on_loaded = [&](const scene::Scene& scene) {
+      auto lights = initialLights(scene);
+      if (!lights) return;  // the open fails with this error after loading
+      previewed = startPreview(identity, scene, *bake_options, *lights, version, so);
+      if (previewed) (*on_preview)(previewed);
+    };
+  }
+  // A previewed scene whose open fails is removed again: its clients get NOT_FOUND.
+  struct DropPreview {
+    SceneRegistry& registry;
+    std::shared_ptr<SceneSession>& session;
+    bool keep = false;
+    ~DropPreview() {
+      if (session && !keep) registry.close(session->identity().id);
+    }
+  } drop_preview{*this, previewed};
+
   // Two opens of the same scene and parameters precompute once: the second waits and reuses.
   auto mutex = openMutexFor(identity.source_path + "|" + bake_options->precompute.canonical());
   std::unique_lock open_lock(*mutex);
-  auto resident = precompute::ResidentScene::open(rr, progress);
+  PreviewedProgress open_progress(progress, previewed);
+  auto resident = precompute::ResidentScene::open(rr, on_preview ? &open_progress : progress);
   open_lock.unlock();
-  if (!resident) return resident.status();
-
-  relight::LightSet lights;
-  if (restored_lights) {
-    lights = *restored_lights;
-  } else {
-    lights = relight::LightSet::fromSceneLights(resident->scene().lights);
-    if (!overrides.is_null()) {
-      if (Status s = lights.apply(overrides); !s) return invalidInput("lightset_json: {}", s.message());
-    }
+  if (!resident) {
+    if (previewed && previewed->closed() && resident.status().code() == Code::kCancelled)
+      return notFound("scene_id: scene '{}' was closed while its links were computed", identity.id);
+    return resident.status();
   }
-  if (Status s = checkMaterials(lights, resident->scene().materials.size(), "lightset_json"); !s) return s;
-  if (lights.lights().size() > kMaxLightsPerScene)
-    return resourceExhausted("lights: the scene and lightset_json give {} lights, above the limit of {} lights per "
-                             "scene", lights.lights().size(), kMaxLightsPerScene);
+
+  auto initial = initialLights(resident->scene());
+  if (!initial) return initial.status();
+  relight::LightSet lights = std::move(initial).value();
   if (!staged_upload.empty()) {
     // The upload loaded: now it is stored under its content name.
     if (::rename(staged_upload.c_str(), identity.source_path.c_str()) != 0)
@@ -322,17 +391,20 @@ Expected<std::shared_ptr<SceneSession>> SceneRegistry::openResident(SessionIdent
   touchLastUse(resident->artifactPath());
   if (identity.source_path.rfind(config_.cache_dir, 0) == 0) touchLastUse(identity.source_path);
 
-  SessionOptions so;
-  so.backend = backendChoiceName(request.backend(), config_.backend);
-  so.relight = bake_options->relight;  // every relight option of the one table, not a chosen few
-  so.progressive = config_.progressive;
-  so.journal = journal_;
   const bool reused = resident->reused();
   const std::string note = resident->note();
   const double open_s = resident->openSeconds();
-  auto session = SceneSession::start(identity, std::move(resident).value(), std::move(lights), version, so);
-  if (!session) return session.status();
-  {
+  Expected<std::shared_ptr<SceneSession>> session = internalError("not opened");
+  if (previewed) {
+    // The session exists (with the updates its clients made meanwhile): it gets the
+    // precomputation, and this returns once its linked result is published.
+    const auto deadline = std::chrono::steady_clock::now() + std::chrono::minutes(10);
+    if (Status s = previewed->attach(std::move(resident).value(), deadline); !s) return s;
+    session = previewed;
+    drop_preview.keep = true;
+  } else {
+    session = SceneSession::start(identity, std::move(resident).value(), std::move(lights), version, so);
+    if (!session) return session.status();
     std::lock_guard lock(mutex_);
     scenes_[identity.id] = *session;
   }
@@ -349,6 +421,60 @@ Expected<std::shared_ptr<SceneSession>> SceneRegistry::openResident(SessionIdent
   // The new artifact may have taken the cache beyond its quota: closed scenes' files go.
   enforceQuota(0);
   return session;
+}
+
+std::shared_ptr<SceneSession> SceneRegistry::startPreview(const SessionIdentity& identity, const scene::Scene& scene,
+                                                          const bake::BakeOptions& options,
+                                                          const relight::LightSet& lights, std::uint64_t version,
+                                                          const SessionOptions& so) {
+  const auto t0 = std::chrono::steady_clock::now();
+  const auto failed = [&](const Status& why) -> std::shared_ptr<SceneSession> {
+    logEvent(LogLevel::kWarn, "preview_skipped", {{"scene", identity.id}, {"error", why.message()}});
+    return nullptr;
+  };
+  PreviewScene ps;
+  try {
+    // A fast BVH: the preview traces a few hundred thousand rays, not the precompute's billions.
+    rt::AccelOptions ao;
+    ao.quality = rt::AccelOptions::Quality::kFast;
+    auto accel = rt::Accel::build(scene, ao);
+    if (!accel) return failed(accel.status());
+    ps.accel = std::make_unique<rt::Accel>(std::move(accel).value());
+    const precompute::PrecomputeOptions& pre = options.precompute;
+    preview::PreviewOptions po;
+    po.bands = options.relight.bands > 0 ? options.relight.bands : pre.bands;
+    po.grid.spacing_m = pre.grid_spacing_m;
+    po.grid.resolution = pre.grid_resolution;
+    po.grid.validity.rays = pre.validity_rays;
+    auto grid = preview::PreviewGrid::build(scene, *ps.accel, po);
+    if (!grid) return failed(grid.status());
+    ps.grid = std::make_unique<preview::PreviewGrid>(std::move(grid).value());
+    ps.build_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    const preview::PreviewStats st = ps.grid->buildStats();
+    const int bands = po.bands;
+    auto session = SceneSession::startPreview(identity, std::move(ps), lights, version, so, bands,
+                                              scene.materials.size());
+    if (!session) return failed(session.status());
+    {
+      std::lock_guard lock(mutex_);
+      scenes_[identity.id] = *session;
+    }
+    // Durable before anyone is told: updates are journaled against it.
+    if (Status s = persistNow(); !s) {
+      close(identity.id);
+      return failed(s);
+    }
+    logEvent(LogLevel::kInfo, "preview_published",
+             {{"scene", identity.id},
+              {"version", version},
+              {"probes", st.probes},
+              {"probes_valid", st.probes_valid},
+              {"rays_per_probe", st.rays_per_probe},
+              {"seconds", std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count()}});
+    return *session;
+  } catch (const std::bad_alloc&) {
+    return failed(resourceExhausted("out of memory while building the instant preview"));
+  }
 }
 
 void SceneRegistry::restore() {
@@ -446,7 +572,7 @@ void SceneRegistry::enforceQuota(std::uint64_t incoming) {
     // the restore is over rather than remove what it is about to map.
     if (!restoring_.empty()) return;
     for (const auto& [id, s] : scenes_) {
-      keep.push_back(s->resident().artifactPath());
+      if (s->linked()) keep.push_back(s->resident().artifactPath());
       keep.push_back(s->identity().source_path);
     }
   }
@@ -478,6 +604,14 @@ std::size_t SceneRegistry::size() const {
   return n;
 }
 
+std::size_t SceneRegistry::sizeWithoutPreviews() const {
+  std::lock_guard lock(mutex_);
+  std::size_t n = 0;
+  for (const auto& [id, s] : scenes_) n += s->linked() ? 1 : 0;
+  for (const auto& [id, r] : restoring_) n += scenes_.count(id) == 0 ? 1 : 0;
+  return n;
+}
+
 bool SceneRegistry::close(const std::string& id) {
   std::shared_ptr<SceneSession> s;
   {
@@ -487,9 +621,9 @@ bool SceneRegistry::close(const std::string& id) {
     s = it->second;
     scenes_.erase(it);
   }
-  const std::string artifact = s->resident().artifactPath();
+  const std::string artifact = s->linked() ? s->resident().artifactPath() : std::string();
   s->close();
-  touchLastUse(artifact);  // last use, for the quota's eviction order
+  if (!artifact.empty()) touchLastUse(artifact);  // last use, for the quota's eviction order
   markDirty();
   logEvent(LogLevel::kInfo, "scene_closed", {{"scene", id}});
   return true;

@@ -26,6 +26,7 @@
 #include <thread>
 #include <vector>
 
+#include "core/bake/bake_options.h"
 #include "core/common/progress.h"
 #include "core/common/status.h"
 #include "proto/lightlink.pb.h"
@@ -46,8 +47,16 @@ class SceneRegistry {
 
   // Where OpenScene may name a scene by path (open() checks it too).
   const SceneRoots& sceneRoots() const { return roots_; }
-  // Opens a scene (request validated here); `progress` sees the precompute stages.
-  Expected<std::shared_ptr<SceneSession>> open(const v1::OpenSceneRequest& request, Progress* progress);
+  // Called once when an open publishes its instant preview: the session is registered (and
+  // persisted) and its first result is the preview.
+  using PreviewCallback = std::function<void(const std::shared_ptr<SceneSession>&)>;
+  // Opens a scene (request validated here); `progress` sees the precompute stages. With the
+  // instant preview on (--preview, OpenSceneRequest.preview), the scene is registered with its
+  // preview as soon as it is loaded (`on_preview` is told), and the session is linked when the
+  // precomputation is ready; returns once the linked result is published. A failed open
+  // removes the previewed scene again.
+  Expected<std::shared_ptr<SceneSession>> open(const v1::OpenSceneRequest& request, Progress* progress,
+                                               const PreviewCallback& on_preview = {});
   // Re-opens the scenes of sessions.json (same ids, tokens, light sets, versions) on a
   // background thread and returns at once. Scenes that cannot be re-opened are logged and
   // dropped.
@@ -69,6 +78,9 @@ class SceneRegistry {
   std::vector<std::shared_ptr<SceneSession>> list() const;
   // Resident scenes plus those still being restored.
   std::size_t size() const;
+  // size() without the scenes showing their instant preview (their open still runs, and is
+  // counted as an open).
+  std::size_t sizeWithoutPreviews() const;
   // Removes and closes a scene. False when no such scene.
   bool close(const std::string& id);
   // Stops the background writer, writes sessions.json a last time and closes every scene.
@@ -90,7 +102,13 @@ class SceneRegistry {
                                                        const relight::LightSet* restored_lights,
                                                        std::uint64_t restored_version,
                                                        const std::string& lightset_json, Progress* progress,
-                                                       const std::string& staged_upload = {});
+                                                       const std::string& staged_upload = {},
+                                                       const PreviewCallback* on_preview = nullptr);
+  // Builds the instant preview of a loaded scene and registers its session (persisted).
+  // Null when it cannot (logged): the open goes on without a preview.
+  std::shared_ptr<SceneSession> startPreview(const SessionIdentity& identity, const scene::Scene& scene,
+                                             const bake::BakeOptions& options, const relight::LightSet& lights,
+                                             std::uint64_t version, const SessionOptions& so);
   Expected<std::string> storeInlineScene(const std::string& bytes, std::string* staged);
   void restoreAll(std::vector<SessionRecord> records);
   // Removes closed scenes' cache files beyond the quota (`incoming`: bytes about to be written).

@@ -3,6 +3,7 @@
 #include <future>
 #include <new>
 
+#include "core/preview/preview_grid.h"
 #include "core/relight/direct_layer.h"
 #include "gpu/backend_factory.h"
 #include "service/logging.h"
@@ -15,10 +16,16 @@ constexpr auto kWaitSlice = std::chrono::milliseconds(50);
 
 }  // namespace
 
-SceneSession::SceneSession(SessionIdentity identity, precompute::ResidentScene resident, relight::LightSet lights,
-                           std::uint64_t version, const SessionOptions& options)
+PreviewScene::PreviewScene() = default;
+PreviewScene::PreviewScene(PreviewScene&&) noexcept = default;
+PreviewScene& PreviewScene::operator=(PreviewScene&&) noexcept = default;
+PreviewScene::~PreviewScene() = default;
+
+SceneSession::SceneSession(SessionIdentity identity, relight::LightSet lights, std::uint64_t version,
+                           const SessionOptions& options, int bands, std::size_t material_count)
     : identity_(std::move(identity)),
-      resident_(std::move(resident)),
+      bands_(bands),
+      material_count_(material_count),
       options_(options.relight),
       progressive_(options.progressive),
       journal_(options.journal),
@@ -33,10 +40,14 @@ Expected<std::shared_ptr<SceneSession>> SceneSession::start(SessionIdentity iden
   if (initial_version == 0) initial_version = 1;  // versions start at 1; 0 means "none" on the wire
   auto choice = gpu::parseBackendChoice(options.backend);
   if (!choice) return choice.status();
+  const auto& pre = resident.precomputation();
+  const int bands = options.relight.bands > 0 ? options.relight.bands : pre.options.bands;
+  const std::size_t materials = resident.scene().materials.size();
   std::shared_ptr<SceneSession> s(
-      new SceneSession(std::move(identity), std::move(resident), std::move(lights), initial_version, options));
-  const auto& p = s->resident_.precomputation();
-  s->grid_valid_ = std::make_shared<const std::vector<std::uint8_t>>(p.grid.valid);
+      new SceneSession(std::move(identity), std::move(lights), initial_version, options, bands, materials));
+  s->resident_ = std::make_unique<precompute::ResidentScene>(std::move(resident));
+  s->linked_ = true;
+  s->grid_valid_ = std::make_shared<const std::vector<std::uint8_t>>(s->resident_->precomputation().grid.valid);
 
   // The backend is made on the worker thread, which is the only one that ever uses it (a
   // GL context is current on the thread that created it).
@@ -45,7 +56,7 @@ Expected<std::shared_ptr<SceneSession>> SceneSession::start(SessionIdentity iden
   SceneSession* self = s.get();
   const gpu::BackendChoice c = *choice;
   s->worker_ = std::thread([self, c, &made] {
-    const auto& r = self->resident_;
+    const auto& r = *self->resident_;
     std::string note;
     auto backend = gpu::makeBackend(c, r.scene(), r.accel(), r.precomputation(), r.lightmapLinks(), r.gridLinks(),
                                     &note);
@@ -66,6 +77,192 @@ Expected<std::shared_ptr<SceneSession>> SceneSession::start(SessionIdentity iden
   return s;
 }
 
+Expected<std::shared_ptr<SceneSession>> SceneSession::startPreview(SessionIdentity identity, PreviewScene preview,
+                                                                  relight::LightSet lights,
+                                                                  std::uint64_t initial_version,
+                                                                  const SessionOptions& options, int bands,
+                                                                  std::size_t material_count) {
+  if (initial_version == 0) initial_version = 1;
+  auto choice = gpu::parseBackendChoice(options.backend);
+  if (!choice) return choice.status();
+  if (!preview.accel || !preview.grid) return internalError("startPreview: no preview grid");
+  if (preview.grid->bands() != bands)
+    return internalError("startPreview: the preview grid has {} bands, the scene {}", preview.grid->bands(), bands);
+  std::shared_ptr<SceneSession> s(
+      new SceneSession(std::move(identity), std::move(lights), initial_version, options, bands, material_count));
+  s->backend_choice_ = *choice;
+  s->preview_valid_ = std::make_shared<const std::vector<std::uint8_t>>(preview.grid->grid().valid);
+  s->preview_ = std::make_unique<PreviewScene>(std::move(preview));
+  s->backend_name_ = "cpu";  // what computes the preview; the backend's name once linked
+  s->backend_note_ = "instant preview (the links are being computed)";
+  // The first preview on this thread, so that it exists when this returns.
+  {
+    relight::LightSet first;
+    {
+      std::lock_guard lock(s->mutex_);
+      first = s->lights_;
+      s->relit_version_ = s->version_;
+    }
+    if (!s->previewAndPublish(first, initial_version, 0)) return internalError("instant preview: the first relight failed");
+  }
+  SceneSession* self = s.get();
+  s->worker_ = std::thread([self] {
+    if (self->previewLoop()) self->linkedStart();
+  });
+  return s;
+}
+
+Status SceneSession::attach(precompute::ResidentScene resident, Clock::time_point deadline) {
+  std::promise<Status> made;
+  auto made_future = made.get_future();
+  std::uint64_t errors_before = 0;
+  {
+    std::lock_guard lock(mutex_);
+    if (stop_) return notFound("scene_id: scene '{}' is closed", identity_.id);
+    if (linked_ || attach_requested_) return internalError("attach: scene '{}' is linked already", identity_.id);
+    resident_ = std::make_unique<precompute::ResidentScene>(std::move(resident));
+    grid_valid_ = std::make_shared<const std::vector<std::uint8_t>>(resident_->precomputation().grid.valid);
+    linked_.store(true, std::memory_order_release);
+    attach_requested_ = true;
+    attach_made_ = &made;
+    errors_before = relight_errors_;
+  }
+  work_cv_.notify_all();
+  if (Status st = made_future.get(); !st) return st;
+  // The linked result: published, or its relight failed (counted), or the session closed.
+  std::unique_lock lock(mutex_);
+  while (true) {
+    if (latest_ && !latest_->instant_preview) return {};
+    if (relight_errors_ > errors_before) return internalError("scene '{}': the first linked relight failed", identity_.id);
+    if (stop_) return notFound("scene_id: scene '{}' is closed", identity_.id);
+    if (Clock::now() >= deadline) return cancelled("scene '{}': the linked result was not ready in time", identity_.id);
+    result_cv_.wait_until(lock, std::min(deadline, Clock::now() + kWaitSlice));
+  }
+}
+
+bool SceneSession::previewLoop() {
+  std::uint64_t last = 0;
+  {
+    std::lock_guard lock(mutex_);
+    last = relit_version_;  // the version startPreview published
+  }
+  while (true) {
+    relight::LightSet lights;
+    std::uint64_t v = 0;
+    {
+      std::unique_lock lock(mutex_);
+      work_cv_.wait(lock, [&] { return stop_ || attach_requested_ || version_ > relit_version_; });
+      if (stop_) {
+        if (attach_made_) attach_made_->set_value(notFound("scene_id: scene '{}' is closed", identity_.id));
+        attach_made_ = nullptr;
+        return false;
+      }
+      if (attach_requested_) return true;
+      lights = lights_;
+      v = version_;
+      relit_version_ = v;
+    }
+    if (previewAndPublish(lights, v, v > last ? v - last - 1 : 0)) last = v;
+  }
+}
+
+void SceneSession::linkedStart() {
+  std::promise<Status>* made = nullptr;
+  {
+    std::lock_guard lock(mutex_);
+    made = attach_made_;
+    attach_made_ = nullptr;
+  }
+  const auto& r = *resident_;
+  std::string note;
+  Expected<std::unique_ptr<relight::RelightBackend>> backend = internalError("no backend");
+  try {
+    backend = gpu::makeBackend(backend_choice_, r.scene(), r.accel(), r.precomputation(), r.lightmapLinks(),
+                               r.gridLinks(), &note);
+  } catch (const std::bad_alloc&) {
+    backend = resourceExhausted("out of memory while making the relight backend");
+  }
+  if (!backend) {
+    made->set_value(backend.status());
+    return;
+  }
+  backend_ = std::move(backend).value();
+  {
+    std::lock_guard lock(mutex_);
+    backend_name_ = std::string(backend_->name());
+    backend_note_ = note;
+  }
+  made->set_value(Status{});
+  preview_.reset();  // the preview's BVH and hits are not needed any more
+  // The linked result takes a version of its own (a client that saw the preview's version
+  // sees a newer one), unless an update already waits: then that version is the linked one.
+  std::uint64_t v = 0;
+  relight::LightSet lights;
+  bool pending = false;
+  {
+    std::lock_guard lock(mutex_);
+    if (journal_) settleInFlight();
+    v = version_;
+    lights = lights_;
+    pending = version_ > relit_version_ || !in_flight_.empty();
+  }
+  if (!pending) {
+    const std::uint64_t next = takeVersion(v, lights);
+    std::lock_guard lock(mutex_);
+    // takeVersion marked `next` as handed to the worker; workerLoop relights it. Without a
+    // new version (not durable, or an update came), the newest version is relit.
+    if (next != 0 && relit_version_ == next) relit_version_ = next - 1;
+    else if (next == 0 && relit_version_ >= version_) relit_version_ = version_ - 1;
+  }
+  workerLoop();
+}
+
+bool SceneSession::previewAndPublish(const relight::LightSet& lights, std::uint64_t v, std::uint64_t coalesced) {
+  const auto t0 = Clock::now();
+  std::vector<float> grid_sh;
+  Status s;
+  try {
+    s = preview_->grid->light(lights, grid_sh);
+  } catch (const std::bad_alloc&) {
+    s = resourceExhausted("out of memory while lighting the preview");
+  }
+  const double ms = std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
+  if (!s) {
+    std::lock_guard lock(mutex_);
+    ++relight_errors_;
+    logEvent(LogLevel::kError, "preview_failed", {{"scene", identity_.id}, {"version", v}, {"error", s.message()}});
+    return false;
+  }
+  auto snap = std::make_shared<Snapshot>();
+  snap->scene_id = identity_.id;
+  snap->version = v;
+  snap->coalesced = coalesced;
+  snap->preview = true;
+  snap->instant_preview = true;
+  snap->relight_ms = ms;
+  snap->backend = "cpu";
+  snap->bands = bands_;
+  const auto& g = preview_->grid->grid();
+  snap->grid.present = true;
+  snap->grid.origin = g.origin;
+  snap->grid.spacing_m = g.spacing_m;
+  snap->grid.dims = g.dims;
+  snap->grid_sh = std::move(grid_sh);
+  snap->grid_valid = preview_valid_;
+  {
+    std::lock_guard lock(mutex_);
+    snap->sequence = ++sequence_;
+    latest_ = std::move(snap);
+    ++instant_previews_;
+    coalesced_ += coalesced;
+  }
+  result_cv_.notify_all();
+  logEvent(LogLevel::kDebug, "relight",
+           {{"scene", identity_.id}, {"version", v}, {"ms", ms}, {"coalesced", coalesced}, {"backend", "cpu"},
+            {"kind", "instant_preview"}});
+  return true;
+}
+
 SceneSession::~SceneSession() { close(); }
 
 void SceneSession::close() {
@@ -77,11 +274,6 @@ void SceneSession::close() {
   work_cv_.notify_all();
   result_cv_.notify_all();
   if (worker_.joinable() && worker_.get_id() != std::this_thread::get_id()) worker_.join();
-}
-
-int SceneSession::bands() const {
-  const auto& p = resident_.precomputation();
-  return options_.bands > 0 ? options_.bands : p.options.bands;
 }
 
 std::vector<std::string> SceneSession::lightIds() const {
@@ -102,7 +294,7 @@ Expected<std::uint64_t> SceneSession::update(const v1::UpdateLightsRequest& requ
     // when every change succeeded: all or nothing.
     const InFlight* tip = in_flight_.empty() ? nullptr : &in_flight_.back();
     relight::LightSet next = tip ? tip->lights : lights_;
-    if (Status s = applyUpdate(request, resident_.scene().materials.size(), next); !s) return s;
+    if (Status s = applyUpdate(request, material_count_, next); !s) return s;
     v = (tip ? tip->version : version_) + 1;
     if (!journal_) {
       lights_ = std::move(next);
@@ -370,7 +562,7 @@ std::shared_ptr<const Snapshot> SceneSession::buildSnapshot(const relight::Relig
     s->direct[3 * i + 2] = direct[i].z;
   }
   s->texel_valid = r.texel_valid;
-  const auto& p = resident_.precomputation();
+  const auto& p = resident_->precomputation();
   if (p.has_grid) {
     s->grid.present = true;
     s->grid.origin = p.grid.origin;
@@ -394,7 +586,8 @@ SessionStats SceneSession::stats() const {
   st.previews = previews_;
   st.last_relight_ms = last_ms_;
   st.mean_relight_ms = relights_ ? total_ms_ / static_cast<double>(relights_) : 0.0;
-  st.artifact_bytes = resident_.artifactBytes();
+  st.instant_previews = instant_previews_;
+  st.artifact_bytes = linked_ ? resident_->artifactBytes() : 0;
   // The mapping, the worker's result buffers (about one snapshot) and the newest snapshot.
   const std::uint64_t snap = latest_ ? latest_->bytes() : 0;
   st.resident_bytes = st.artifact_bytes + 2 * snap;

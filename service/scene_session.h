@@ -26,6 +26,17 @@
 // result says its `residual` and `iterations`. An update that arrives during a relight waits
 // for it; one that arrives before the next skips the rest, so a designer dragging a light
 // sees one-iteration previews and the converged result when the drag stops.
+//
+// Instant preview (startPreview, docs/service.md "Preview while the precompute runs"): a
+// session can start before its precomputation exists, from the loaded scene's BVH and a
+// preview::PreviewGrid. It publishes the preview grid (Snapshot::instant_preview) for its
+// initial version at once, and the worker re-lights the preview for every update while the
+// precompute runs (a preview relight is shadow rays and an SH projection, tens of ms). attach()
+// hands it the ResidentScene: the worker makes the backend, takes the next version for the
+// newest light set (durable first, like takeVersion) unless an update already waits, relights it
+// with the links and publishes it; from then on the session is an ordinary one and the preview
+// state is freed. Updates accepted during the preview are in the light set the linked relight
+// computes.
 #pragma once
 
 #include <atomic>
@@ -34,6 +45,7 @@
 #include <cstdint>
 #include <deque>
 #include <functional>
+#include <future>
 #include <memory>
 #include <mutex>
 #include <string>
@@ -44,12 +56,30 @@
 #include "core/common/status.h"
 #include "core/precompute/resident.h"
 #include "core/relight/backend.h"
+#include "gpu/backend_factory.h"
 #include "core/relight/light_set.h"
+#include "core/rt/accel.h"
 #include "proto/lightlink.pb.h"
 #include "service/snapshot.h"
 #include "service/update_journal.h"
 
+namespace lightlink::preview {
+class PreviewGrid;
+}
+
 namespace lightlink::service {
+
+// What an instant-preview session lights before its precomputation exists: the loaded
+// scene's BVH and the preview grid traced against it (which keeps a reference to `accel`).
+struct PreviewScene {
+  std::unique_ptr<rt::Accel> accel;
+  std::unique_ptr<preview::PreviewGrid> grid;
+  double build_seconds = 0.0;  // BVH and probe rays
+  PreviewScene();
+  PreviewScene(PreviewScene&&) noexcept;
+  PreviewScene& operator=(PreviewScene&&) noexcept;
+  ~PreviewScene();
+};
 
 // Who the session is and how it was opened: what sessions.json records.
 struct SessionIdentity {
@@ -76,6 +106,7 @@ struct SessionStats {
   std::uint64_t version = 0, result_version = 0;
   std::uint64_t updates = 0, relights = 0, coalesced = 0, relight_errors = 0;
   std::uint64_t previews = 0;  // progressive: results not yet converged among `relights`
+  std::uint64_t instant_previews = 0;  // instant-preview results (not counted in `relights`)
   double last_relight_ms = 0.0, mean_relight_ms = 0.0;
   std::uint64_t resident_bytes = 0, artifact_bytes = 0;
   std::uint32_t subscribers = 0;
@@ -90,15 +121,37 @@ class SceneSession {
   static Expected<std::shared_ptr<SceneSession>> start(SessionIdentity identity, precompute::ResidentScene resident,
                                                       relight::LightSet lights, std::uint64_t initial_version,
                                                       const SessionOptions& options);
+  // An instant-preview session (see above): lights and publishes the preview for
+  // `initial_version` before returning (its failure is this call's), then starts the worker.
+  // `bands` and `material_count` are what the precomputation will have (SH bands of every
+  // result, materials emissive overrides may name).
+  static Expected<std::shared_ptr<SceneSession>> startPreview(SessionIdentity identity, PreviewScene preview,
+                                                             relight::LightSet lights, std::uint64_t initial_version,
+                                                             const SessionOptions& options, int bands,
+                                                             std::size_t material_count);
+  // Ends an instant-preview session's preview: the worker makes the backend for `resident` and
+  // publishes the linked result under a new version. Returns once that result is published,
+  // or with the error that prevented it (no backend, the relight failed, the session closed,
+  // `deadline`).
+  Status attach(precompute::ResidentScene resident, Clock::time_point deadline);
   ~SceneSession();
   SceneSession(const SceneSession&) = delete;
   SceneSession& operator=(const SceneSession&) = delete;
 
   const SessionIdentity& identity() const { return identity_; }
-  const precompute::ResidentScene& resident() const { return resident_; }
-  const std::string& backendName() const { return backend_name_; }
-  const std::string& backendNote() const { return backend_note_; }
-  int bands() const;
+  // The precomputation; only once linked() (an instant-preview session before attach() has none).
+  const precompute::ResidentScene& resident() const { return *resident_; }
+  bool linked() const { return linked_.load(std::memory_order_acquire); }
+  // Copies: an instant-preview session changes them when it is linked.
+  std::string backendName() const {
+    std::lock_guard lock(mutex_);
+    return backend_name_;
+  }
+  std::string backendNote() const {
+    std::lock_guard lock(mutex_);
+    return backend_note_;
+  }
+  int bands() const { return bands_; }
   std::vector<std::string> lightIds() const;
 
   // Validates and applies an update (all or nothing); returns the version it created, once
@@ -130,9 +183,16 @@ class SceneSession {
   nlohmann::ordered_json persistentLights(std::uint64_t* version) const;
 
  private:
-  SceneSession(SessionIdentity identity, precompute::ResidentScene resident, relight::LightSet lights,
-               std::uint64_t version, const SessionOptions& options);
+  SceneSession(SessionIdentity identity, relight::LightSet lights, std::uint64_t version, const SessionOptions& options,
+               int bands, std::size_t material_count);
   void workerLoop();
+  // Instant preview: relights the preview for every new version until attach() (true) or close (false).
+  bool previewLoop();
+  // After attach: the backend, the linked result's version, then workerLoop.
+  void linkedStart();
+  // One preview relight of `lights` for version `v`, published; false when it failed.
+  bool previewAndPublish(const relight::LightSet& lights, std::uint64_t v, std::uint64_t coalesced);
+  void publish(std::shared_ptr<const Snapshot> snap, double ms);
   // Makes the in-flight versions whose commit is done visible, in order, and drops the rest
   // from the first failed one on. Needs mutex_ held.
   void settleInFlight() const;
@@ -155,7 +215,16 @@ class SceneSession {
                                                 int iterations);
 
   SessionIdentity identity_;
-  precompute::ResidentScene resident_;
+  std::unique_ptr<precompute::ResidentScene> resident_;  // set once (start, or attach before linked_)
+  std::atomic<bool> linked_{false};
+  int bands_ = 0;
+  std::size_t material_count_ = 0;
+  std::unique_ptr<PreviewScene> preview_;  // instant preview; the worker's, until the linked start
+  std::shared_ptr<const std::vector<std::uint8_t>> preview_valid_;
+  gpu::BackendChoice backend_choice_{};
+  // attach() -> worker: the backend's outcome; guarded by mutex_.
+  bool attach_requested_ = false;
+  std::promise<Status>* attach_made_ = nullptr;
   relight::RelightOptions options_;
   bool progressive_ = false;
   std::shared_ptr<UpdateJournal> journal_;
@@ -181,7 +250,7 @@ class SceneSession {
   bool stop_ = false;                          // guarded
   std::atomic<bool> closed_{false};
   // Stats (guarded by mutex_ except the atomics).
-  std::uint64_t updates_ = 0, relights_ = 0, coalesced_ = 0, relight_errors_ = 0, previews_ = 0;
+  std::uint64_t updates_ = 0, relights_ = 0, coalesced_ = 0, relight_errors_ = 0, previews_ = 0, instant_previews_ = 0;
   double last_ms_ = 0.0, total_ms_ = 0.0;
   std::atomic<int> subscribers_{0};
   mutable std::atomic<std::uint64_t> wake_epoch_{0};

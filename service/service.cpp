@@ -68,6 +68,8 @@ class StreamProgress final : public Progress {
     std::lock_guard lock(mutex_);
     writer_->Write(last);
   }
+  // A message of its own between the stages (the instant preview's announcement).
+  void write(const v1::OpenSceneProgress& message) { finish(message); }
 
  private:
   void send(float fraction, const char* message) {
@@ -118,6 +120,33 @@ void fillOpened(const SceneSession& s, v1::SceneOpened* o) {
   o->set_bands(s.bands());
   for (const auto& l : s.lightIds()) o->add_light_ids(l);
   o->set_open_seconds(r.openSeconds());
+}
+
+// The instant preview's announcement: the scene as its preview result describes it.
+void fillPreview(const SceneSession& s, double open_seconds, v1::SceneOpened* o) {
+  const auto& id = s.identity();
+  const auto snap = s.latest();
+  o->set_scene_id(id.id);
+  o->set_scene_token(id.token);
+  o->set_backend(s.backendName());
+  o->mutable_lightmap()->set_tile_size(32);
+  if (snap) {
+    o->set_version(snap->version);
+    auto* g = o->mutable_grid();
+    g->set_present(snap->grid.present);
+    g->mutable_origin()->set_x(snap->grid.origin.x);
+    g->mutable_origin()->set_y(snap->grid.origin.y);
+    g->mutable_origin()->set_z(snap->grid.origin.z);
+    g->mutable_spacing()->set_x(snap->grid.spacing_m);
+    g->mutable_spacing()->set_y(snap->grid.spacing_m);
+    g->mutable_spacing()->set_z(snap->grid.spacing_m);
+    g->set_nx(snap->grid.dims.x);
+    g->set_ny(snap->grid.dims.y);
+    g->set_nz(snap->grid.dims.z);
+  }
+  o->set_bands(s.bands());
+  for (const auto& l : s.lightIds()) o->add_light_ids(l);
+  o->set_open_seconds(open_seconds);
 }
 
 // Threads that run the bodies of result calls, reused: 50 clients polling at 200 Hz would
@@ -448,7 +477,9 @@ grpc::Status LightlinkService::OpenScene(grpc::ServerContext* ctx, const v1::Ope
     std::atomic<int>& n;
     ~Release() { --n; }
   } release{opening_};
-  if (registry_.size() + static_cast<std::size_t>(opening) > static_cast<std::size_t>(config_.max_scenes))
+  // A scene showing its instant preview is resident and still opening: counted once.
+  if (registry_.sizeWithoutPreviews() + static_cast<std::size_t>(opening) >
+      static_cast<std::size_t>(config_.max_scenes))
     return grpcError(grpc::StatusCode::RESOURCE_EXHAUSTED,
                      fmt::format("scenes: the daemon holds its limit of {} scenes (--max-scenes)", config_.max_scenes));
 
@@ -456,7 +487,14 @@ grpc::Status LightlinkService::OpenScene(grpc::ServerContext* ctx, const v1::Ope
   const auto started = Clock::now();
   Expected<std::shared_ptr<SceneSession>> session = internalError("OpenScene: not run");
   try {
-    session = registry_.open(*request, &progress);
+    session = registry_.open(*request, &progress, [&](const std::shared_ptr<SceneSession>& previewed) {
+      v1::OpenSceneProgress m;
+      m.set_stage("preview");
+      m.set_fraction(1.0f);
+      m.set_message("instant preview published; the links are being computed");
+      fillPreview(*previewed, std::chrono::duration<double>(Clock::now() - started).count(), m.mutable_preview());
+      progress.write(m);
+    });
   } catch (const std::bad_alloc&) {
     session = resourceExhausted("out of memory while opening the scene");
   }
@@ -705,6 +743,7 @@ grpc::Status LightlinkService::Stats(grpc::ServerContext* ctx, const v1::StatsRe
     out->set_artifact_bytes(st.artifact_bytes);
     out->set_subscribers(st.subscribers);
     out->set_previews(st.previews);
+    out->set_instant_previews(st.instant_previews);
     out->set_backend(s->backendName());
     out->set_backend_note(s->backendNote());
   }

@@ -75,6 +75,7 @@ class Snapshot {
   bool preview = false;            // progressive: not converged yet, more iterations follow
   float residual = 0.0f;           // progressive: last iteration's change over the total flux
   int iterations = 0;              // progressive: bounce iterations since the light change
+  bool instant_preview = false;    // the preview grid lit without links (ResultKind); no lightmap
   double relight_ms = 0.0;
   std::string backend;             // "cpu" or "gpu"
   int bands = 0;

@@ -214,7 +214,22 @@ Expected<Client> Client::connect(const ConnectOptions& options) {
   return Client(options, std::move(impl));
 }
 
-Expected<SceneHandle> Client::openScene(const OpenOptions& o, const ProgressCallback& progress) {
+namespace {
+
+SceneHandle handleOf(const v1::SceneOpened& opened) {
+  SceneHandle h;
+  h.id = opened.scene_id();
+  h.token = opened.scene_token();
+  h.light_ids.insert(opened.light_ids().begin(), opened.light_ids().end());
+  h.ids_known = true;
+  h.info = opened;
+  return h;
+}
+
+}  // namespace
+
+Expected<SceneHandle> Client::openScene(const OpenOptions& o, const ProgressCallback& progress,
+                                        const PreviewCallback& on_preview) {
   if (o.path.empty() == o.gltf_bytes.empty()) return invalidInput("open: give exactly one of path and gltf_bytes");
   v1::OpenSceneRequest req;
   if (!o.path.empty()) req.set_path(o.path);
@@ -231,6 +246,7 @@ Expected<SceneHandle> Client::openScene(const OpenOptions& o, const ProgressCall
   req.set_backend(o.backend);
   req.set_lightset_json(o.lightset_json);
   req.set_name(o.name);
+  if (o.preview) req.set_preview(*o.preview);
   grpc::ClientContext ctx;
   impl_->prepare(ctx, o.timeout);
   auto reader = impl_->rpc->OpenScene(&ctx, req);
@@ -238,17 +254,12 @@ Expected<SceneHandle> Client::openScene(const OpenOptions& o, const ProgressCall
   std::optional<v1::SceneOpened> opened;
   while (reader->Read(&msg)) {
     if (progress) progress(msg);
+    if (msg.has_preview() && on_preview) on_preview(handleOf(msg.preview()));
     if (msg.has_opened()) opened = msg.opened();
   }
   if (Status s = fromGrpc("OpenScene", reader->Finish()); !s) return s;
   if (!opened) return internalError("OpenScene: the stream ended without an `opened` message");
-  SceneHandle h;
-  h.id = opened->scene_id();
-  h.token = opened->scene_token();
-  h.light_ids.insert(opened->light_ids().begin(), opened->light_ids().end());
-  h.ids_known = true;
-  h.info = std::move(*opened);
-  return h;
+  return handleOf(*opened);
 }
 
 Expected<UpdateResult> Client::updateLights(SceneHandle& scene, const LightUpdate& update, std::uint32_t wait_ms) {

@@ -78,6 +78,9 @@ struct OpenOptions {
   std::string lightset_json;  // docs/lightset.md, applied over the scene's lights
   std::string name;
   std::chrono::milliseconds timeout{0};  // 0 = none: a precompute may take minutes
+  // Instant preview (docs/service.md "Preview while the precompute runs"): unset = the
+  // daemon's default (on); false: the first version is the linked result.
+  std::optional<bool> preview;
 };
 
 // A resident scene and the right to use it. `info` is what OpenScene reported.
@@ -110,6 +113,10 @@ struct UpdateResult {
 };
 
 using ProgressCallback = std::function<void(const v1::OpenSceneProgress&)>;
+// Told the scene once its instant preview is published, while openScene still waits for the
+// precompute: the handle (its `info` describes the preview: version, grid, no lightmap) can be
+// used from another thread for getTextures, subscribe, relight and updateLights at once.
+using PreviewCallback = std::function<void(const SceneHandle&)>;
 // Return false to end the subscription.
 using TexturesCallback = std::function<bool(const Textures&)>;
 
@@ -123,7 +130,8 @@ class Client {
   Client& operator=(Client&&) noexcept;
   ~Client();
 
-  Expected<SceneHandle> openScene(const OpenOptions& options, const ProgressCallback& progress = {});
+  Expected<SceneHandle> openScene(const OpenOptions& options, const ProgressCallback& progress = {},
+                                  const PreviewCallback& on_preview = {});
   // Applies `update` (all or nothing). wait_ms > 0: returns once the new version is relit or
   // after wait_ms (then relit = false). Keeps `scene.light_ids` current.
   Expected<UpdateResult> updateLights(SceneHandle& scene, const LightUpdate& update, std::uint32_t wait_ms = 0);

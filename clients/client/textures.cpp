@@ -76,6 +76,7 @@ ResultInfo ResultInfo::fromProto(const v1::ResultHeader& h) {
   r.preview = h.preview();
   r.residual = h.residual();
   r.iterations = h.iterations();
+  r.kind = h.kind() == v1::RESULT_KIND_INSTANT_PREVIEW ? ResultKind::kInstantPreview : ResultKind::kLinked;
   return r;
 }
 

@@ -42,6 +42,11 @@ inline constexpr int kPayloadSlots = 6;  // indexed by the enum value; slot 0 un
 const char* payloadName(Payload p);
 
 enum class Precision { kHalf, kFloat };
+// Mirrors lightlink.v1.ResultKind: what computed a result.
+enum class ResultKind {
+  kLinked,          // the precomputed links: lightmap and grid, all bounces
+  kInstantPreview,  // the grid lit without links while the links are computed; no lightmap
+};
 enum class Component { kBoth, kIndirect, kDirect };
 
 struct Vec3 {
@@ -70,6 +75,9 @@ struct ResultInfo {
   bool preview = false;  // progressive daemon: not converged yet, more iterations follow
   float residual = 0.0f; // progressive daemon: last iteration's change over the total flux
   std::uint32_t iterations = 0;  // progressive daemon: bounce iterations since the light change
+  // kInstantPreview: the grid a daemon publishes while the scene's links are computed (then
+  // `preview` is true too); a linked result replaces it under a later version.
+  ResultKind kind = ResultKind::kLinked;
   bool shared = false;   // the chunks came through a shared-memory file (ConnectOptions::shared_memory)
 
   int coeffCount() const { return bands * bands; }

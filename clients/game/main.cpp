@@ -125,7 +125,13 @@ int run(const Args& a) {
     auto polled = c->getTextures(session.scene, last_seen, {}, a.wait_ms);
     const double poll_ms = ms(Clock::now() - t0);
     if (!polled) return fail(polled.status());
-    if (polled->has_value()) {
+    if (polled->has_value() && (*polled)->info.kind == client::ResultKind::kInstantPreview) {
+      // The scene's links are still being computed: the preview has a grid and no lightmap,
+      // which this client renders with. Wait for the linked result.
+      std::printf("version %6llu  instant preview (no lightmap yet): waiting for the linked result\n",
+                  static_cast<unsigned long long>((*polled)->info.version));
+      last_seen = (*polled)->info.version;
+    } else if (polled->has_value()) {
       const client::Textures& t = **polled;
       if (t.info.width != unwrapped->atlas.resolution || t.info.height != unwrapped->atlas.resolution)
         return fail(invalidInput("the daemon's lightmap is {}x{}, this client's unwrap with preset '{}' is {}x{}: "

@@ -86,6 +86,7 @@ Expected<ResidentScene> ResidentScene::openUnguarded(const ResidentRequest& requ
     state->peak_rss_after_load = peakResidentBytes();
     state->load_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - load_start).count();
   }
+  if (request.on_loaded && !stopRequested(progress)) request.on_loaded(state->scene);
   if (stopRequested(progress)) return cancelled("open cancelled after loading {}", request.scene_path);
   const std::uint64_t key = state->key;
   state->artifact_path = (fs::path(request.cache_dir) / (artifact::cacheKeyHex(key) + ".llk")).string();

@@ -14,6 +14,7 @@
 #pragma once
 
 #include <cstdint>
+#include <functional>
 #include <memory>
 #include <string>
 #include <vector>
@@ -38,6 +39,11 @@ struct ResidentRequest {
   // How the scene is loaded: which files it may name (default: its own folder only) and its
   // budgets (image size, triangles, lights).
   scene::LoadOptions load;
+  // Called once the scene is loaded (surface rules applied), before the artifact is opened
+  // or the precompute starts, on the opening thread: the daemon builds its instant preview
+  // here (core/preview) without loading the scene twice. The scene is changed afterwards
+  // (the unwrap writes uv1), so the callback must not keep a reference to it.
+  std::function<void(const scene::Scene&)> on_loaded;
 };
 
 class ResidentScene {

@@ -173,6 +173,18 @@ TEST(ClientResultAssembler, NotModifiedIsJustAHeader) {
   EXPECT_EQ(t->totalBytes(), 0u);
 }
 
+TEST(ClientResultInfo, KindSaysWhetherTheResultIsTheInstantPreview) {
+  v1::ResultHeader h;
+  EXPECT_EQ(ResultInfo::fromProto(h).kind, ResultKind::kLinked) << "unset (an older daemon): linked";
+  h.set_kind(v1::RESULT_KIND_INSTANT_PREVIEW);
+  h.set_preview(true);
+  const ResultInfo info = ResultInfo::fromProto(h);
+  EXPECT_EQ(info.kind, ResultKind::kInstantPreview);
+  EXPECT_TRUE(info.preview);
+  h.set_kind(v1::RESULT_KIND_LINKED);
+  EXPECT_EQ(ResultInfo::fromProto(h).kind, ResultKind::kLinked);
+}
+
 TEST(ClientTileRect, EdgeTilesAreClipped) {
   ResultInfo info;
   info.width = 10;

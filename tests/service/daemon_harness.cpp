@@ -25,6 +25,12 @@ DaemonProcess::DaemonProcess(const fs::path& cache_dir, std::vector<std::string>
                                      [](const std::string& a) { return a == "--scene-root" || a == "--config"; });
   if (!own_roots)
     o.extra.insert(o.extra.end(), {"--scene-root", sourceDir().string(), "--scene-root", cache_dir.parent_path().string()});
+  // The instant preview takes a scene's first version: the tests written before it count
+  // versions from the linked result, so it is off unless a test turns it on (--preview on,
+  // preview_daemon_test.cpp) or gives a config file.
+  const bool own_preview = std::any_of(o.extra.begin(), o.extra.end(),
+                                       [](const std::string& a) { return a == "--preview" || a == "--config"; });
+  if (!own_preview) o.extra.insert(o.extra.end(), {"--preview", "off"});
   auto d = client::LocalDaemon::start(o);
   if (!d) {
     error_ = d.status().toString();

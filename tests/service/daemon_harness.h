@@ -32,7 +32,8 @@ class DaemonProcess {
  public:
   // Starts lightlinkd with `--listen 127.0.0.1:0 --port-file ... --cache-dir cache_dir` and
   // `extra` flags; waits (bounded) for the port. Check ok() / error(). Unless `extra` has a
-  // --scene-root or --config, the source tree and cache_dir's parent are the scene roots.
+  // --scene-root or --config, the source tree and cache_dir's parent are the scene roots;
+  // unless it has --preview or --config, the instant preview is off (--preview off).
   DaemonProcess(const std::filesystem::path& cache_dir, std::vector<std::string> extra = {});
   ~DaemonProcess();  // SIGKILL if still running
 
