@@ -317,6 +317,27 @@ def service():
     out += table(["mode", "clients", "first result p50 / p99 ms", "converged p50 / p99 ms"], prow)
     out += ["", f"Target light move to the first published version <= 10 ms (one client): {verdict(first1 <= 10)} "
                 f"({first1:.1f} ms p50)."]
+    if (DATA / "service" / "level.json").exists():
+        lv = load("service", "level.json")
+        s_ = next(s_ for s_ in lv["latency"] if s_["clients"] == 1)
+        lat, over = s_["latency_ms"], s_["latency_minus_relight_ms"]
+        out += ["", f"A shared level: zdm2 at medium ({lv['lightmap']['width']}² texels), its light set "
+                    f"`tests/levels/lights/zdm2.json`, lamp0 moved on a 1 m circle, daemon default options (a change "
+                    f"of one light relit incrementally, bounces included; mean relight "
+                    f"{lv['relight']['mean_relight_ms']:.1f} ms): one long-polling client holds the new lightmap "
+                    f"after {lat['p50']:.1f} ms p50, {lat['p99']:.1f} ms p99 ({over['p50']:.1f} / {over['p99']:.1f} ms "
+                    f"beyond the relight)."]
+    if (DATA / "service" / "preview.json").exists():
+        pv = load("service", "preview.json")
+        prow = [[pathlib.Path(s_["scene"]).name, f"{s_['triangles']:,}", f"{s_['grid_points']:,}",
+                 f"**{s_['preview_s_median']:.2f}**", f"{s_['update_s_median']:.2f}"] for s_ in pv["scenes"]]
+        worst = max((s_["preview_s_median"] for s_ in pv["scenes"] if s_["triangles"] > 10000), default=float("nan"))
+        out += ["", "Instant preview (`--preview on`, the default): OpenScene to the first version (a grid lit "
+                    "without links) at the client, and a light change re-lit while the links are computed "
+                    f"(median of {pv['scenes'][0]['runs']} runs, preset {pv['preset']}):", ""]
+        out += table(["scene", "triangles", "grid points", "OpenScene to preview s", "light change s"], prow)
+        out += ["", f"Target first preview <= 1 s after OpenScene on a ~60k-triangle level: {verdict(worst <= 1)} "
+                    f"({worst:.2f} s, the slower level)."]
     tp, mem = last["throughput"], last["memory"]
     best = at50.get("no_bounce.json", {"p50": float("nan"), "p99": float("nan")})
     dh, df = load("service", "decode_half.json"), load("service", "decode_float.json")
