@@ -311,7 +311,8 @@ def service():
                      f"{conv['p50']:.1f} / {conv['p99']:.1f}"])
     first1 = next((s_["latency_ms"]["p50"] for s_ in prog["latency"] if s_["clients"] == 1), float("nan"))
     out += ["", f"Progressive daemon (`--progressive`, default bounces): the first result of a light change is one "
-                f"bounce iteration from the last solution, further iterations follow as new versions (mean relight "
+                f"bounce iteration from the last solution, further iterations follow as new versions; a change of one "
+                f"light on a converged result is relit incrementally and converges at once (mean relight "
                 f"{prog['relight']['mean_relight_ms']:.1f} ms, {prog['relight']['previews']} of "
                 f"{prog['relight']['relights']} results unconverged):", ""]
     out += table(["mode", "clients", "first result p50 / p99 ms", "converged p50 / p99 ms"], prow)
