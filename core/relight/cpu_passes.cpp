@@ -76,6 +76,8 @@ class CpuPasses final : public RelightPasses {
                     const std::vector<std::uint32_t>* subset, std::size_t& rays) const;
   void bakedDirect(const scene::Light& light, std::vector<glm::vec3>& out, std::size_t& rays) const;
   void setLeafFlux(std::size_t s);
+  // b0 + rho * E of surfel s from the caches it gathers (the bounce gather of one surfel).
+  glm::vec3 gatheredRadiosity(std::size_t s, int bands, std::size_t stride) const;
   void pullAll();
   void buildInverted();
   void lightCaches(const RelightFrame& f, const links::LinksView& view, std::vector<float>& out,
@@ -171,7 +173,7 @@ Status CpuPasses::pullAndLight(const RelightFrame& f, const std::string& prefix,
 
 Status CpuPasses::gather(const RelightFrame& f, int bounce, bool fill_grid, RelightResult& res) {
   const std::size_t ns = p_.surfels.size(), stride = f.stride;
-  const int bands = f.bands, nc = bands * bands;
+  const int bands = f.bands;
   timedStage(res, "bounce" + std::to_string(bounce) + "_gather", [&] {
     // Fill invalid caches first: surfels may gather from them.
     detail::applyFill(p_.lightmap_fill, lm_sh_.data(), stride);
@@ -181,19 +183,8 @@ Status CpuPasses::gather(const RelightFrame& f, int bounce, bool fill_grid, Reli
     chunk_total_.assign(chunks, 0.0);
     forChunks(ns, kChunk, [&](std::size_t chunk, std::size_t begin, std::size_t end) {
       double added = 0.0, total = 0.0;
-      float acc[3 * sh::kMaxCoeffs];
       for (std::size_t s = begin; s < end; ++s) {
-        std::fill(acc, acc + stride, 0.0f);
-        const float* base = t_.gather_from_grid[s] ? grid_sh_.data() : lm_sh_.data();
-        for (std::uint32_t g = t_.gather_begin[s]; g < t_.gather_begin[s + 1]; ++g) {
-          const float* src = base + std::size_t(t_.gather_cache[g]) * stride;
-          const float wt = t_.gather_weight[g];
-          for (std::size_t i = 0; i < stride; ++i) acc[i] += wt * src[i];
-        }
-        const glm::vec3 n = p_.surfels.normal[s];
-        const glm::vec3 e(sh::irradiance(bands, acc, n), sh::irradiance(bands, acc + nc, n),
-                          sh::irradiance(bands, acc + 2 * nc, n));
-        const glm::vec3 nb = b0_[s] + p_.surfels.albedo[s] * e;
+        const glm::vec3 nb = gatheredRadiosity(s, bands, stride);
         const glm::vec3 d = glm::abs(nb - b_[s]) * p_.surfels.area[s];
         added += double(d.x) + d.y + d.z;
         const glm::vec3 phi = (nb + emission_b_[s]) * p_.surfels.area[s];
@@ -207,6 +198,22 @@ Status CpuPasses::gather(const RelightFrame& f, int bounce, bool fill_grid, Reli
     for (std::size_t c = 0; c < chunks; ++c) sums_.added += chunk_added_[c], sums_.total += chunk_total_[c];
   });
   return {};
+}
+
+glm::vec3 CpuPasses::gatheredRadiosity(std::size_t s, int bands, std::size_t stride) const {
+  const int nc = bands * bands;
+  float acc[3 * sh::kMaxCoeffs];
+  std::fill(acc, acc + stride, 0.0f);
+  const float* base = t_.gather_from_grid[s] ? grid_sh_.data() : lm_sh_.data();
+  for (std::uint32_t g = t_.gather_begin[s]; g < t_.gather_begin[s + 1]; ++g) {
+    const float* src = base + std::size_t(t_.gather_cache[g]) * stride;
+    const float wt = t_.gather_weight[g];
+    for (std::size_t i = 0; i < stride; ++i) acc[i] += wt * src[i];
+  }
+  const glm::vec3 n = p_.surfels.normal[s];
+  const glm::vec3 e(sh::irradiance(bands, acc, n), sh::irradiance(bands, acc + nc, n),
+                    sh::irradiance(bands, acc + 2 * nc, n));
+  return b0_[s] + p_.surfels.albedo[s] * e;
 }
 
 void CpuPasses::sumCacheDirect(const EmitterTexels& emitter) {
@@ -477,7 +484,7 @@ void CpuPasses::buildGatherInverse() {
 
 Expected<BounceSums> CpuPasses::propagateChange(const RelightFrame& f, int round, RelightResult& res) {
   const std::size_t ns = p_.surfels.size(), stride = f.stride;
-  const int bands = f.bands, nc = bands * bands;
+  const int bands = f.bands;
   std::vector<std::uint32_t> changed;
   BounceSums sums;
   timedStage(res, "bounce" + std::to_string(round) + "_gather", [&] {
@@ -521,20 +528,9 @@ Expected<BounceSums> CpuPasses::propagateChange(const RelightFrame& f, int round
     chunk_added_.assign(chunks, 0.0);
     forChunks(list.size(), kChunk, [&](std::size_t chunk, std::size_t begin, std::size_t end) {
       double added = 0.0;
-      float acc[3 * sh::kMaxCoeffs];
       for (std::size_t i = begin; i < end; ++i) {
         const std::uint32_t s = list[i];
-        std::fill(acc, acc + stride, 0.0f);
-        const float* base = t_.gather_from_grid[s] ? grid_sh_.data() : lm_sh_.data();
-        for (std::uint32_t g = t_.gather_begin[s]; g < t_.gather_begin[s + 1]; ++g) {
-          const float* src = base + std::size_t(t_.gather_cache[g]) * stride;
-          const float wt = t_.gather_weight[g];
-          for (std::size_t k = 0; k < stride; ++k) acc[k] += wt * src[k];
-        }
-        const glm::vec3 n = p_.surfels.normal[s];
-        const glm::vec3 e(sh::irradiance(bands, acc, n), sh::irradiance(bands, acc + nc, n),
-                          sh::irradiance(bands, acc + 2 * nc, n));
-        const glm::vec3 nb = b0_[s] + p_.surfels.albedo[s] * e;
+        const glm::vec3 nb = gatheredRadiosity(s, bands, stride);
         if (nb == b_[s]) continue;
         const glm::vec3 d = glm::abs(nb - b_[s]) * p_.surfels.area[s];
         added += double(d.x) + d.y + d.z;
