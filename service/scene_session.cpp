@@ -217,22 +217,29 @@ void SceneSession::linkedStart() {
   workerLoop();
 }
 
-bool SceneSession::previewAndPublish(const relight::LightSet& lights, std::uint64_t v, std::uint64_t coalesced) {
+bool SceneSession::lightOnWorker(std::uint64_t v, const char* what, const char* event, double& ms,
+                                 const std::function<Status()>& light) {
   const auto t0 = Clock::now();
-  std::vector<float> grid_sh;
   Status s;
+  // Out of memory in a worker thread would end the daemon: it fails this relight instead.
   try {
-    s = preview_->grid->light(lights, grid_sh);
+    s = light();
   } catch (const std::bad_alloc&) {
-    s = resourceExhausted("out of memory while lighting the preview");
+    s = resourceExhausted("out of memory while {}", what);
   }
-  const double ms = std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
-  if (!s) {
-    std::lock_guard lock(mutex_);
-    ++relight_errors_;
-    logEvent(LogLevel::kError, "preview_failed", {{"scene", identity_.id}, {"version", v}, {"error", s.message()}});
+  ms = std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
+  if (s) return true;
+  std::lock_guard lock(mutex_);
+  ++relight_errors_;
+  logEvent(LogLevel::kError, event, {{"scene", identity_.id}, {"version", v}, {"error", s.message()}});
+  return false;
+}
+
+bool SceneSession::previewAndPublish(const relight::LightSet& lights, std::uint64_t v, std::uint64_t coalesced) {
+  std::vector<float> grid_sh;
+  double ms = 0.0;
+  if (!lightOnWorker(v, "lighting the preview", "preview_failed", ms, [&] { return preview_->grid->light(lights, grid_sh); }))
     return false;
-  }
   auto snap = std::make_shared<Snapshot>();
   snap->scene_id = identity_.id;
   snap->version = v;
@@ -464,22 +471,10 @@ std::uint64_t SceneSession::takeVersion(std::uint64_t v, const relight::LightSet
 bool SceneSession::relightAndPublish(const relight::LightSet& lights, std::uint64_t v, std::uint64_t coalesced,
                                      const relight::RelightOptions& options, Progress* progress,
                                      relight::RelightResult& result) {
-  const auto t0 = Clock::now();
-  Status s;
-  // Out of memory in a worker thread would end the daemon: it fails this relight instead.
-  try {
-    s = backend_->relightInto(lights, options, result);
-  } catch (const std::bad_alloc&) {
-    s = resourceExhausted("out of memory while relighting");
-  }
-  const double ms = std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
-  if (!s) {
-    std::lock_guard lock(mutex_);
-    ++relight_errors_;
-    logEvent(LogLevel::kError, "relight_failed", {{"scene", identity_.id}, {"version", v}, {"error", s.message()}});
-    // Readers waiting for this version run into their deadline.
+  double ms = 0.0;
+  // On failure readers waiting for this version run into their deadline.
+  if (!lightOnWorker(v, "relighting", "relight_failed", ms, [&] { return backend_->relightInto(lights, options, result); }))
     return false;
-  }
   bool preview = false;
   float residual = 0.0f;
   int iterations = 0;

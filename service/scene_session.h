@@ -192,6 +192,10 @@ class SceneSession {
   void linkedStart();
   // One preview relight of `lights` for version `v`, published; false when it failed.
   bool previewAndPublish(const relight::LightSet& lights, std::uint64_t v, std::uint64_t coalesced);
+  // Runs `light` (a relight or the preview's) on the worker thread and times it into `ms`;
+  // a failure, out of memory included, is counted and logged as `event` and gives false.
+  bool lightOnWorker(std::uint64_t v, const char* what, const char* event, double& ms,
+                     const std::function<Status()>& light);
   void publish(std::shared_ptr<const Snapshot> snap, double ms);
   // Makes the in-flight versions whose commit is done visible, in order, and drops the rest
   // from the first failed one on. Needs mutex_ held.
