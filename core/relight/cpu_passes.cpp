@@ -80,6 +80,10 @@ class CpuPasses final : public RelightPasses {
   glm::vec3 gatheredRadiosity(std::size_t s, int bands, std::size_t stride) const;
   void pullAll();
   void buildInverted();
+  // The caches (in order) linked to any of `nodes`, through an inverted index node -> caches.
+  static std::vector<std::uint32_t> linkedCaches(const std::vector<std::uint32_t>& nodes,
+                                                 const std::vector<std::uint32_t>& begin,
+                                                 const std::vector<std::uint32_t>& inv, std::size_t count);
   void lightCaches(const RelightFrame& f, const links::LinksView& view, std::vector<float>& out,
                    const std::vector<std::uint8_t>& valid, const std::vector<std::uint32_t>* subset);
 
@@ -419,15 +423,7 @@ void CpuPasses::pushChange(const RelightFrame& f, const std::vector<std::uint32_
     // Most links touched: the full pass costs less than listing the caches.
     all_marked = marked_links * 2 > lm.linkCount();
     auto affected = [&](const std::vector<std::uint32_t>& begin, const std::vector<std::uint32_t>& inv,
-                        std::size_t count) {
-      std::vector<std::uint8_t> hit(count, 0);
-      for (std::uint32_t n : marked)
-        for (std::uint32_t k = begin[n]; k < begin[n + 1]; ++k) hit[inv[k]] = 1;
-      std::vector<std::uint32_t> list;
-      for (std::size_t c = 0; c < count; ++c)
-        if (hit[c]) list.push_back(std::uint32_t(c));
-      return list;
-    };
+                        std::size_t count) { return linkedCaches(marked, begin, inv, count); };
     if (all_marked) {
       lightCaches(f, lm, lm_sh_, p_.lightmap.valid, nullptr);
       res.counts.caches_summed += lm.cacheCount();
@@ -593,15 +589,7 @@ void CpuPasses::changeCaches(const RelightFrame& f, const std::vector<std::uint3
                              RelightResult& res) {
   if (!dense && !inverted_built_) buildInverted();
   auto affected = [&](const std::vector<std::uint32_t>& begin, const std::vector<std::uint32_t>& inv,
-                      std::size_t count) {
-    std::vector<std::uint8_t> hit(count, 0);
-    for (std::uint32_t n : changed_nodes)
-      for (std::uint32_t k = begin[n]; k < begin[n + 1]; ++k) hit[inv[k]] = 1;
-    std::vector<std::uint32_t> list;
-    for (std::size_t c = 0; c < count; ++c)
-      if (hit[c]) list.push_back(std::uint32_t(c));
-    return list;
-  };
+                      std::size_t count) { return linkedCaches(changed_nodes, begin, inv, count); };
   // dense: every cache (a null subset).
   const auto& lm = t_.lm_links;
   const auto lm_list = dense ? std::vector<std::uint32_t>{} : affected(lm_inv_begin_, lm_inv_, lm.cacheCount());
@@ -668,6 +656,18 @@ void CpuPasses::pullAll() {
     const float inv_area = t_.pull.inv_node[n];
     for (int ch = 0; ch < 3; ++ch) rad_rgbx_[4 * n + ch] = flux_[ch][n] * inv_area;
   }
+}
+
+std::vector<std::uint32_t> CpuPasses::linkedCaches(const std::vector<std::uint32_t>& nodes,
+                                                   const std::vector<std::uint32_t>& begin,
+                                                   const std::vector<std::uint32_t>& inv, std::size_t count) {
+  std::vector<std::uint8_t> hit(count, 0);
+  for (std::uint32_t n : nodes)
+    for (std::uint32_t k = begin[n]; k < begin[n + 1]; ++k) hit[inv[k]] = 1;
+  std::vector<std::uint32_t> list;
+  for (std::size_t c = 0; c < count; ++c)
+    if (hit[c]) list.push_back(std::uint32_t(c));
+  return list;
 }
 
 void CpuPasses::buildInverted() {
