@@ -14,7 +14,7 @@
 // Usage:
 //   flicker_bench [--scene F] [--lights FILE] [--light ID] [--path F] [--axis X,Y,Z] [--frames N]
 //                 [--preset P] [--surfels N] [--links N] [--bands B] [--rays N] [--resolution R]
-//                 [--fixed-bounces] [--unshadowed-surfels] [--no-bounce] [--json OUT]
+//                 [--fixed-bounces] [--unshadowed-surfels] [--no-bounce] [--surfel-shadow-rays N] [--json OUT]
 // --path: the path's length as a fraction of the scene's size (a directional light: its
 // angle in radians); --frames N: steps at s (2N + 1 frames are relit).
 #include <algorithm>
@@ -53,6 +53,7 @@ struct Args {
   bool no_bounce = false;
   bool unshadowed_surfels = false;
   bool fixed_bounces = false;
+  int surfel_shadow_rays = relight::RelightOptions{}.surfel_shadow_rays;  // --surfel-shadow-rays: every run's
   precompute::PrecomputeOptions options;
   bool options_given = false;
 };
@@ -79,6 +80,7 @@ bool parse(int argc, char** argv, Args& a) {
     else if (k == "--json") a.json = v;
     else if (k == "--path") a.path = std::stof(v);
     else if (k == "--frames") a.frames = std::max(2, std::stoi(v));
+    else if (k == "--surfel-shadow-rays") a.surfel_shadow_rays = std::stoi(v);
     else if (k == "--axis") {
       if (!parseVec3(v, a.axis)) return false;
       a.axis = glm::normalize(a.axis);
@@ -240,7 +242,7 @@ int main(int argc, char** argv) {
     std::fprintf(stderr,
                  "usage: flicker_bench [--scene F] [--lights FILE] [--light ID] [--path F] [--axis X,Y,Z] "
                  "[--frames N] [--preset P | --surfels N --links N --bands B --rays N --resolution R] "
-                 "[--fixed-bounces] [--unshadowed-surfels] [--no-bounce] [--json OUT]\n");
+                 "[--fixed-bounces] [--unshadowed-surfels] [--no-bounce] [--surfel-shadow-rays N] [--json OUT]\n");
     return 1;
   }
   auto scene = scene::loadScene(args.scene);
@@ -318,6 +320,7 @@ int main(int argc, char** argv) {
   const int direct_width = p->hasDirectLayer() ? p->direct_texels.width : p->lightmap.width;
   j["runs"] = nlohmann::ordered_json::array();
   for (Run& run : runs) {
+    run.options.surfel_shadow_rays = args.surfel_shadow_rays;
     if (run.fixed_bounces) {
       run.options.max_bounces = *std::max_element(runs.front().bounces.begin(), runs.front().bounces.end());
       run.options.bounce_threshold = 0.0f;
@@ -337,6 +340,7 @@ int main(int argc, char** argv) {
     r["options"] = {{"max_bounces", run.options.max_bounces},
                     {"bounce_threshold", run.options.bounce_threshold},
                     {"incremental", run.options.incremental},
+                    {"surfel_shadow_rays", run.options.surfel_shadow_rays},
                     {"surfels_unshadowed", run.unshadowed_surfels}};
     r["relight_ms_median"] = bench::median(run.ms);
     r["incremental_frames"] = run.incremental;
