@@ -370,13 +370,19 @@ void expectSame(const RelightResult& a, const RelightResult& b, const char* what
   EXPECT_EQ(diff, 0u) << what << ": grid SH differs";
 }
 
+// Two ranged lamps at the room's ends, one of them realtime (not baked).
+LightSet roomLamps() {
+  LightSet set;
+  EXPECT_TRUE(set.add(pointLight("a", {1, 1, 1}, 3.0f, 1.5f)));
+  EXPECT_TRUE(set.add(pointLight("b", {5, 1, 1}, 2.0f, 1.5f, /*baked=*/false)));
+  return set;
+}
+
 TEST(RelightIncremental, OneLightChangeMatchesAFullRelight) {
   const auto& rm = room();
   ASSERT_TRUE(rm.baked);
   Relighter inc = rm.baked->relighter();
-  LightSet set;
-  ASSERT_TRUE(set.add(pointLight("a", {1, 1, 1}, 3.0f, 1.5f)));
-  ASSERT_TRUE(set.add(pointLight("b", {5, 1, 1}, 2.0f, 1.5f, /*baked=*/false)));
+  LightSet set = roomLamps();
   const RelightOptions opt{.max_bounces = 0};
   auto first = inc.relight(set, opt);
   ASSERT_TRUE(first);
@@ -514,9 +520,7 @@ TEST(RelightIncremental, WithBouncesPropagatesTheChangeAndMatchesAFullRelight) {
   const auto& rm = room();
   ASSERT_TRUE(rm.baked);
   Relighter inc = rm.baked->relighter();
-  LightSet set;
-  ASSERT_TRUE(set.add(pointLight("a", {1, 1, 1}, 3.0f, 1.5f)));
-  ASSERT_TRUE(set.add(pointLight("b", {5, 1, 1}, 2.0f, 1.5f, /*baked=*/false)));
+  LightSet set = roomLamps();
   const RelightOptions opt;
   auto first = inc.relight(set, opt);
   ASSERT_TRUE(first);
