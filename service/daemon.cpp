@@ -12,6 +12,7 @@
 #include <sstream>
 #include <thread>
 
+#include <grpc/grpc.h>
 #include <grpcpp/grpcpp.h>
 #include <grpcpp/health_check_service_interface.h>
 
@@ -112,6 +113,10 @@ int runDaemon(int argc, char** argv) {
 
   // gRPC's standard health service cannot check the bearer token: with a token it is off
   // and lightlink.v1 Health (behind the token) is the probe.
+  // One gRPC reference held for the process's life (lightlinkd ends in _Exit): without it
+  // ~Server drops the last one, and grpc_shutdown joins an executor thread that may sit in
+  // epoll_wait for up to ~10 s, which a supervisor's SIGTERM would see as a hung daemon.
+  grpc_init();
   grpc::EnableDefaultHealthCheckService(config.token.empty());
   grpc::ServerBuilder builder;
   int port = 0;
