@@ -27,6 +27,22 @@ ensure_packages() {
   $sudo apt-get install -y -q --no-install-recommends "${missing[@]}"
 }
 
+# Node.js + npm for the tests that check outputs with three.js's loaders and the Khronos glTF
+# validator (tests/node). A machine with its own Node.js (nodesource bundles npm) keeps it:
+# Debian's npm package would conflict with that nodejs, so it is installed only when no node
+# is present.
+ensure_node() {
+  if command -v node >/dev/null 2>&1 && command -v npm >/dev/null 2>&1; then
+    return 0
+  fi
+  log "installing nodejs and npm"
+  local sudo=""
+  if [ "$(id -u)" -ne 0 ]; then sudo="sudo"; fi
+  export DEBIAN_FRONTEND=noninteractive
+  $sudo apt-get update -q
+  $sudo apt-get install -y -q --no-install-recommends nodejs npm
+}
+
 # configure_and_build BUILD_DIR [TARGET...] -- [CMAKE_OPTION...]
 configure_and_build() {
   local build_dir="$1"; shift
