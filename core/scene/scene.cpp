@@ -31,6 +31,15 @@ const Material& Scene::materialOf(const MeshInstance& mesh) const {
   return materials[static_cast<std::size_t>(mesh.material)];
 }
 
+std::vector<lights::MaterialEmission> Scene::materialEmissions() const {
+  std::vector<lights::MaterialEmission> out;
+  out.reserve(materials.size());
+  for (const Material& m : materials)
+    out.push_back({m.isEmissive() ? m.emissive_factor * m.emissive_strength : glm::vec3(0.0f),
+                   m.emissive_texture.valid()});
+  return out;
+}
+
 double Scene::emissiveArea() const {
   double area_m2 = 0.0;
   for (const MeshInstance& m : meshes) {

@@ -17,6 +17,7 @@
 
 #include "core/common/aabb.h"
 #include "core/lights/light.h"
+#include "core/lights/scenarios.h"
 
 namespace lightlink::scene {
 
@@ -160,6 +161,8 @@ struct Scene {
   const Material& materialOf(const MeshInstance& mesh) const;
   // Emissive surface area (m^2) over all meshes whose material emits.
   double emissiveArea() const;
+  // Each material's own emission, as lighting-scenario blends need it (core/lights/scenarios.h).
+  std::vector<lights::MaterialEmission> materialEmissions() const;
 };
 
 }  // namespace lightlink::scene
