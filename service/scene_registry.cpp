@@ -275,7 +275,7 @@ Expected<std::shared_ptr<SceneSession>> SceneRegistry::open(const v1::OpenSceneR
   identity.params = params;
   const bool preview = request.has_preview() ? request.preview() : config_.preview;
   const PreviewCallback none = [](const std::shared_ptr<SceneSession>&) {};
-  auto session = openResident(std::move(identity), request, nullptr, 1, request.lightset_json(), progress, staged,
+  auto session = openResident(std::move(identity), request, nullptr, {}, 1, request.lightset_json(), progress, staged,
                               preview ? (on_preview ? &on_preview : &none) : nullptr);
   // The scene is durable before OpenScene answers: its updates are journaled against it.
   if (session) {
@@ -290,6 +290,7 @@ Expected<std::shared_ptr<SceneSession>> SceneRegistry::open(const v1::OpenSceneR
 Expected<std::shared_ptr<SceneSession>> SceneRegistry::openResident(SessionIdentity identity,
                                                                    const v1::OpenSceneRequest& request,
                                                                    const relight::LightSet* restored_lights,
+                                                                   std::vector<lights::Scenario> restored_scenarios,
                                                                    std::uint64_t version,
                                                                    const std::string& lightset_json,
                                                                    Progress* progress,
@@ -324,6 +325,12 @@ Expected<std::shared_ptr<SceneSession>> SceneRegistry::openResident(SessionIdent
   rr.load.max_image_pixels = config_.max_image_pixels;
   rr.load.max_triangles = config_.max_triangles;
   rr.load.max_lights = kMaxLightsPerScene;
+  SessionOptions so;
+  so.scenarios = std::move(restored_scenarios);
+  so.backend = backendChoiceName(request.backend(), config_.backend);
+  so.relight = bake_options->relight;  // every relight option of the one table, not a chosen few
+  so.progressive = config_.progressive;
+  so.journal = journal_;
   // The initial light set: the restored one, or the scene's lights with the JSON over them.
   const auto initialLights = [&](const scene::Scene& scene) -> Expected<relight::LightSet> {
     relight::LightSet lights;
@@ -336,17 +343,14 @@ Expected<std::shared_ptr<SceneSession>> SceneRegistry::openResident(SessionIdent
       }
     }
     if (Status s = checkMaterials(lights, scene.materials.size(), "lightset_json"); !s) return s;
+    // What scenarios need of the scene (their documents apply over its own lights).
+    so.scene_lights = relight::LightSet::fromSceneLights(scene.lights);
+    so.emissions = scene.materialEmissions();
     if (lights.lights().size() > kMaxLightsPerScene)
       return resourceExhausted("lights: the scene and lightset_json give {} lights, above the limit of {} lights per "
                                "scene", lights.lights().size(), kMaxLightsPerScene);
     return lights;
   };
-  SessionOptions so;
-  so.backend = backendChoiceName(request.backend(), config_.backend);
-  so.relight = bake_options->relight;  // every relight option of the one table, not a chosen few
-  so.progressive = config_.progressive;
-  so.journal = journal_;
-
   // The instant preview, built from the loaded scene before the precompute starts.
   std::shared_ptr<SceneSession> previewed;
   if (on_preview) {
@@ -508,6 +512,13 @@ void SceneRegistry::restoreAll(std::vector<SessionRecord> records) {
     auto params = paramsFromJson(r.params);
     auto lights = relight::LightSet::fromJson(r.lights);
     Status why = !params ? params.status() : !lights ? lights.status() : Status{};
+    std::vector<lights::Scenario> scenarios;
+    for (const auto& [name, set] : r.scenarios.items()) {
+      if (!why) break;
+      auto parsed = relight::LightSet::fromJson(set);
+      if (!parsed) why = invalidInput("scenarios.{}: {}", name, parsed.status().message());
+      else scenarios.push_back({name, std::move(parsed).value()});
+    }
     // The roots may have changed since the scene was opened; uploaded scenes live in the cache.
     const bool uploaded = fs::path(r.source_path).parent_path() == fs::path(config_.cache_dir) / "inline";
     if (why && !uploaded)
@@ -516,7 +527,8 @@ void SceneRegistry::restoreAll(std::vector<SessionRecord> records) {
       SessionIdentity identity{r.id, r.token, r.name, r.source_path, r.source_label, *params};
       v1::OpenSceneRequest request = *params;
       request.set_path(r.source_path);
-      auto opened = openResident(identity, request, &*lights, std::max<std::uint64_t>(r.version, 1), "", &progress);
+      auto opened = openResident(identity, request, &*lights, std::move(scenarios),
+                                 std::max<std::uint64_t>(r.version, 1), "", &progress);
       if (!opened) why = opened.status();
     }
     if (restore_stop_ && !why) return;  // cancelled mid-open: the record stays
@@ -669,6 +681,7 @@ Status SceneRegistry::persistNow() {
     r.source_label = id.source_label;
     r.params = paramsToJson(id.params);
     r.lights = s->persistentLights(&r.version);
+    r.scenarios = s->persistentScenarios();
     records.push_back(std::move(r));
   }
   return saveSessions(sessions_path_, records);

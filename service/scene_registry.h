@@ -100,6 +100,7 @@ class SceneRegistry {
  private:
   Expected<std::shared_ptr<SceneSession>> openResident(SessionIdentity identity, const v1::OpenSceneRequest& request,
                                                        const relight::LightSet* restored_lights,
+                                                       std::vector<lights::Scenario> restored_scenarios,
                                                        std::uint64_t restored_version,
                                                        const std::string& lightset_json, Progress* progress,
                                                        const std::string& staged_upload = {},

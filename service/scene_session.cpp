@@ -31,7 +31,11 @@ SceneSession::SceneSession(SessionIdentity identity, relight::LightSet lights, s
       journal_(options.journal),
       lights_(std::move(lights)),
       version_(version),
-      relit_version_(version - 1) {}  // the initial version is the worker's first job
+      scene_lights_(options.scene_lights),
+      emissions_(options.emissions),
+      relit_version_(version - 1) {  // the initial version is the worker's first job
+  for (const lights::Scenario& sc : options.scenarios) scenarios_[sc.name] = sc.lights;
+}
 
 Expected<std::shared_ptr<SceneSession>> SceneSession::start(SessionIdentity identity,
                                                            precompute::ResidentScene resident,
@@ -291,6 +295,103 @@ std::vector<std::string> SceneSession::lightIds() const {
 }
 
 Expected<std::uint64_t> SceneSession::update(const v1::UpdateLightsRequest& request) {
+  return commit([&](relight::LightSet& next) { return applyUpdate(request, material_count_, next); });
+}
+
+Expected<std::vector<std::string>> SceneSession::setScenario(const v1::SetScenarioRequest& request,
+                                                             std::optional<relight::LightSet>* previous) {
+  const std::string& name = request.name();
+  if (Status s = lights::validateScenarioName(name, "name: scenario"); !s) return s;
+  relight::LightSet set;
+  switch (request.source_case()) {
+    case v1::SetScenarioRequest::kLightSetJson: {
+      if (request.light_set_json().size() > kMaxLightSetJsonBytes)
+        return resourceExhausted("light_set_json: {} bytes, above the limit of {} bytes",
+                                 request.light_set_json().size(), kMaxLightSetJsonBytes);
+      auto patch = relight::LightSetPatch::parse(request.light_set_json(), "light_set_json");
+      if (!patch) return patch.status();
+      set = scene_lights_;
+      if (Status s = set.apply(*patch); !s) return invalidInput("light_set_json: {}", s.message());
+      break;
+    }
+    case v1::SetScenarioRequest::kFromCurrent: {
+      if (!request.from_current()) return invalidInput("from_current: must be true when given");
+      std::lock_guard lock(mutex_);
+      set = in_flight_.empty() ? lights_ : in_flight_.back().lights;
+      break;
+    }
+    case v1::SetScenarioRequest::kRemove:
+      if (!request.remove()) return invalidInput("remove: must be true when given");
+      break;
+    default:
+      return invalidInput("source: give light_set_json, from_current or remove");
+  }
+  if (request.source_case() != v1::SetScenarioRequest::kRemove) {
+    if (Status s = set.checkMaterials(material_count_); !s) return invalidInput("light_set_json: {}", s.message());
+    if (set.lights().size() > kMaxLightsPerScene)
+      return resourceExhausted("scenario \"{}\": {} lights, above the limit of {} lights per scene", name,
+                               set.lights().size(), kMaxLightsPerScene);
+  }
+  std::lock_guard lock(mutex_);
+  if (stop_) return notFound("scene_id: scene '{}' is closed", identity_.id);
+  const auto it = scenarios_.find(name);
+  *previous = it == scenarios_.end() ? std::nullopt : std::optional<relight::LightSet>(it->second);
+  if (request.source_case() == v1::SetScenarioRequest::kRemove) {
+    if (it == scenarios_.end()) return notFound("name: scene '{}' has no scenario \"{}\"", identity_.id, name);
+    scenarios_.erase(it);
+  } else {
+    if (it == scenarios_.end() && scenarios_.size() >= lights::kMaxScenarios)
+      return resourceExhausted("scenarios: the scene has {} scenarios, the limit", lights::kMaxScenarios);
+    scenarios_[name] = std::move(set);
+  }
+  std::vector<std::string> names;
+  for (const auto& [n, s] : scenarios_) names.push_back(n);
+  return names;
+}
+
+void SceneSession::restoreScenario(const std::string& name, std::optional<relight::LightSet> previous) {
+  std::lock_guard lock(mutex_);
+  if (previous) scenarios_[name] = std::move(*previous);
+  else scenarios_.erase(name);
+}
+
+Expected<std::uint64_t> SceneSession::useScenarios(const v1::UseScenariosRequest& request) {
+  if (request.wait_ms() > kMaxWaitMs) return invalidInput("wait_ms: {} is above the limit of {}", request.wait_ms(), kMaxWaitMs);
+  if (static_cast<std::size_t>(request.weights_size()) > lights::kMaxScenarios)
+    return invalidInput("weights: {} entries, above the limit of {}", request.weights_size(), lights::kMaxScenarios);
+  std::vector<lights::ScenarioWeight> weights;
+  for (const auto& w : request.weights()) weights.push_back({w.name(), w.weight()});
+  std::vector<lights::Scenario> scenarios;
+  {
+    std::lock_guard lock(mutex_);
+    for (const auto& [name, set] : scenarios_) scenarios.push_back({name, set});
+  }
+  auto blend = lights::blendScenarios(scenarios, weights, emissions_);
+  if (!blend) return blend.status();
+  if (blend->lights().size() > kMaxLightsPerScene)
+    return resourceExhausted("weights: the blend has {} lights, above the limit of {} lights per scene",
+                             blend->lights().size(), kMaxLightsPerScene);
+  return commit([&](relight::LightSet& next) {
+    next = *blend;
+    return Status{};
+  });
+}
+
+std::vector<std::string> SceneSession::scenarioNames() const {
+  std::lock_guard lock(mutex_);
+  std::vector<std::string> names;
+  for (const auto& [n, s] : scenarios_) names.push_back(n);
+  return names;
+}
+
+nlohmann::ordered_json SceneSession::persistentScenarios() const {
+  std::lock_guard lock(mutex_);
+  nlohmann::ordered_json out = nlohmann::ordered_json::object();
+  for (const auto& [n, s] : scenarios_) out[n] = s.toJson();
+  return out;
+}
+
+Expected<std::uint64_t> SceneSession::commit(const std::function<Status(relight::LightSet&)>& change) {
   std::unique_lock lock(mutex_);
   UpdateJournal::Ticket ticket;
   std::uint64_t v = 0;
@@ -301,7 +402,7 @@ Expected<std::uint64_t> SceneSession::update(const v1::UpdateLightsRequest& requ
     // when every change succeeded: all or nothing.
     const InFlight* tip = in_flight_.empty() ? nullptr : &in_flight_.back();
     relight::LightSet next = tip ? tip->lights : lights_;
-    if (Status s = applyUpdate(request, material_count_, next); !s) return s;
+    if (Status s = change(next); !s) return s;
     v = (tip ? tip->version : version_) + 1;
     if (!journal_) {
       lights_ = std::move(next);

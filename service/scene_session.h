@@ -46,7 +46,9 @@
 #include <deque>
 #include <functional>
 #include <future>
+#include <map>
 #include <memory>
+#include <optional>
 #include <mutex>
 #include <string>
 #include <thread>
@@ -57,6 +59,7 @@
 #include "core/precompute/resident.h"
 #include "core/relight/backend.h"
 #include "gpu/backend_factory.h"
+#include "core/lights/scenarios.h"
 #include "core/relight/light_set.h"
 #include "core/rt/accel.h"
 #include "proto/lightlink.pb.h"
@@ -100,6 +103,11 @@ struct SessionOptions {
   // version too: clients see it, so a restarted daemon must not hand it out again). Null:
   // versions are visible at once (in-process tools and tests).
   std::shared_ptr<UpdateJournal> journal;
+  // Lighting scenarios: the base a scenario's light-set document applies over (the scene's
+  // own lights), each material's emission (for blends), and the scenarios a restart restores.
+  relight::LightSet scene_lights;
+  std::vector<lights::MaterialEmission> emissions;
+  std::vector<lights::Scenario> scenarios;
 };
 
 struct SessionStats {
@@ -158,6 +166,17 @@ class SceneSession {
   // that version is durable. A failed write is the journal's error, and nothing changed.
   Expected<std::uint64_t> update(const v1::UpdateLightsRequest& request);
 
+  // Lighting scenarios (proto SetScenario / UseScenarios). setScenario returns the sorted
+  // names afterwards; `previous` gets what the name held before (for a rollback when the
+  // change cannot be persisted: restoreScenario). useScenarios makes the blend the light set
+  // of a new version, as update does.
+  Expected<std::vector<std::string>> setScenario(const v1::SetScenarioRequest& request,
+                                                 std::optional<relight::LightSet>* previous);
+  void restoreScenario(const std::string& name, std::optional<relight::LightSet> previous);
+  Expected<std::uint64_t> useScenarios(const v1::UseScenariosRequest& request);
+  std::vector<std::string> scenarioNames() const;
+  nlohmann::ordered_json persistentScenarios() const;  // name -> LightSet::toJson, for sessions.json
+
   std::uint64_t version() const;
   std::shared_ptr<const Snapshot> latest() const;
 
@@ -200,6 +219,9 @@ class SceneSession {
   // Makes the in-flight versions whose commit is done visible, in order, and drops the rest
   // from the first failed one on. Needs mutex_ held.
   void settleInFlight() const;
+  // update()'s body: `change` edits a copy of the newest light set (all or nothing), which
+  // becomes a new version once durable.
+  Expected<std::uint64_t> commit(const std::function<Status(relight::LightSet&)>& change);
   // One relight of `lights` for version `v`, published as a snapshot; false when it failed
   // (logged, counted).
   // Where a progressive light change's iterations stand.
@@ -247,7 +269,10 @@ class SceneSession {
     relight::LightSet lights;
     UpdateJournal::Ticket ticket;
   };
-  mutable std::deque<InFlight> in_flight_;     // appended to the journal, not yet visible; guarded
+  mutable std::deque<InFlight> in_flight_;
+  relight::LightSet scene_lights_;                      // the base of scenario documents
+  std::vector<lights::MaterialEmission> emissions_;
+  std::map<std::string, relight::LightSet> scenarios_;  // guarded by mutex_     // appended to the journal, not yet visible; guarded
   std::uint64_t relit_version_ = 0;            // last version handed to the worker, guarded
   std::shared_ptr<const Snapshot> latest_;     // guarded
   std::uint64_t sequence_ = 0;                 // results published, guarded

@@ -528,11 +528,46 @@ grpc::Status LightlinkService::UpdateLights(grpc::ServerContext* ctx, const v1::
   if (auto st = admit(ctx, true); !st.ok()) return st;
   std::shared_ptr<SceneSession> s;
   if (auto st = lookup(ctx, request->scene(), &s); !st.ok()) return st;
-  Expected<std::uint64_t> v = internalError("UpdateLights: not run");
+  return answerUpdate(ctx, *s, "UpdateLights", [&] { return s->update(*request); }, request->wait_ms(), response);
+}
+
+grpc::Status LightlinkService::SetScenario(grpc::ServerContext* ctx, const v1::SetScenarioRequest* request,
+                                           v1::SetScenarioResponse* response) {
+  if (auto st = admit(ctx, true); !st.ok()) return st;
+  std::shared_ptr<SceneSession> s;
+  if (auto st = lookup(ctx, request->scene(), &s); !st.ok()) return st;
+  std::optional<relight::LightSet> previous;
+  auto names = s->setScenario(*request, &previous);
+  if (!names) return toGrpc(names.status());
+  // Acknowledged only once sessions.json holds it; otherwise it is undone.
+  if (Status p = registry_.persistNow(); !p) {
+    s->restoreScenario(request->name(), std::move(previous));
+    return grpcError(grpc::StatusCode::UNAVAILABLE, "the scenario could not be persisted: " + p.message());
+  }
+  logEvent(LogLevel::kInfo, "scenario_set",
+           {{"scene", s->identity().id}, {"name", request->name()}, {"removed", request->has_remove()}});
+  for (const std::string& n : *names) response->add_scenarios(n);
+  return grpc::Status::OK;
+}
+
+grpc::Status LightlinkService::UseScenarios(grpc::ServerContext* ctx, const v1::UseScenariosRequest* request,
+                                            v1::UpdateLightsResponse* response) {
+  if (auto st = admit(ctx, true); !st.ok()) return st;
+  std::shared_ptr<SceneSession> s;
+  if (auto st = lookup(ctx, request->scene(), &s); !st.ok()) return st;
+  return answerUpdate(ctx, *s, "UseScenarios", [&] { return s->useScenarios(*request); }, request->wait_ms(),
+                      response);
+}
+
+grpc::Status LightlinkService::answerUpdate(grpc::ServerContext* ctx, SceneSession& session, const char* rpc,
+                                            const std::function<Expected<std::uint64_t>()>& change,
+                                            std::uint32_t wait_ms, v1::UpdateLightsResponse* response) {
+  SceneSession* s = &session;
+  Expected<std::uint64_t> v = internalError("{}: not run", rpc);
   try {
-    v = s->update(*request);
+    v = change();
   } catch (const std::bad_alloc&) {
-    logEvent(LogLevel::kError, "out_of_memory", {{"rpc", "UpdateLights"}, {"scene", s->identity().id}});
+    logEvent(LogLevel::kError, "out_of_memory", {{"rpc", rpc}, {"scene", s->identity().id}});
     return grpcError(grpc::StatusCode::RESOURCE_EXHAUSTED, "out of memory while updating the lights");
   }
   if (!v) {
@@ -543,8 +578,8 @@ grpc::Status LightlinkService::UpdateLights(grpc::ServerContext* ctx, const v1::
   }
   // Durable: the version is in the journal (SceneSession::update).
   response->set_version(*v);
-  if (request->wait_ms() > 0) {
-    const auto deadline = std::min(waitDeadline(ctx), Clock::now() + std::chrono::milliseconds(request->wait_ms()));
+  if (wait_ms > 0) {
+    const auto deadline = std::min(waitDeadline(ctx), Clock::now() + std::chrono::milliseconds(wait_ms));
     auto snap = s->waitForVersion(*v, deadline, [&] { return ctx->IsCancelled(); });
     response->set_relit(snap != nullptr);
   } else {
@@ -670,6 +705,7 @@ grpc::Status LightlinkService::ListScenes(grpc::ServerContext* ctx, const v1::Li
     out->set_version(st.version);
     out->set_result_version(st.result_version);
     out->set_backend(s->backendName());
+    for (const std::string& n : s->scenarioNames()) out->add_scenarios(n);
   }
   for (const auto& r : registry_.restoring()) {
     auto* out = response->add_scenes();

@@ -17,6 +17,7 @@
 
 #include <atomic>
 #include <chrono>
+#include <functional>
 #include <map>
 #include <memory>
 #include <mutex>
@@ -45,6 +46,10 @@ class LightlinkService final : public LightlinkServiceBase {
                          grpc::ServerWriter<v1::OpenSceneProgress>* writer) override;
   grpc::Status UpdateLights(grpc::ServerContext* ctx, const v1::UpdateLightsRequest* request,
                             v1::UpdateLightsResponse* response) override;
+  grpc::Status SetScenario(grpc::ServerContext* ctx, const v1::SetScenarioRequest* request,
+                           v1::SetScenarioResponse* response) override;
+  grpc::Status UseScenarios(grpc::ServerContext* ctx, const v1::UseScenariosRequest* request,
+                            v1::UpdateLightsResponse* response) override;
   class ResultCall;  // the reactor of one result call (service.cpp)
   // Relight, GetTextures and Subscribe: the request arrives serialized, each response is a
   // serialized ResultMessage shared with every other caller of the same result (see above).
@@ -70,6 +75,11 @@ class LightlinkService final : public LightlinkServiceBase {
   const SharedResults& sharedResults() const { return shared_; }
 
  private:
+  // Runs a light-set change (UpdateLights, UseScenarios) and answers it: the version, and
+  // with `wait_ms` whether its result exists.
+  grpc::Status answerUpdate(grpc::ServerContext* ctx, SceneSession& session, const char* rpc,
+                            const std::function<Expected<std::uint64_t>()>& change, std::uint32_t wait_ms,
+                            v1::UpdateLightsResponse* response);
   // Per-client stream accounting (RAII: released when the handler returns).
   class StreamSlot {
    public:

@@ -81,7 +81,8 @@ Expected<std::vector<SessionRecord>> loadSessions(const std::string& path) {
   ::close(*fd);
   nlohmann::json j = nlohmann::json::parse(text, nullptr, /*allow_exceptions=*/false);
   if (j.is_discarded() || !j.is_object()) return invalidInput("{}: not a JSON object", path);
-  if (j.value("version", 0) != kSessionsSchemaVersion)
+  const int file_version = j.value("version", 0);
+  if (file_version != 1 && file_version != kSessionsSchemaVersion)
     return invalidInput("{}: unsupported sessions schema version {}", path, j.value("version", 0));
   if (!j.contains("scenes") || !j["scenes"].is_array()) return invalidInput("{}: 'scenes' must be an array", path);
   for (std::size_t i = 0; i < j["scenes"].size(); ++i) {
@@ -106,6 +107,10 @@ Expected<std::vector<SessionRecord>> loadSessions(const std::string& path) {
     r.params = s["params"];
     r.lights = s["lights"];
     r.version = s["version"].get<std::uint64_t>();
+    if (s.contains("scenarios")) {
+      if (!s["scenarios"].is_object()) return invalidInput("{}: scenes[{}].scenarios must be an object", path, i);
+      r.scenarios = s["scenarios"];
+    }
     out.push_back(std::move(r));
   }
   return out;
@@ -125,6 +130,7 @@ Status saveSessions(const std::string& path, const std::vector<SessionRecord>& r
     s["params"] = r.params;
     s["lights"] = r.lights;
     s["version"] = r.version;
+    if (!r.scenarios.empty()) s["scenarios"] = r.scenarios;
     j["scenes"].push_back(std::move(s));
   }
   return writeFileAtomic(path, j.dump(2, ' ', false, nlohmann::json::error_handler_t::replace) + "\n", 0600);

@@ -25,6 +25,8 @@ inline constexpr std::size_t kMaxChangesPerRequest = 4096;
 inline constexpr std::size_t kMaxNameBytes = 1024;
 inline constexpr std::size_t kMaxPathBytes = 4096;
 inline constexpr std::uint32_t kMaxWaitMs = 60000;
+// A scenario's light-set document: 4,096 lights take well under 1 MiB.
+inline constexpr std::size_t kMaxLightSetJsonBytes = std::size_t(4) << 20;
 
 // OpenScene parameters -> bake options, through the one builder every front end uses
 // (core/bake/bake_options.h): the deprecated typed fields that are set, then `options`.

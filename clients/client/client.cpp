@@ -281,6 +281,56 @@ Expected<UpdateResult> Client::updateLightsFromJson(SceneHandle& scene, const st
   return updateLights(scene, *update, wait_ms);
 }
 
+namespace {
+Expected<std::vector<std::string>> scenarioNames(const Status& s, const v1::SetScenarioResponse& resp) {
+  if (!s) return s;
+  return std::vector<std::string>(resp.scenarios().begin(), resp.scenarios().end());
+}
+}  // namespace
+
+Expected<std::vector<std::string>> Client::setScenario(const SceneHandle& scene, const std::string& name,
+                                                       const std::string& light_set_json) {
+  v1::SetScenarioRequest req;
+  setRef(req.mutable_scene(), scene);
+  req.set_name(name);
+  if (light_set_json.empty()) req.set_from_current(true);
+  else req.set_light_set_json(light_set_json);
+  grpc::ClientContext ctx;
+  impl_->prepare(ctx, impl_->call_timeout);
+  v1::SetScenarioResponse resp;
+  return scenarioNames(fromGrpc("SetScenario", impl_->rpc->SetScenario(&ctx, req, &resp)), resp);
+}
+
+Expected<std::vector<std::string>> Client::removeScenario(const SceneHandle& scene, const std::string& name) {
+  v1::SetScenarioRequest req;
+  setRef(req.mutable_scene(), scene);
+  req.set_name(name);
+  req.set_remove(true);
+  grpc::ClientContext ctx;
+  impl_->prepare(ctx, impl_->call_timeout);
+  v1::SetScenarioResponse resp;
+  return scenarioNames(fromGrpc("SetScenario", impl_->rpc->SetScenario(&ctx, req, &resp)), resp);
+}
+
+Expected<UpdateResult> Client::useScenarios(SceneHandle& scene, const std::vector<lights::ScenarioWeight>& weights,
+                                            std::uint32_t wait_ms) {
+  v1::UseScenariosRequest req;
+  setRef(req.mutable_scene(), scene);
+  for (const auto& w : weights) {
+    auto* out = req.add_weights();
+    out->set_name(w.name);
+    out->set_weight(w.weight);
+  }
+  req.set_wait_ms(wait_ms);
+  grpc::ClientContext ctx;
+  impl_->prepare(ctx, impl_->waitingDeadline(wait_ms));
+  v1::UpdateLightsResponse resp;
+  if (Status s = fromGrpc("UseScenarios", impl_->rpc->UseScenarios(&ctx, req, &resp)); !s) return s;
+  scene.light_ids.clear();
+  scene.ids_known = false;
+  return UpdateResult{resp.version(), resp.relit()};
+}
+
 Expected<Textures> Client::relight(const SceneHandle& scene, std::uint64_t version, const ResultSpec& spec) {
   v1::RelightRequest req;
   setRef(req.mutable_scene(), scene);

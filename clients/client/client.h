@@ -27,6 +27,7 @@
 #include <string_view>
 #include <vector>
 
+#include "core/lights/scenarios.h"
 #include "clients/client/light_update.h"
 #include "clients/client/textures.h"
 #include "core/common/status.h"
@@ -138,6 +139,16 @@ class Client {
   // A light-set JSON file/text (docs/lightset.md) converted with the handle's light ids.
   Expected<UpdateResult> updateLightsFromJson(SceneHandle& scene, const std::string& json_text,
                                               std::uint32_t wait_ms = 0);
+  // Lighting scenarios (docs/service.md "Lighting scenarios"). setScenario stores a named
+  // light set: `light_set_json` applied over the scene's own lights, or, when it is empty,
+  // the scene's current light set; returns the scene's scenario names afterwards.
+  Expected<std::vector<std::string>> setScenario(const SceneHandle& scene, const std::string& name,
+                                                 const std::string& light_set_json);
+  Expected<std::vector<std::string>> removeScenario(const SceneHandle& scene, const std::string& name);
+  // The scene's light set becomes the weighted blend of scenarios (a new version, as
+  // updateLights). The handle's light ids are unknown afterwards (a blend renames them).
+  Expected<UpdateResult> useScenarios(SceneHandle& scene, const std::vector<lights::ScenarioWeight>& weights,
+                                      std::uint32_t wait_ms = 0);
   // The newest result with version >= `version` (0 = newest), waiting for it up to the
   // call deadline.
   Expected<Textures> relight(const SceneHandle& scene, std::uint64_t version = 0, const ResultSpec& spec = {});

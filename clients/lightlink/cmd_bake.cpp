@@ -13,6 +13,7 @@
 #include "clients/lightlink/progress_bar.h"
 #include "clients/lightlink/version.h"
 #include "core/common/isa.h"
+#include "core/lights/scenarios.h"
 #include "core/bake/bake_options.h"
 #include "core/charts/gltf_writer.h"
 #include "core/output/output.h"
@@ -30,6 +31,91 @@ Status makeDirectory(const fs::path& dir) {
   fs::create_directories(dir, ec);
   if (ec) return ioError("cannot create directory {}: {}", dir.string(), ec.message());
   return {};
+}
+
+// What writeLightingFiles wrote, and what the half writers clamped or lost.
+struct LightingFiles {
+  std::vector<std::string> outputs;
+  std::size_t lightmap_clamped = 0, lightmap_underflowed = 0, grid_clamped = 0, grid_underflowed = 0;
+};
+
+// The lighting of one relight into `dir`: lightmap (+ finer direct), preview, grid files.
+Expected<LightingFiles> writeLightingFiles(const relight::RelightResult& result, const precompute::Precomputation& p,
+                                           const fs::path& dir, const output::ExrOptions& exr) {
+  LightingFiles f;
+  auto lm_stats = output::writeLightmapExr(result, (dir / "lightmap.exr").string(), exr);
+  if (!lm_stats) return lm_stats.status();
+  f.outputs.push_back("lightmap.exr");
+  f.lightmap_clamped = lm_stats->clamped;
+  f.lightmap_underflowed = lm_stats->underflowed;
+  if (result.directIsFiner()) {
+    auto d = output::writeDirectExr(result, (dir / "direct.exr").string(), exr);
+    if (!d) return d.status();
+    f.outputs.push_back("direct.exr");
+    f.lightmap_clamped += d->clamped;
+    f.lightmap_underflowed += d->underflowed;
+  }
+  if (Status s = output::writeIrradiancePng(result, p.lightmap, (dir / "lightmap.png").string(), {},
+                                            p.hasDirectLayer() ? &p.direct_texels : nullptr);
+      !s)
+    return s;
+  f.outputs.push_back("lightmap.png");
+  if (p.has_grid) {
+    auto g = output::writeGridExr(result, p.grid, (dir / "grid.exr").string(), exr);
+    if (!g) return g.status();
+    f.grid_clamped = g->clamped;
+    f.grid_underflowed = g->underflowed;
+    if (Status s = output::writeGridJson(result, p.grid, (dir / "grid.json").string()); !s) return s;
+    if (Status s = output::writeGridRaw(result, p.grid, (dir / "grid.raw").string()); !s) return s;
+    f.outputs.insert(f.outputs.end(), {"grid.exr", "grid.json", "grid.raw"});
+  }
+  return f;
+}
+
+void addWriterWarnings(const LightingFiles& f, const std::string& prefix, std::vector<std::string>& warnings) {
+  if (f.lightmap_clamped + f.grid_clamped > 0)
+    warnings.push_back(fmt::format("{}lightmap.exr, grid.exr: {} values beyond the half range were clamped "
+                                   "(use --float)", prefix, f.lightmap_clamped + f.grid_clamped));
+  if (f.lightmap_underflowed + f.grid_underflowed > 0)
+    warnings.push_back(fmt::format("{}lightmap.exr, grid.exr: {} non-zero values below the smallest normal "
+                                   "half lost precision (use --float)",
+                                   prefix, f.lightmap_underflowed + f.grid_underflowed));
+}
+
+struct ScenarioFile {
+  std::string path;
+  relight::LightSet lights;
+};
+
+// "NAME=FILE": the base light set with FILE applied, its name checked as a folder name.
+Expected<std::pair<std::string, ScenarioFile>> parseScenarioOption(const std::string& spec,
+                                                                   const relight::LightSet& base,
+                                                                   std::size_t material_count) {
+  const auto eq = spec.find('=');
+  if (eq == std::string::npos || eq + 1 == spec.size())
+    return invalidInput("--scenario {}: expected NAME=LIGHTS.json", spec);
+  const std::string name = spec.substr(0, eq);
+  if (Status s = lights::validateScenarioName(name, "--scenario"); !s) return s;
+  ScenarioFile f{spec.substr(eq + 1), base};
+  if (Status s = f.lights.applyFile(f.path); !s)
+    return Status(s.code(), fmt::format("--scenario {}: {}", name, s.message()));
+  if (Status s = f.lights.checkMaterials(material_count); !s)
+    return Status(s.code(), fmt::format("--scenario {}: {}", name, s.message()));
+  return std::pair{name, std::move(f)};
+}
+
+// scenarios.json: the scenarios a bake wrote and how an engine blends them.
+Status writeScenarioManifest(const nlohmann::ordered_json& reports, const fs::path& path) {
+  nlohmann::ordered_json m;
+  m["format"] = "lightlink.scenarios";
+  m["version"] = 1;
+  m["blend"] = "linear: the lighting of weights w_k is sum_k w_k * lighting_k, per SH coefficient, texel and "
+               "grid point (docs/outputs.md \"Lighting scenarios\")";
+  nlohmann::ordered_json list = nlohmann::ordered_json::array();
+  for (const auto& r : reports)
+    list.push_back({{"name", r["name"]}, {"folder", r["folder"]}, {"lights", r["lights"]}, {"outputs", r["outputs"]}});
+  m["scenarios"] = std::move(list);
+  return output::writeReportJson(m, path.string());
 }
 
 }  // namespace
@@ -69,6 +155,16 @@ int runBake(const BakeArgs& args) {
   if (!args.lights_path.empty()) {
     if (Status s = lights.applyFile(args.lights_path); !s) return reportError(kCmd, s);
   }
+  // --scenario NAME=FILE: each a light-set file applied over the same base (the scene's
+  // lights and --lights), checked before the precompute's result is used for anything.
+  std::vector<std::pair<std::string, ScenarioFile>> scenarios;
+  for (const std::string& spec : args.scenarios) {
+    auto sc = parseScenarioOption(spec, lights, scene.materials.size());
+    if (!sc) return reportError(kCmd, sc.status());
+    for (const auto& [name, f] : scenarios)
+      if (name == sc->first) return reportError(kCmd, invalidInput("--scenario {}: named twice", name));
+    scenarios.push_back(std::move(sc).value());
+  }
   // cpu, gpu or auto: the note says which ran and, for a fallback, why.
   std::string backend_note;
   auto backend = gpu::makeBackend(*backend_choice, scene, resident->accel(), p, resident->lightmapLinks(),
@@ -84,34 +180,37 @@ int runBake(const BakeArgs& args) {
   output::ExrOptions exr;
   exr.half = !args.float_exr;
   exr.scene_hash = key_hex;
-  auto lm_stats = output::writeLightmapExr(*result, (out / "lightmap.exr").string(), exr);
-  if (!lm_stats) return reportError(kCmd, lm_stats.status());
-  if (result->directIsFiner()) {
-    auto d = output::writeDirectExr(*result, (out / "direct.exr").string(), exr);
-    if (!d) return reportError(kCmd, d.status());
-    lm_stats->clamped += d->clamped;
-    lm_stats->underflowed += d->underflowed;
+  auto files = writeLightingFiles(*result, p, out, exr);
+  if (!files) return reportError(kCmd, files.status());
+  addWriterWarnings(*files, "", findings.warnings);
+
+  // Lighting scenarios: one relight each over the same precomputation, written under
+  // scenarios/<name>/ (docs/outputs.md "Lighting scenarios").
+  nlohmann::ordered_json scenario_reports = nlohmann::ordered_json::array();
+  for (const auto& [name, file] : scenarios) {
+    bar.begin("scenario " + name, 0);
+    relight::RelightResult sr;
+    const Status st = (*backend)->relightInto(file.lights, relight_options, sr);
+    bar.end();
+    if (!st) return reportError(kCmd, Status(st.code(), fmt::format("scenario \"{}\": {}", name, st.message())));
+    const fs::path dir = out / "scenarios" / name;
+    if (Status s = makeDirectory(dir); !s) return reportError(kCmd, s);
+    auto sf = writeLightingFiles(sr, p, dir, exr);
+    if (!sf) return reportError(kCmd, sf.status());
+    addWriterWarnings(*sf, "scenario " + name + ": ", findings.warnings);
+    const BakeFindings sfind = collectFindings(scene, resident->precomputeReport(), sr);
+    for (const std::string& w : sfind.warnings) findings.warnings.push_back("scenario " + name + ": " + w);
+    scenario_reports.push_back({{"name", name},
+                                {"lights", file.path},
+                                {"folder", "scenarios/" + name},
+                                {"relight_ms", sr.totalSeconds() * 1e3},
+                                {"lighting", {{"no_light", sfind.no_light}, {"all_black", sfind.all_black}}},
+                                {"outputs", sf->outputs},
+                                {"relight", sr.report()}});
   }
-  if (Status s = output::writeIrradiancePng(*result, p.lightmap, (out / "lightmap.png").string(), {},
-                                            p.hasDirectLayer() ? &p.direct_texels : nullptr);
-      !s)
-    return reportError(kCmd, s);
-  std::size_t grid_clamped = 0, grid_underflowed = 0;
-  if (p.has_grid) {
-    auto g = output::writeGridExr(*result, p.grid, (out / "grid.exr").string(), exr);
-    if (!g) return reportError(kCmd, g.status());
-    grid_clamped = g->clamped;
-    grid_underflowed = g->underflowed;
-    if (Status s = output::writeGridJson(*result, p.grid, (out / "grid.json").string()); !s) return reportError(kCmd, s);
-    if (Status s = output::writeGridRaw(*result, p.grid, (out / "grid.raw").string()); !s) return reportError(kCmd, s);
+  if (!scenarios.empty()) {
+    if (Status s = writeScenarioManifest(scenario_reports, out / "scenarios.json"); !s) return reportError(kCmd, s);
   }
-  if (lm_stats->clamped + grid_clamped > 0)
-    findings.warnings.push_back(fmt::format("lightmap.exr, grid.exr: {} values beyond the half range were clamped "
-                                            "(use --float)", lm_stats->clamped + grid_clamped));
-  if (lm_stats->underflowed + grid_underflowed > 0)
-    findings.warnings.push_back(fmt::format("lightmap.exr, grid.exr: {} non-zero values below the smallest normal "
-                                            "half lost precision (use --float)",
-                                            lm_stats->underflowed + grid_underflowed));
   // After the progress bar's last line, so no redraw hides them; with -q too.
   printWarnings(findings, stderr);
   const std::string gltf_name = fs::path(args.scene_path).stem().string() + "_lm" +
@@ -138,12 +237,13 @@ int runBake(const BakeArgs& args) {
   report["precompute"] = resident->precomputeReport();
   report["relight"] = result->report();
   report["effects_plan"] = result->plan.toJson();
-  report["half_clamped_values"] = {{"lightmap", lm_stats->clamped}, {"grid", grid_clamped}};
-  report["half_underflowed_values"] = {{"lightmap", lm_stats->underflowed}, {"grid", grid_underflowed}};
-  std::vector<std::string> outputs = {"lightmap.exr", "lightmap.png", "report.json"};
-  if (result->directIsFiner()) outputs.insert(outputs.begin() + 1, "direct.exr");
-  if (p.has_grid) outputs.insert(outputs.end(), {"grid.exr", "grid.json", "grid.raw"});
+  report["half_clamped_values"] = {{"lightmap", files->lightmap_clamped}, {"grid", files->grid_clamped}};
+  report["half_underflowed_values"] = {{"lightmap", files->lightmap_underflowed}, {"grid", files->grid_underflowed}};
+  std::vector<std::string> outputs = files->outputs;
+  outputs.push_back("report.json");
   if (atlas.generated) outputs.push_back(gltf_name);
+  if (!scenarios.empty()) outputs.push_back("scenarios.json");
+  if (!scenarios.empty()) report["scenarios"] = scenario_reports;
   report["outputs"] = outputs;
   // Static meshes whose indirect light is not in the lightmap: from the irradiance volume,
   // or none at all (receive_gi "off": the engine shades them without baked indirect light).
@@ -166,6 +266,9 @@ int runBake(const BakeArgs& args) {
     text += fmt::format("wrote        {}: ", out.string());
     for (std::size_t i = 0; i < outputs.size(); ++i) text += (i ? ", " : "") + outputs[i];
     text += "\n";
+    for (const auto& sr : scenario_reports)
+      text += fmt::format("scenario     {}: relight {:.2f} ms, wrote {}/\n", sr["name"].get<std::string>(),
+                          sr["relight_ms"].get<double>(), sr["folder"].get<std::string>());
     std::fwrite(text.data(), 1, text.size(), stdout);
   }
   return bakeExitCode(findings, *fail_on);

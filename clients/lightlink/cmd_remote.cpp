@@ -6,6 +6,7 @@
 #include <cstdio>
 #include <cstdlib>
 #include <filesystem>
+#include <fstream>
 
 #include <fmt/format.h>
 #include <nlohmann/json.hpp>
@@ -223,6 +224,54 @@ int runSetLight(const SetLightArgs& args) {
   if (!args.remote.session.empty() && scene.ids_known)
     if (Status s = client::saveSession(args.remote.session, remote->session); !s) return reportError(kCmd, s);
   return kExitOk;
+}
+
+int runScenario(const ScenarioArgs& args) {
+  constexpr const char* kCmd = "scenario";
+  if (args.action == "set") {
+    if (args.names.size() != 1) return reportError(kCmd, invalidInput("set: give exactly one scenario name"));
+    const int sources = int(!args.lights_path.empty()) + int(args.from_current) + int(args.remove);
+    if (sources != 1) return reportError(kCmd, invalidInput("set: give one of --lights FILE, --from-current, --remove"));
+    std::string text;
+    if (!args.lights_path.empty()) {
+      // Checked here first, so a mistake names the file before anything is sent.
+      auto patch = lights::LightSetPatch::load(args.lights_path);
+      if (!patch) return reportError(kCmd, patch.status());
+      std::ifstream in(args.lights_path, std::ios::binary);
+      text.assign(std::istreambuf_iterator<char>(in), {});
+    }
+    auto remote = connect(args.remote, true);
+    if (!remote) return reportError(kCmd, remote.status());
+    auto names = args.remove ? remote->client.removeScenario(remote->session.scene, args.names[0])
+                             : remote->client.setScenario(remote->session.scene, args.names[0], text);
+    if (!names) return reportError(kCmd, names.status());
+    std::string line = "scenarios:";
+    for (const std::string& n : *names) line += " " + n;
+    print(line + "\n");
+    return kExitOk;
+  }
+  if (args.action == "use") {
+    if (args.names.empty()) return reportError(kCmd, invalidInput("use: give NAME[=WEIGHT] ..."));
+    if (args.wait_ms < 0) return reportError(kCmd, invalidInput("--wait-ms {} must not be negative", args.wait_ms));
+    std::vector<lights::ScenarioWeight> weights;
+    for (const std::string& spec : args.names) {
+      auto w = lights::parseScenarioWeight(spec);
+      if (!w) return reportError(kCmd, w.status());
+      weights.push_back(*w);
+    }
+    auto remote = connect(args.remote, true);
+    if (!remote) return reportError(kCmd, remote.status());
+    auto r = remote->client.useScenarios(remote->session.scene, weights, args.wait ? std::uint32_t(args.wait_ms) : 0);
+    if (!r) return reportError(kCmd, r.status());
+    if (args.wait && !r->relit)
+      return reportError(kCmd, ioError("version {} was not relit within --wait-ms {}", r->version, args.wait_ms));
+    print(fmt::format("version {}{}\n", r->version, args.wait ? " (relit)" : ""));
+    // The blend renamed the lights: the session forgets the ids it knew.
+    if (!args.remote.session.empty())
+      if (Status s = client::saveSession(args.remote.session, remote->session); !s) return reportError(kCmd, s);
+    return kExitOk;
+  }
+  return reportError(kCmd, invalidInput("'{}': the actions are set and use", args.action));
 }
 
 int runWatch(const WatchArgs& args) {

@@ -60,6 +60,7 @@ struct BakeArgs {
   bool quiet = false;
   bool allow_outside_scene = false;  // read files the scene names outside its folder
   std::string fail_on = "never";   // never | dark | warning (docs/cli.md "Exit codes")
+  std::vector<std::string> scenarios;  // NAME=LIGHTS.json: one more relight each, in scenarios/NAME/
 };
 int runBake(const BakeArgs& args);
 
@@ -135,6 +136,20 @@ struct SetLightArgs {
   bool json = false;
 };
 int runSetLight(const SetLightArgs& args);
+
+// `lightlink scenario set NAME --lights FILE | --from-current | --remove`, and
+// `lightlink scenario use NAME[=WEIGHT]...` (docs/cli.md "scenario").
+struct ScenarioArgs {
+  RemoteArgs remote;
+  std::string action;              // set | use
+  std::vector<std::string> names;  // set: one NAME; use: NAME[=WEIGHT] ...
+  std::string lights_path;         // set: a light-set file over the scene's own lights
+  bool from_current = false;       // set: the scene's current light set
+  bool remove = false;             // set: forget the scenario
+  bool wait = false;               // use: wait for the relit result
+  int wait_ms = 10000;
+};
+int runScenario(const ScenarioArgs& args);
 
 struct WatchArgs {
   RemoteArgs remote;

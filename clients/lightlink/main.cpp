@@ -116,6 +116,9 @@ int main(int argc, char** argv) {
   bake_cmd->add_flag("--no-cache", bake.no_cache, "Recompute even when a matching artifact exists");
   bake_cmd->add_flag("-q,--quiet", bake.quiet, "No progress bar, no summary");
   bake_cmd->add_flag("--allow-outside-scene", bake.allow_outside_scene, "Read files the scene names outside its own folder (only for scenes you trust)");
+  bake_cmd->add_option("--scenario", bake.scenarios,
+                       "NAME=LIGHTS.json: also relight with this light-set file over the base lights and write "
+                       "its lighting to scenarios/NAME/ (repeatable; docs/outputs.md \"Lighting scenarios\")");
   bake_cmd->add_option("--fail-on", bake.fail_on, "Exit non-zero after writing the outputs: never, dark (no light or an all-black lightmap: exit 7) or warning (any warning: exit 6)")->capture_default_str();
 
   RenderArgs render;
@@ -185,6 +188,17 @@ int main(int argc, char** argv) {
   setl_cmd->add_option("--wait-ms", setl.wait_ms, "Longest wait for the relight")->capture_default_str();
   setl_cmd->add_flag("--json-output", setl.json, "Print the result as JSON");
 
+  ScenarioArgs scen;
+  auto* scen_cmd = app.add_subcommand("scenario", "Define lighting scenarios of an open scene, switch and blend them");
+  scen_cmd->add_option("action", scen.action, "set (define, replace or remove one) or use (switch to or blend)")->required();
+  scen_cmd->add_option("names", scen.names, "set: NAME; use: NAME[=WEIGHT] ... (weight 1 when omitted)")->required();
+  addRemoteOptions(scen_cmd, scen.remote);
+  scen_cmd->add_option("--lights", scen.lights_path, "set: a light-set file applied over the scene's own lights");
+  scen_cmd->add_flag("--from-current", scen.from_current, "set: the scene's current light set");
+  scen_cmd->add_flag("--remove", scen.remove, "set: forget the scenario");
+  scen_cmd->add_flag("--wait", scen.wait, "use: wait for the relit result");
+  scen_cmd->add_option("--wait-ms", scen.wait_ms, "Longest wait for the relight")->capture_default_str();
+
   WatchArgs watch;
   auto* watch_cmd = app.add_subcommand("watch", "Subscribe to a scene and print one line per new version");
   addRemoteOptions(watch_cmd, watch.remote);
@@ -218,6 +232,7 @@ int main(int argc, char** argv) {
   if (*serve_cmd) return runServe(serve_cmd->remaining());
   if (*open_cmd) return runOpen(open);
   if (*setl_cmd) return runSetLight(setl);
+  if (*scen_cmd) return runScenario(scen);
   if (*watch_cmd) return runWatch(watch);
   if (*pull_cmd) return runPull(pull);
 #endif
