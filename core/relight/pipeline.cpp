@@ -183,7 +183,9 @@ RelightPipeline::RelightPipeline(const SceneTables& tables, std::unique_ptr<Reli
       passes_(std::move(passes)),
       emission_(tables),
       layer_(tables.scene, tables.accel, tables.p),
-      seams_(SeamStitch::build(tables.scene, tables.p.lightmap.width, tables.p.lightmap.height)) {}
+      seams_(SeamStitch::build(tables.scene, tables.p.lightmap.width, tables.p.lightmap.height)) {
+  emission_.setTracer(passes_->emitterTracer());
+}
 
 RelightPipeline::~RelightPipeline() = default;
 
@@ -219,6 +221,7 @@ Status RelightPipeline::relightInto(const LightSet& lights, const RelightOptions
   const int bands = o.bands == 0 ? link_bands : o.bands;
   if (Status s = validateRequest(lights, o, link_bands, t_.surfelCount(), t_.scene.materials.size()); !s) return s;
   resetResult(lights, o, bands, res);
+  emission_.clearNotes();
   // Until this relight completes, the kept state is no base for a shortcut.
   const Memo* memo = memo_.valid ? &memo_ : nullptr;
   const bool warm = o.warm_start && memo && res.plan.bounces && warmBase(o, bands);
@@ -243,6 +246,8 @@ Status RelightPipeline::relightInto(const LightSet& lights, const RelightOptions
     }
   }
   if (st && res.plan.grid) gridEmitter(f, res);
+  // A backend that samples the emitters itself says where it left the host to do it.
+  for (const auto& note : emission_.notes()) res.plan.reasons.push_back(note);
   if (st) st = passes_->texels(f, res);
   if (!st) {
     memo_.valid = false;

@@ -1,0 +1,48 @@
+// GpuEmitterSampling: the emitters' sampled light (core/relight/emitter_direct.h) run as a
+// compute shader (shaders/emitter_points.comp), its shadow rays traced through a flat BVH of
+// the scene (core/rt/flat_bvh.h, built with Embree's builder on first use and kept resident).
+// It is the GPU backend's relight::detail::EmitterTracer: the relight pipeline hands it the
+// surfels, lightmap caches and grid caches to sample; it writes the same layers the host
+// sampler would (same samples, fp tolerance: docs/gpu.md) and records a GPU timer stage
+// `<stage>_gpu`. It declines (the host samples, and the relight's plan says why) scenes with
+// alpha cut-outs among the shadow casters or emission read from a texture: neither is on the GPU.
+// Needs the backend's GL context current on every call.
+#pragma once
+
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "core/relight/emitter_tracer.h"
+#include "core/rt/accel.h"
+#include "core/scene/scene.h"
+#include "gpu/gl_objects.h"
+
+namespace lightlink::gpu {
+
+class GpuEmitterSampling final : public relight::detail::EmitterTracer {
+ public:
+  // scene, accel and timers must outlive it.
+  GpuEmitterSampling(const scene::Scene& scene, const rt::Accel& accel, GpuTimers& timers);
+  ~GpuEmitterSampling() override;
+
+  Expected<bool> trace(const relight::detail::EmitterSampler& sampler, const relight::detail::EmitterReceivers& points,
+                       int samples, int bands, const std::string& stage, std::vector<float>& layers,
+                       std::size_t& rays) override;
+  const std::string& declined() const override { return declined_; }
+
+ private:
+  Status ensureBvh();
+
+  const scene::Scene& scene_;
+  const rt::Accel& accel_;
+  GpuTimers& timers_;
+  bool bvh_ready_ = false;
+  bool has_bvh_ = false;
+  std::size_t cutout_meshes_ = 0;
+  GlBuffer nodes_, triangles_;
+  std::vector<std::pair<std::string, GlProgram>> programs_;  // by variant key
+  std::string declined_;
+};
+
+}  // namespace lightlink::gpu
