@@ -24,8 +24,8 @@ constexpr std::size_t kPointsPerDispatch = std::size_t(64) * 4096;
 
 }  // namespace
 
-GpuEmitterSampling::GpuEmitterSampling(const scene::Scene& scene, const rt::Accel& accel, GpuTimers& timers)
-    : scene_(scene), accel_(accel), timers_(timers) {}
+GpuEmitterSampling::GpuEmitterSampling(const scene::Scene& scene, const rt::Accel& accel)
+    : scene_(scene), accel_(accel) {}
 
 GpuEmitterSampling::~GpuEmitterSampling() = default;
 
@@ -126,7 +126,8 @@ Expected<bool> GpuEmitterSampling::trace(const relight::detail::EmitterSampler& 
   prog.set("u_local", m <= relight::detail::EmitterSampler::kLocalPickMax ? 1 : 0);
   prog.set("u_has_bvh", has_bvh_ ? 1 : 0);
   prog.set("u_eps", accel_.rayEpsilon());
-  timers_.begin(stage + "_gpu");
+  timers_.reset();
+  timers_.begin(stage);
   for (std::size_t first = 0; first < n; first += kPointsPerDispatch) {
     prog.set("u_first", std::uint32_t(first));
     const std::size_t batch = std::min(kPointsPerDispatch, n - first);
@@ -138,6 +139,8 @@ Expected<bool> GpuEmitterSampling::trace(const relight::detail::EmitterSampler& 
   std::vector<std::uint32_t> traced(n);
   glGetNamedBufferSubData(ray_buf.id(), 0, GLsizeiptr(n * sizeof(std::uint32_t)), traced.data());
   if (Status s = glCheck("emitter sampling"); !s) return s;
+  seconds_ = 0.0;
+  for (const auto& [name, sec] : timers_.resolve()) seconds_ += sec;
   for (std::uint32_t r : traced) rays += r;
   return true;
 }

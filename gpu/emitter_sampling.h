@@ -3,8 +3,8 @@
 // the scene (core/rt/flat_bvh.h, built with Embree's builder on first use and kept resident).
 // It is the GPU backend's relight::detail::EmitterTracer: the relight pipeline hands it the
 // surfels, lightmap caches and grid caches to sample; it writes the same layers the host
-// sampler would (same samples, fp tolerance: docs/gpu.md) and records a GPU timer stage
-// `<stage>_gpu`. It declines (the host samples, and the relight's plan says why) scenes with
+// sampler would (same samples, fp tolerance: docs/gpu.md) and reports its GPU time
+// (the relight's stage `<stage>_gpu`). It declines (the host samples, and the relight's plan says why) scenes with
 // alpha cut-outs among the shadow casters or emission read from a texture: neither is on the GPU.
 // Needs the backend's GL context current on every call.
 #pragma once
@@ -22,21 +22,23 @@ namespace lightlink::gpu {
 
 class GpuEmitterSampling final : public relight::detail::EmitterTracer {
  public:
-  // scene, accel and timers must outlive it.
-  GpuEmitterSampling(const scene::Scene& scene, const rt::Accel& accel, GpuTimers& timers);
+  // scene and accel must outlive it.
+  GpuEmitterSampling(const scene::Scene& scene, const rt::Accel& accel);
   ~GpuEmitterSampling() override;
 
   Expected<bool> trace(const relight::detail::EmitterSampler& sampler, const relight::detail::EmitterReceivers& points,
                        int samples, int bands, const std::string& stage, std::vector<float>& layers,
                        std::size_t& rays) override;
   const std::string& declined() const override { return declined_; }
+  double lastSeconds() const override { return seconds_; }
 
  private:
   Status ensureBvh();
 
   const scene::Scene& scene_;
   const rt::Accel& accel_;
-  GpuTimers& timers_;
+  GpuTimers timers_;  // its own: the result is read back (and timed) before trace() returns
+  double seconds_ = 0.0;
   bool bvh_ready_ = false;
   bool has_bvh_ = false;
   std::size_t cutout_meshes_ = 0;

@@ -249,7 +249,7 @@ class GpuPasses final : public relight::RelightPasses {
 };
 
 Status GpuPasses::setup() {
-  emitter_sampling_ = std::make_unique<GpuEmitterSampling>(scene, t_.accel, timers);
+  emitter_sampling_ = std::make_unique<GpuEmitterSampling>(scene, t_.accel);
   auto need = [](Expected<GlProgram> e, GlProgram& out) -> Status {
     if (!e) return e.status();
     out = std::move(*e);

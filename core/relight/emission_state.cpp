@@ -2,8 +2,6 @@
 
 #include <numbers>
 
-#include <fmt/format.h>
-
 #include "core/common/sampling.h"
 #include "core/relight/direct_points.h"
 
@@ -50,17 +48,6 @@ std::vector<glm::vec2> rotations(std::size_t n, Seed&& seed) {
 
 }  // namespace
 
-bool EmissionState::traced(const detail::EmitterSampler& sampler, const detail::EmitterReceivers& points,
-                           int samples, int bands, const std::string& stage, std::vector<float>& layers,
-                           std::size_t& rays) {
-  if (!tracer_) return false;
-  auto ran = tracer_->trace(sampler, points, samples, bands, stage, layers, rays);
-  if (ran && *ran) return true;
-  notes_.push_back(ran ? fmt::format("{}: sampled on the host ({})", stage, tracer_->declined())
-                       : fmt::format("{}: sampled on the host (the backend failed: {})", stage, ran.status().toString()));
-  return false;
-}
-
 EmitterUpdate EmissionState::updateSurfels(const LightSet& lights) {
   const auto& surfels = t_.p.surfels;
   return surfel_.update(t_.scene, t_.accel, lights.emissive(), kSurfelEmitterSamples, surfels.size(), 3,
@@ -69,8 +56,8 @@ EmitterUpdate EmissionState::updateSurfels(const LightSet& lights) {
     if (tracer_) {
       const auto rot = rotations(surfels.size(), [](std::size_t s) { return detail::surfelEmitterSeed(s); });
       std::size_t uncounted = 0;  // as on the host, the surfels' rays are not counted
-      if (traced(sampler, {surfels.position, surfels.normal, {}, rot}, kSurfelEmitterSamples, 0, "surfel_emitter",
-                 layers, uncounted))
+      if (detail::traceEmitters(tracer_, sampler, {surfels.position, surfels.normal, {}, rot}, kSurfelEmitterSamples, 0,
+                                "surfel_emitter", layers, uncounted, *log_))
         return;
     }
     const std::size_t L = std::size_t(sampler.layerCount());
@@ -94,7 +81,9 @@ EmitterUpdate EmissionState::updateTexels(const LightSet& lights, int samples, s
     const auto& lm = t_.p.lightmap;
     if (tracer_ && sampler.triangleCount() > 0) {
       const auto rot = rotations(lm.size(), [&](std::size_t c) { return detail::texelEmitterSeed(lm.texel[c], 0); });
-      if (traced(sampler, {lm.position, lm.normal, lm.valid, rot}, samples, 0, "emissive_direct", layers, rays)) return;
+      if (detail::traceEmitters(tracer_, sampler, {lm.position, lm.normal, lm.valid, rot}, samples, 0,
+                                "emissive_direct", layers, rays, *log_))
+        return;
     }
     detail::sampleEmitters(sampler, lm, samples, 0, layers, rays);
   });
@@ -121,8 +110,8 @@ EmitterUpdate EmissionState::updateGrid(const LightSet& lights, int bands, std::
     if (sampler.triangleCount() == 0) return;
     if (tracer_) {
       const auto rot = rotations(p.grid.size(), [](std::size_t c) { return detail::gridEmitterSeed(c); });
-      if (traced(sampler, {p.grid.position, {}, p.grid.valid, rot}, kGridEmitterSamples, bands, "grid_emitter", layers,
-                 rays))
+      if (detail::traceEmitters(tracer_, sampler, {p.grid.position, {}, p.grid.valid, rot}, kGridEmitterSamples, bands,
+                                "grid_emitter", layers, rays, *log_))
         return;
     }
     detail::sampleEmittersSh(sampler, p.grid, bands, kGridEmitterSamples, layers, rays);

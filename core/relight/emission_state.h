@@ -33,11 +33,9 @@ class EmissionState {
  public:
   explicit EmissionState(const SceneTables& tables) : t_(tables) {}
 
-  // The backend's tracer for the sampling (null: the host samples every product).
-  void setTracer(detail::EmitterTracer* tracer) { tracer_ = tracer; }
-  // Why products were sampled on the host although a tracer was set, since clearNotes().
-  const std::vector<std::string>& notes() const { return notes_; }
-  void clearNotes() { notes_.clear(); }
+  // The backend's tracer for the sampling (null: the host samples every product), and the
+  // log its runs go to (both outlive this).
+  void setTracer(detail::EmitterTracer* tracer, detail::EmitterTraceLog* log) { tracer_ = tracer, log_ = log; }
 
   // pi * L_e per surfel; true when it changed.
   bool updateEmission(const LightSet& lights);
@@ -67,13 +65,9 @@ class EmissionState {
   static constexpr int kGridEmitterSamples = 64;
 
  private:
-  // Runs the sampling on the tracer; false (a note kept) when there is none or it declined.
-  bool traced(const detail::EmitterSampler& sampler, const detail::EmitterReceivers& points, int samples, int bands,
-              const std::string& stage, std::vector<float>& layers, std::size_t& rays);
-
   const SceneTables& t_;
   detail::EmitterTracer* tracer_ = nullptr;
-  std::vector<std::string> notes_;
+  detail::EmitterTraceLog* log_ = nullptr;
   bool emission_valid_ = false;
   std::vector<EmissiveOverride> emission_overrides_;
   std::vector<glm::vec3> emission_;

@@ -5,8 +5,9 @@
 // same estimator, tables (EmitterSampler::tables()), receivers and per-receiver rotations
 // (emitterRotation of the seeds in emitter_direct.h), writing the layers in the layout
 // LayeredEmitterLight expects. A tracer may decline a sampler it cannot run (an emissive
-// texture, alpha cut-outs it does not model); then the host samples, and the reason is kept
-// for the relight's plan notes.
+// texture, alpha cut-outs it does not model); then the host samples, and the reason goes to
+// the relight's plan notes. The device time of each run becomes a stage `<stage>_gpu` of the
+// relight's timings (traceEmitters below keeps both for the pipeline).
 #pragma once
 
 #include <cstddef>
@@ -19,6 +20,7 @@
 
 #include "core/common/status.h"
 #include "core/relight/emitter_direct.h"
+#include "core/relight/relight.h"
 
 namespace lightlink::relight::detail {
 
@@ -41,6 +43,22 @@ class EmitterTracer {
                                const std::string& stage, std::vector<float>& layers, std::size_t& rays) = 0;
   // Why the last trace() declined (empty after one that ran).
   virtual const std::string& declined() const = 0;
+  // Device seconds of the last trace() that ran (timer queries).
+  virtual double lastSeconds() const = 0;
 };
+
+// What the tracer did in one relight: its stage times and why it left products to the host.
+struct EmitterTraceLog {
+  std::vector<StageTime> timings;
+  std::vector<std::string> notes;
+  void clear() { timings.clear(), notes.clear(); }
+};
+
+// Samples on `tracer` (null: returns false at once); true when it ran, recording stage
+// `<stage>_gpu` in `log`; false, with a note, when it declined or failed (a failure is not
+// fatal: the host then samples).
+bool traceEmitters(EmitterTracer* tracer, const EmitterSampler& sampler, const EmitterReceivers& points, int samples,
+                   int bands, const std::string& stage, std::vector<float>& layers, std::size_t& rays,
+                   EmitterTraceLog& log);
 
 }  // namespace lightlink::relight::detail

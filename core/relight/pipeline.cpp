@@ -184,7 +184,8 @@ RelightPipeline::RelightPipeline(const SceneTables& tables, std::unique_ptr<Reli
       emission_(tables),
       layer_(tables.scene, tables.accel, tables.p),
       seams_(SeamStitch::build(tables.scene, tables.p.lightmap.width, tables.p.lightmap.height)) {
-  emission_.setTracer(passes_->emitterTracer());
+  emission_.setTracer(passes_->emitterTracer(), &trace_log_);
+  layer_.setTracer(passes_->emitterTracer(), &trace_log_);
 }
 
 RelightPipeline::~RelightPipeline() = default;
@@ -221,7 +222,7 @@ Status RelightPipeline::relightInto(const LightSet& lights, const RelightOptions
   const int bands = o.bands == 0 ? link_bands : o.bands;
   if (Status s = validateRequest(lights, o, link_bands, t_.surfelCount(), t_.scene.materials.size()); !s) return s;
   resetResult(lights, o, bands, res);
-  emission_.clearNotes();
+  trace_log_.clear();
   // Until this relight completes, the kept state is no base for a shortcut.
   const Memo* memo = memo_.valid ? &memo_ : nullptr;
   const bool warm = o.warm_start && memo && res.plan.bounces && warmBase(o, bands);
@@ -246,8 +247,6 @@ Status RelightPipeline::relightInto(const LightSet& lights, const RelightOptions
     }
   }
   if (st && res.plan.grid) gridEmitter(f, res);
-  // A backend that samples the emitters itself says where it left the host to do it.
-  for (const auto& note : emission_.notes()) res.plan.reasons.push_back(note);
   if (st) st = passes_->texels(f, res);
   if (!st) {
     memo_.valid = false;
@@ -474,6 +473,11 @@ void RelightPipeline::finish(const RelightFrame& f, RelightResult& res) {
     }
   });
   if (layer_.active()) layer_.compute(f.lights, o, f.plan, res);
+  // The backend's emitter sampling: its device time per stage, and where it left the host to
+  // sample (with why).
+  for (auto& t : trace_log_.timings) res.timings.push_back(std::move(t));
+  for (auto& note : trace_log_.notes) res.plan.reasons.push_back(std::move(note));
+  trace_log_.clear();
   if (res.passes.incremental && !f.plan.bounces) res.bounce_stop = "disabled";
   if (res.passes.unchanged) res.bounce_stop = memo_.bounce_stop;
   if (t_.surfels_without_gather > 0 && f.plan.bounces)

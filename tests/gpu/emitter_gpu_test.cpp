@@ -49,8 +49,8 @@ struct Cornell {
   std::unique_ptr<rt::Accel> accel;
 };
 
-const Cornell& cornell() {
-  static Cornell* f = [] {
+// The Cornell box at a small precomputation; direct_scale 2 adds a finer direct layer.
+Cornell* makeCornell(int direct_scale) {
     auto* fx = new Cornell;
     auto s = scene::loadGltf((testing::sourceDir() / "clients/demo/cornell_box.gltf").string());
     EXPECT_TRUE(s) << s.status().toString();
@@ -63,6 +63,7 @@ const Cornell& cornell() {
     o.grid = precompute::GridMode::kOn;
     o.grid_resolution = 5;
     o.validity_rays = 16;
+    o.direct_scale = direct_scale;
     auto p = precompute::run(fx->scene, o);
     EXPECT_TRUE(p) << p.status().toString();
     fx->p = std::move(*p);
@@ -70,7 +71,9 @@ const Cornell& cornell() {
     EXPECT_TRUE(a) << a.status().toString();
     fx->accel = std::make_unique<rt::Accel>(std::move(*a));
     return fx;
-  }();
+}
+const Cornell& cornell() {
+  static Cornell* f = makeCornell(1);
   return *f;
 }
 
@@ -78,7 +81,6 @@ const Cornell& cornell() {
 struct Gpu {
   std::unique_ptr<GlContext> ctx;
   std::optional<GlContext::Current> current;
-  std::unique_ptr<GpuTimers> timers;
   std::unique_ptr<GpuEmitterSampling> sampling;
   Gpu(const scene::Scene& scene, const rt::Accel& accel) {
     auto c = GlContext::create();
@@ -86,13 +88,9 @@ struct Gpu {
     if (!c) return;
     ctx = std::move(*c);
     current.emplace(*ctx);
-    timers = std::make_unique<GpuTimers>();
-    sampling = std::make_unique<GpuEmitterSampling>(scene, accel, *timers);
+    sampling = std::make_unique<GpuEmitterSampling>(scene, accel);
   }
-  ~Gpu() {
-    sampling.reset();
-    timers.reset();
-  }
+  ~Gpu() { sampling.reset(); }  // GL objects go while the context is current
 };
 
 struct Compare {
@@ -344,6 +342,68 @@ TEST(GpuEmitters, GpuBackendSamplesTheEmittersOnTheGpu) {
   EXPECT_LT(c.rel_rms, kRelRms);
   EXPECT_LT(c.differ, kDiffer);
   for (const auto& note : rg.plan.reasons) EXPECT_EQ(note.find("sampled on the host"), std::string::npos) << note;
+}
+
+// The finer direct layer's emitter samples run on the GPU too, and match the CPU backend's.
+TEST(GpuEmitters, DirectLayerSamplesTheEmittersOnTheGpu) {
+  REQUIRE_GPU();
+  std::unique_ptr<Cornell> f(makeCornell(2));
+  ASSERT_TRUE(f->p.hasDirectLayer());
+  auto cpu = relight::makeCpuBackend(f->scene, *f->accel, f->p, f->p.lightmap_links.view(), f->p.grid_links.view());
+  ASSERT_TRUE(cpu);
+  auto gpu = makeGpuBackend(f->scene, *f->accel, f->p, f->p.lightmap_links.view(), f->p.grid_links.view());
+  ASSERT_TRUE(gpu) << gpu.status().toString();
+  relight::LightSet lights;  // the emitters alone
+  relight::RelightOptions o;
+  o.max_bounces = 0;
+  o.emitter_samples = 16;
+  relight::RelightResult rc, rg;
+  ASSERT_TRUE((*cpu)->relightInto(lights, o, rc));
+  ASSERT_TRUE((*gpu)->relightInto(lights, o, rg));
+  ASSERT_TRUE(rg.directIsFiner());
+  bool staged = false;
+  for (const auto& t : rg.timings) staged = staged || t.stage == "direct_layer_emitter_gpu";
+  EXPECT_TRUE(staged);
+  EXPECT_EQ(rg.counts.shadow_rays, rc.counts.shadow_rays);
+  const auto* g = reinterpret_cast<const float*>(rg.direct.data());
+  const auto* c = reinterpret_cast<const float*>(rc.direct.data());
+  const Compare cmp = compare(std::vector<float>(g, g + 3 * rg.direct.size()), std::vector<float>(c, c + 3 * rc.direct.size()), 3);
+  std::printf("direct layer %dx%d, GPU vs CPU backend: rel RMS %.2e, texels differing %.2f %%\n", rg.direct_width,
+              rg.direct_height, cmp.rel_rms, 100 * cmp.differ);
+  EXPECT_LT(cmp.zero, 0.5);  // the emitters light most of the layer
+  EXPECT_LT(cmp.rel_rms, kRelRms);
+  EXPECT_LT(cmp.differ, kDiffer);
+}
+
+// A scene with an alpha cut-out among the shadow casters: the relight samples the emitters on
+// the host and its plan says so (the block's material is a mask at alpha 1: still opaque).
+TEST(GpuEmitters, CutoutSceneIsSampledOnTheHostAndTheRelightSaysSo) {
+  REQUIRE_GPU();
+  const Cornell& f = cornell();
+  scene::Scene s = f.scene;
+  scene::Material mask;
+  mask.alpha_mode = scene::Material::AlphaMode::kMask;
+  s.materials.push_back(mask);
+  for (auto& mesh : s.meshes)
+    if (mesh.is_static && !s.materialOf(mesh).isEmissive()) {
+      mesh.material = int(s.materials.size()) - 1;
+      break;
+    }
+  auto accel = rt::Accel::build(s);
+  ASSERT_TRUE(accel);
+  auto gpu = makeGpuBackend(s, *accel, f.p, f.p.lightmap_links.view(), f.p.grid_links.view());
+  ASSERT_TRUE(gpu) << gpu.status().toString();
+  relight::LightSet lights;
+  relight::RelightOptions o;
+  o.max_bounces = 0;
+  o.emitter_samples = 4;
+  relight::RelightResult r;
+  ASSERT_TRUE((*gpu)->relightInto(lights, o, r));
+  int notes = 0;
+  for (const auto& reason : r.plan.reasons)
+    if (reason.find("sampled on the host") != std::string::npos && reason.find("cut-out") != std::string::npos) ++notes;
+  EXPECT_GE(notes, 2) << "surfels and lightmap caches";
+  for (const auto& t : r.timings) EXPECT_EQ(t.stage.find("_gpu"), std::string::npos) << t.stage;
 }
 
 }  // namespace
