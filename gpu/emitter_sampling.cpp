@@ -70,6 +70,9 @@ Expected<bool> GpuEmitterSampling::trace(const relight::detail::EmitterSampler& 
   const bool sh = bands > 0;
   if (sh != points.normal.empty()) return internalError("gpu emitter sampling: normals given for SH or missing for irradiance");
   const std::size_t n = points.position.size(), L = std::size_t(sampler.layerCount());
+  if (points.rotation.size() != n || (!sh && points.normal.size() != n) || (!points.valid.empty() && points.valid.size() != n))
+    return internalError("gpu emitter sampling: {} points but {} rotations, {} normals, {} validity flags", n,
+                         points.rotation.size(), points.normal.size(), points.valid.size());
   const std::size_t stride = sh ? std::size_t(3) * bands * bands : 3;
   const std::size_t m = sampler.triangleCount();
   layers.assign(n * L * stride, 0.0f);
