@@ -45,7 +45,9 @@ class DirectLayer {
   void compute(const LightSet& lights, const RelightOptions& options, const EffectsPlan& plan, RelightResult& res);
 
   // The backend's tracer for the emitters (null: the host samples) and the log of its runs.
-  void setTracer(detail::EmitterTracer* tracer, detail::EmitterTraceLog* log) { tracer_ = tracer, log_ = log; }
+  void setTracer(detail::EmitterTracer* tracer, detail::EmitterTraceLog* log) {
+    tracer_ = log ? tracer : nullptr, log_ = log;
+  }
 
   // Forget the kept per-light terms (kLightState) or the emitter term too (kEverything).
   void invalidate(bool everything);

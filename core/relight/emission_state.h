@@ -5,7 +5,8 @@
 // texel), and an editor moving punctual lights or the sky never changes it; a change of
 // emissive strengths or colours alone rescales the per-material layers it keeps
 // (emitter_layers.h) instead of sampling again. Owned by the relight pipeline (pipeline.h)
-// for every backend, so both backends see identical samples.
+// for every backend; a backend with its own emitter tracer (emitter_tracer.h, the GPU's)
+// runs the sampling, with the same samples, where it can.
 #pragma once
 
 #include <cstdint>
@@ -35,7 +36,9 @@ class EmissionState {
 
   // The backend's tracer for the sampling (null: the host samples every product), and the
   // log its runs go to (both outlive this).
-  void setTracer(detail::EmitterTracer* tracer, detail::EmitterTraceLog* log) { tracer_ = tracer, log_ = log; }
+  void setTracer(detail::EmitterTracer* tracer, detail::EmitterTraceLog* log) {
+    tracer_ = log ? tracer : nullptr, log_ = log;
+  }
 
   // pi * L_e per surfel; true when it changed.
   bool updateEmission(const LightSet& lights);
