@@ -18,14 +18,14 @@ namespace {
 
 static_assert(kEmLocalPickMax == int(relight::detail::EmitterSampler::kLocalPickMax));
 
-// Points per dispatch: well inside the 65535 work groups of a dispatch, and short enough
-// that one dispatch never holds a GPU for long.
-constexpr std::size_t kPointsPerDispatch = std::size_t(64) * 4096;
+// Points (one workgroup each) per dispatch: within the 65535 workgroups GL guarantees, and
+// short enough that one dispatch never holds a GPU for long.
+constexpr std::size_t kPointsPerDispatch = 32768;
 
 }  // namespace
 
-GpuEmitterSampling::GpuEmitterSampling(const scene::Scene& scene, const rt::Accel& accel)
-    : scene_(scene), accel_(accel) {}
+GpuEmitterSampling::GpuEmitterSampling(const scene::Scene& scene, const rt::Accel& accel, int lanes)
+    : scene_(scene), accel_(accel), lanes_(lanes) {}
 
 GpuEmitterSampling::~GpuEmitterSampling() = default;
 
@@ -81,8 +81,9 @@ Expected<bool> GpuEmitterSampling::trace(const relight::detail::EmitterSampler& 
   const std::string key = sh ? fmt::format("sh{}", bands) : "irradiance";
   auto it = std::find_if(programs_.begin(), programs_.end(), [&](const auto& p) { return p.first == key; });
   if (it == programs_.end()) {
-    auto prog = sh ? GlProgram::compute("emitter_points.comp", {{"MODE_SH", "1"}, {"BANDS", std::to_string(bands)}})
-                   : GlProgram::compute("emitter_points.comp");
+    std::vector<ShaderDefine> defines{{"LANES", std::to_string(lanes_)}};
+    if (sh) defines.push_back({"MODE_SH", "1"}), defines.push_back({"BANDS", std::to_string(bands)});
+    auto prog = GlProgram::compute("emitter_points.comp", defines);
     if (!prog) return prog.status();
     programs_.emplace_back(key, std::move(*prog));
     it = programs_.end() - 1;
@@ -134,7 +135,7 @@ Expected<bool> GpuEmitterSampling::trace(const relight::detail::EmitterSampler& 
   for (std::size_t first = 0; first < n; first += kPointsPerDispatch) {
     prog.set("u_first", std::uint32_t(first));
     const std::size_t batch = std::min(kPointsPerDispatch, n - first);
-    glDispatchCompute(GLuint((batch + 63) / 64), 1, 1);
+    glDispatchCompute(GLuint(batch), 1, 1);
   }
   timers_.end();
   glMemoryBarrier(GL_BUFFER_UPDATE_BARRIER_BIT);

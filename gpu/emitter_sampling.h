@@ -22,8 +22,9 @@ namespace lightlink::gpu {
 
 class GpuEmitterSampling final : public relight::detail::EmitterTracer {
  public:
-  // scene and accel must outlive it.
-  GpuEmitterSampling(const scene::Scene& scene, const rt::Accel& accel);
+  // scene and accel must outlive it. `lanes`: threads per point (a power of two in 1..32),
+  // among which its samples are spread (GpuOptions::emitter_lanes).
+  GpuEmitterSampling(const scene::Scene& scene, const rt::Accel& accel, int lanes = 32);
   ~GpuEmitterSampling() override;
 
   Expected<bool> trace(const relight::detail::EmitterSampler& sampler, const relight::detail::EmitterReceivers& points,
@@ -37,6 +38,7 @@ class GpuEmitterSampling final : public relight::detail::EmitterTracer {
 
   const scene::Scene& scene_;
   const rt::Accel& accel_;
+  int lanes_ = 32;
   GpuTimers timers_;  // its own: the result is read back (and timed) before trace() returns
   double seconds_ = 0.0;
   bool bvh_ready_ = false;

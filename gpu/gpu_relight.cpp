@@ -249,7 +249,7 @@ class GpuPasses final : public relight::RelightPasses {
 };
 
 Status GpuPasses::setup() {
-  emitter_sampling_ = std::make_unique<GpuEmitterSampling>(scene, t_.accel);
+  emitter_sampling_ = std::make_unique<GpuEmitterSampling>(scene, t_.accel, options.emitter_lanes);
   auto need = [](Expected<GlProgram> e, GlProgram& out) -> Status {
     if (!e) return e.status();
     out = std::move(*e);
@@ -785,6 +785,8 @@ Expected<std::unique_ptr<GpuRelighter>> GpuRelighter::create(const scene::Scene&
   if (const char* lanes = std::getenv("LIGHTLINK_GPU_LANES")) opts.lanes = std::atoi(lanes);
   if (opts.lanes < 1 || opts.lanes > 64 || (opts.lanes & (opts.lanes - 1)) != 0)
     return invalidInput("gpu: lanes {} must be a power of two in 1..64", opts.lanes);
+  if (opts.emitter_lanes < 1 || opts.emitter_lanes > 32 || (opts.emitter_lanes & (opts.emitter_lanes - 1)) != 0)
+    return invalidInput("gpu: emitter_lanes {} must be a power of two in 1..32", opts.emitter_lanes);
   if (!(opts.bias_scene >= 0.0f) || !(opts.normal_offset_texels >= 0.0f) || !(opts.slope_bias_texels >= 0.0f))
     return invalidInput("gpu: shadow biases must be finite and >= 0");
   auto tables = relight::SceneTables::build(scene, accel, p, lightmap_links, grid_links);

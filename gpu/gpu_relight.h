@@ -44,6 +44,10 @@ struct GpuOptions {
   // Sample the emitters on the GPU (gpu/emitter_sampling.h); false: on the host, as the CPU
   // backend does (parity tests that need identical emitter light on both backends).
   bool emitter_sampling = true;
+  // Threads per point in the emitter sampling (1, 2, 4, ..., 32), its samples spread over
+  // them: 32 fills a GPU with few points (one workgroup per point), 1 runs a point's samples
+  // in one thread (fewer triangle set-ups per point). Results are identical for any value.
+  int emitter_lanes = 32;
 };
 
 class GpuRelighter {

@@ -1,7 +1,9 @@
-// The emitters' sampled light at a set of points, one invocation per point: the estimator of
-// core/relight/emitter_direct.cpp (EmitterSampler) step for step, with its shadow rays
-// traced through the flat BVH (common_bvh.glsl) and each sample's light added to its
-// triangle's layer. Default: irradiance per layer at points with a normal (surfels, lightmap
+// The emitters' sampled light at a set of points, one workgroup of LANES lanes (1..32,
+// default 32) per point: the estimator of core/relight/emitter_direct.cpp (EmitterSampler)
+// step for step, its samples spread over the lanes (sample i on lane i % LANES), its shadow
+// rays traced through the flat BVH (common_bvh.glsl). Each round's LANES contributions meet in
+// shared memory and are added to their triangle's layer in sample order, each output by one
+// lane, so the sums run in the host's order for any LANES. Default: irradiance per layer at points with a normal (surfels, lightmap
 // caches), out = sum / N. MODE_SH (with BANDS): the SH of the radiance arriving over the whole
 // sphere (grid caches), 3 planar channel blocks per layer.
 //
@@ -10,7 +12,10 @@
 // points agree to rounding and a shadow test differs only where a sample lands within
 // rounding of an occluder's edge.
 #version 450
-layout(local_size_x = 64) in;
+#ifndef LANES
+#define LANES 32
+#endif
+layout(local_size_x = LANES) in;  // one workgroup per point: its lanes share the samples
 #include "gpu_layout.h"
 #define BVH_NODES kEmBvhNodes
 #define BVH_TRIANGLES kEmBvhTriangles
@@ -31,7 +36,7 @@ layout(std430, binding = kEmValid) readonly buffer Valid { uint valid[]; };
 layout(std430, binding = kEmOut) buffer Out { float result[]; };
 layout(std430, binding = kEmRays) writeonly buffer Rays { uint rays[]; };
 
-uniform uint u_first;      // first point of this dispatch
+uniform uint u_first;      // point of this dispatch's first workgroup
 uniform uint u_count;      // points in all
 uniform int u_samples;     // N per point
 uniform int u_emitters;    // emitting triangles
@@ -43,10 +48,18 @@ uniform float u_eps;       // Accel::rayEpsilon(), metres
 const double kPiD = 3.14159265358979323846LF;
 const double kMinSphericalSr = 3e-4LF, kMaxSphericalSr = 6.22LF;
 
-// The point's own pick (u_local): cdf, 1 / P(t), 1 / pdf_A.
-double l_cdf[kEmLocalPickMax];
-float l_inv_pick[kEmLocalPickMax];
-float l_inv_pdf_area[kEmLocalPickMax];
+const uint kLanes = uint(LANES);
+
+// The point's own pick (u_local): cdf, 1 / P(t), 1 / pdf_A; its weights while it is built.
+shared double l_cdf[kEmLocalPickMax];
+shared double l_weight[kEmLocalPickMax];
+shared float l_inv_pick[kEmLocalPickMax];
+shared float l_inv_pdf_area[kEmLocalPickMax];
+shared bool l_none;  // no emitter can light the point
+// One round of samples: light (rgb) and layer (w, -1: none) per lane, and its direction.
+shared vec4 round_light[kLanes];
+shared vec3 round_dir[kLanes];
+shared uint traced_total;
 
 double cdfAt(int e) { return u_local != 0 ? l_cdf[e] : pick[4 * e]; }
 float invPick(int e) { return u_local != 0 ? l_inv_pick[e] : emitters[e].p0_inv_pick.w; }
@@ -149,15 +162,101 @@ bool sampleSphericalTriangle(SphTri t, double u0, double u1, out dvec3 w) {
   return true;
 }
 
+// Sample i of the point: its light (L_e * weight), layer and direction; false when it cannot
+// contribute (no shadow ray). `traced`: a shadow ray was cast (it may be blocked: light 0).
+// tri / tri_of_setup cache the spherical-triangle set-up of the lane's last triangle.
+bool pointSample(int i, int n, int m, vec3 position, vec3 normal, bool sphere, double r0, double r1,
+                 inout SphTri tri, inout int tri_of_setup, out vec3 light, out int layer, out vec3 w_unit,
+                 out bool traced) {
+  light = vec3(0.0), layer = -1, w_unit = vec3(0.0), traced = false;
+  double u = double(i) / double(n) + r0;
+  u -= floor(u);
+  double v = double(bitfieldReverse(uint(i))) * (1.0LF / 4294967296.0LF) + r1;  // radicalInverse(i, 2)
+  v -= floor(v);
+  int lo_i = 0, hi_i = m;  // upper_bound(cdf, u)
+  while (lo_i < hi_i) {
+    int mid = (lo_i + hi_i) / 2;
+    if (cdfAt(mid) > u) hi_i = mid;
+    else lo_i = mid + 1;
+  }
+  int e = min(lo_i, m - 1);
+  double lo = e > 0 ? cdfAt(e - 1) : 0.0LF;
+  double ur = clamp((u - lo) / max(cdfAt(e) - lo, 1e-300LF), 0.0LF, 1.0LF);
+  vec3 p0 = emitters[e].p0_inv_pick.xyz, e1 = emitters[e].e1_inv_pdf_area.xyz, e2 = emitters[e].e2_layer.xyz;
+  vec3 ne = emitters[e].normal_two_sided.xyz;
+  vec2 bary = vec2(0.0);
+  float weight = 0.0, cos_r = 0.0, cos_e = 0.0;
+  dvec3 x = dvec3(position), dv0 = dvec3(p0), ed1 = dvec3(e1), ed2 = dvec3(e2);
+  if (e != tri_of_setup) {
+    tri_of_setup = e;
+    tri = setUpSphericalTriangle(normalize(dv0 - x), normalize(dv0 + ed1 - x), normalize(dv0 + ed2 - x));
+  }
+  dvec3 dir;
+  bool spherical = tri.ok && sampleSphericalTriangle(tri, ur, v, dir);
+  if (spherical) {
+    // Where the sampled direction meets the triangle (Moller-Trumbore barycentrics).
+    dvec3 s1 = cross(dir, ed2);
+    double div = dot(s1, ed1);
+    spherical = div != 0.0LF;
+    if (spherical) {
+      dvec3 sv = x - dv0;
+      double b1 = clamp(dot(sv, s1) / div, 0.0LF, 1.0LF);
+      double b2 = clamp(dot(dir, cross(sv, ed1)) / div, 0.0LF, 1.0LF);
+      if (b1 + b2 > 1.0LF) {
+        double sum = b1 + b2;
+        b1 /= sum, b2 /= sum;
+      }
+      bary = vec2(float(b1), float(b2));
+      cos_r = sphere ? 1.0 : float(dot(dvec3(normal), dir));
+      cos_e = -float(dot(dvec3(ne), dir));
+      weight = cos_r * float(tri.omega) * invPick(e);
+    }
+  }
+  if (!spherical) {
+    float su = float(sqrt(ur));
+    bary = vec2(su * float(v), su * (1.0 - float(v)));  // uniform on the triangle
+    vec3 w = p0 + bary.x * e1 + bary.y * e2 - position;
+    float d2 = dot(w, w);
+    if (!(d2 > 0.0)) return false;
+    float inv_d = 1.0 / sqrt(d2);
+    cos_r = sphere ? 1.0 : dot(normal, w) * inv_d;
+    cos_e = -dot(ne, w) * inv_d;
+    weight = cos_r * abs(cos_e) / d2 * invPdfArea(e);
+  }
+  if (emitters[e].normal_two_sided.w != 0.0) cos_e = abs(cos_e);
+  if (cos_r <= 0.0 || cos_e <= 0.0) return false;  // behind the receiver or the emitter's back
+  vec3 le = emitters[e].radiance.rgb;
+  if (!(le.x > 0.0 || le.y > 0.0 || le.z > 0.0)) return false;
+  vec3 q = p0 + bary.x * e1 + bary.y * e2;
+  vec3 w = q - position;
+  w_unit = normalize(w);
+  // A grid cache has no surface to leave: step off the point along the ray itself.
+  vec3 org = offsetOrigin(position, sphere ? w_unit : normal, w);
+  vec3 rd = q - org;
+  // Stop short of the emitter by the ray epsilon, so the emitter does not shadow itself.
+  float tfar = max(0.0, 1.0 - u_eps / max(length(rd), 1e-30));
+  traced = true;
+  if (u_has_bvh != 0 && bvhOccluded(org, rd, 0.0, tfar)) return false;
+  light = le * weight;
+  layer = int(emitters[e].e2_layer.w);
+  return true;
+}
+
 void main() {
-  uint p = u_first + gl_GlobalInvocationID.x;
-  if (p >= u_count) return;
+  uint p = u_first + gl_WorkGroupID.x;
+  if (p >= u_count) return;  // uniform over the workgroup
+  uint lane = gl_LocalInvocationID.x;
   const int block = STRIDE;
   uint base = p * uint(u_layers * block);
-  for (int k = 0; k < u_layers * block; ++k) result[base + uint(k)] = 0.0;
-  rays[p] = 0u;
+  // Output entry k of each layer belongs to lane k % LANES (RGB irradiance: lanes 0..2): the one
+  // lane that zeroes, adds to and scales it, so lanes never touch each other's entries.
+  for (int k = int(lane); k < block; k += int(kLanes))
+    for (int l = 0; l < u_layers; ++l) result[base + uint(l * block + k)] = 0.0;
   int m = u_emitters, n = u_samples;
-  if (valid[p] == 0u || m == 0 || n <= 0) return;
+  if (valid[p] == 0u || m == 0 || n <= 0) {
+    if (lane == 0u) rays[p] = 0u;
+    return;
+  }
   vec3 position = positions[p].xyz;
 #ifdef MODE_SH
   const bool sphere = true;
@@ -166,11 +265,12 @@ void main() {
   const bool sphere = false;
   vec3 normal = normals[p].xyz;
 #endif
+  if (lane == 0u) traced_total = 0u;
   if (u_local != 0) {
     // Weight 0 only where the triangle cannot light the point: entirely below its horizon,
-    // or the point behind a one-sided emitter's plane.
-    double total = 0.0LF;
-    for (int e = 0; e < m; ++e) {
+    // or the point behind a one-sided emitter's plane. Weights per lane, their running sum on
+    // lane 0 in triangle order (the host's).
+    for (int e = int(lane); e < m; e += int(kLanes)) {
       vec3 v0 = emitters[e].p0_inv_pick.xyz;
       vec3 v1 = v0 + emitters[e].e1_inv_pdf_area.xyz, v2 = v0 + emitters[e].e2_layer.xyz;
       bool below = !sphere && dot(normal, v0 - position) <= 0.0 && dot(normal, v1 - position) <= 0.0 &&
@@ -181,112 +281,73 @@ void main() {
         dvec3 d = (dvec3(v0) + dvec3(v1) + dvec3(v2)) / 3.0LF - dvec3(position);
         w = pick[4 * e + 1] / max(dot(d, d), pick[4 * e + 2]);
       }
-      l_inv_pick[e] = float(w);  // the weight, until the total is known (as on the host)
-      total += w;
-      l_cdf[e] = total;
+      l_weight[e] = w;
     }
-    if (!(total > 0.0LF)) return;
-    for (int e = 0; e < m; ++e) {
-      double w = double(l_inv_pick[e]);
-      l_cdf[e] /= total;
-      l_inv_pick[e] = w > 0.0LF ? float(total / w) : 0.0;
-      l_inv_pdf_area[e] = w > 0.0LF ? float(pick[4 * e + 2] * total / w) : 0.0;
+    barrier();
+    if (lane == 0u) {
+      double total = 0.0LF;
+      for (int e = 0; e < m; ++e) {
+        l_inv_pick[e] = float(l_weight[e]);  // the weight, until the total is known (as on the host)
+        total += l_weight[e];
+        l_cdf[e] = total;
+      }
+      l_none = !(total > 0.0LF);
+      if (!l_none) {
+        for (int e = 0; e < m; ++e) {
+          double w = double(l_inv_pick[e]);
+          l_cdf[e] /= total;
+          l_inv_pick[e] = w > 0.0LF ? float(total / w) : 0.0;
+          l_inv_pdf_area[e] = w > 0.0LF ? float(pick[4 * e + 2] * total / w) : 0.0;
+        }
+        l_cdf[m - 1] = 1.0LF;
+      }
     }
-    l_cdf[m - 1] = 1.0LF;
+    barrier();
+    if (l_none) {
+      if (lane == 0u) rays[p] = 0u;
+      return;
+    }
   }
   double r0 = double(rotation[p].x), r1 = double(rotation[p].y);
   int tri_of_setup = m;
   SphTri tri;
   tri.ok = false;
-  uint traced = 0u;
-  for (int i = 0; i < n; ++i) {
-    double u = double(i) / double(n) + r0;
-    u -= floor(u);
-    double v = double(bitfieldReverse(uint(i))) * (1.0LF / 4294967296.0LF) + r1;  // radicalInverse(i, 2)
-    v -= floor(v);
-    int lo_i = 0, hi_i = m;  // upper_bound(cdf, u)
-    while (lo_i < hi_i) {
-      int mid = (lo_i + hi_i) / 2;
-      if (cdfAt(mid) > u) hi_i = mid;
-      else lo_i = mid + 1;
-    }
-    int e = min(lo_i, m - 1);
-    double lo = e > 0 ? cdfAt(e - 1) : 0.0LF;
-    double ur = clamp((u - lo) / max(cdfAt(e) - lo, 1e-300LF), 0.0LF, 1.0LF);
-    vec3 p0 = emitters[e].p0_inv_pick.xyz, e1 = emitters[e].e1_inv_pdf_area.xyz, e2 = emitters[e].e2_layer.xyz;
-    vec3 ne = emitters[e].normal_two_sided.xyz;
-    vec2 bary = vec2(0.0);
-    float weight = 0.0, cos_r = 0.0, cos_e = 0.0;
-    dvec3 x = dvec3(position), dv0 = dvec3(p0), ed1 = dvec3(e1), ed2 = dvec3(e2);
-    if (e != tri_of_setup) {
-      tri_of_setup = e;
-      tri = setUpSphericalTriangle(normalize(dv0 - x), normalize(dv0 + ed1 - x), normalize(dv0 + ed2 - x));
-    }
-    dvec3 dir;
-    bool spherical = tri.ok && sampleSphericalTriangle(tri, ur, v, dir);
-    if (spherical) {
-      // Where the sampled direction meets the triangle (Moller-Trumbore barycentrics).
-      dvec3 s1 = cross(dir, ed2);
-      double div = dot(s1, ed1);
-      spherical = div != 0.0LF;
-      if (spherical) {
-        dvec3 sv = x - dv0;
-        double b1 = clamp(dot(sv, s1) / div, 0.0LF, 1.0LF);
-        double b2 = clamp(dot(dir, cross(sv, ed1)) / div, 0.0LF, 1.0LF);
-        if (b1 + b2 > 1.0LF) {
-          double sum = b1 + b2;
-          b1 /= sum, b2 /= sum;
-        }
-        bary = vec2(float(b1), float(b2));
-        cos_r = sphere ? 1.0 : float(dot(dvec3(normal), dir));
-        cos_e = -float(dot(dvec3(ne), dir));
-        weight = cos_r * float(tri.omega) * invPick(e);
+  uint traced_here = 0u;
+  for (int first = 0; first < n; first += int(kLanes)) {
+    int i = first + int(lane);
+    vec3 light = vec3(0.0), w_unit = vec3(0.0);
+    int layer = -1;
+    bool traced = false;
+    if (i < n && !pointSample(i, n, m, position, normal, sphere, r0, r1, tri, tri_of_setup, light, layer, w_unit, traced))
+      layer = -1;
+    traced_here += traced ? 1u : 0u;
+    round_light[lane] = vec4(light, float(layer));
+    round_dir[lane] = w_unit;
+    barrier();
+    int count = min(int(kLanes), n - first);
+    for (int k = int(lane); k < block; k += int(kLanes)) {
+      for (int j = 0; j < count; ++j) {  // in sample order, as the host sums
+        int l = int(round_light[j].w);
+        if (l < 0) continue;
+        uint o = base + uint(l * block + k);
+#ifdef MODE_SH
+        float y[NC];
+        evalBasis(round_dir[j], y);
+        int channel = k / NC;
+        float c = (round_light[j].xyz * (1.0 / float(n)))[channel];
+        result[o] += c * y[k % NC];
+#else
+        result[o] += round_light[j][k];
+#endif
       }
     }
-    if (!spherical) {
-      float su = float(sqrt(ur));
-      bary = vec2(su * float(v), su * (1.0 - float(v)));  // uniform on the triangle
-      vec3 w = p0 + bary.x * e1 + bary.y * e2 - position;
-      float d2 = dot(w, w);
-      if (!(d2 > 0.0)) continue;
-      float inv_d = 1.0 / sqrt(d2);
-      cos_r = sphere ? 1.0 : dot(normal, w) * inv_d;
-      cos_e = -dot(ne, w) * inv_d;
-      weight = cos_r * abs(cos_e) / d2 * invPdfArea(e);
-    }
-    if (emitters[e].normal_two_sided.w != 0.0) cos_e = abs(cos_e);
-    if (cos_r <= 0.0 || cos_e <= 0.0) continue;  // behind the receiver or the emitter's back
-    vec3 le = emitters[e].radiance.rgb;
-    if (!(le.x > 0.0 || le.y > 0.0 || le.z > 0.0)) continue;
-    vec3 q = p0 + bary.x * e1 + bary.y * e2;
-    vec3 w = q - position;
-    vec3 w_unit = normalize(w);
-    // A grid cache has no surface to leave: step off the point along the ray itself.
-    vec3 org = offsetOrigin(position, sphere ? w_unit : normal, w);
-    vec3 rd = q - org;
-    // Stop short of the emitter by the ray epsilon, so the emitter does not shadow itself.
-    float tfar = max(0.0, 1.0 - u_eps / max(length(rd), 1e-30));
-    ++traced;
-    if (u_has_bvh != 0 && bvhOccluded(org, rd, 0.0, tfar)) continue;
-    vec3 c = le * weight;
-    uint o = base + uint(int(emitters[e].e2_layer.w) * block);
-#ifdef MODE_SH
-    c *= 1.0 / float(n);
-    float y[NC];
-    evalBasis(w_unit, y);
-    for (int k = 0; k < NC; ++k) {
-      result[o + uint(k)] += c.x * y[k];
-      result[o + uint(NC + k)] += c.y * y[k];
-      result[o + uint(2 * NC + k)] += c.z * y[k];
-    }
-#else
-    result[o] += c.x;
-    result[o + 1u] += c.y;
-    result[o + 2u] += c.z;
-#endif
+    barrier();
   }
 #ifndef MODE_SH
-  for (int k = 0; k < u_layers * block; ++k) result[base + uint(k)] /= float(n);
+  for (int k = int(lane); k < block; k += int(kLanes))
+    for (int l = 0; l < u_layers; ++l) result[base + uint(l * block + k)] /= float(n);
 #endif
-  rays[p] = traced;
+  atomicAdd(traced_total, traced_here);
+  barrier();
+  if (lane == 0u) rays[p] = traced_total;
 }

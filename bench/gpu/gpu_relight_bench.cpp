@@ -17,7 +17,7 @@
 //   gpu_relight_bench [--scene F] [--preset medium] [--repeats N] [--lanes N]
 //                     [--stream-mb N] [--compare F]... [--compare-preset draft] [--json OUT]
 //                     [--shadow-resolution N] [--normal-offset TEXELS] [--slope-bias TEXELS]
-//                     [--bias-scene FRACTION]
+//                     [--bias-scene FRACTION] [--emitter-lanes N]
 #include <algorithm>
 #include <chrono>
 #include <cmath>
@@ -68,6 +68,7 @@ bool parse(int argc, char** argv, Args& a) {
     else if (k == "--json") a.json = v;
     else if (k == "--repeats") a.repeats = std::max(1, std::atoi(v));
     else if (k == "--lanes") a.lanes = std::atoi(v);
+    else if (k == "--emitter-lanes") a.gpu.emitter_lanes = std::atoi(v);
     else if (k == "--stream-mb") a.stream_mb = std::max(1, std::atoi(v));
     else if (k == "--shadow-resolution") a.gpu.shadow_resolution = std::atoi(v);
     else if (k == "--normal-offset") a.gpu.normal_offset_texels = std::stof(v);
@@ -158,7 +159,8 @@ int main(int argc, char** argv) {
     std::fprintf(stderr,
                  "usage: gpu_relight_bench [--scene F] [--preset medium] [--repeats N] [--lanes N] [--stream-mb N]\n"
                  "                         [--compare F]... [--compare-preset draft] [--json OUT]\n"
-                 "                         [--shadow-resolution N] [--normal-offset T] [--slope-bias T] [--bias-scene F]\n");
+                 "                         [--shadow-resolution N] [--normal-offset T] [--slope-bias T] [--bias-scene F]\n"
+                 "                         [--emitter-lanes N]\n");
     return 1;
   }
   if (!std::getenv("MESA_SHADER_CACHE_DIR")) setenv("MESA_SHADER_CACHE_DISABLE", "true", 0);
@@ -188,7 +190,7 @@ int main(int argc, char** argv) {
                  {"tree_levels", d.p.tree.levelCount()}, {"lightmap_caches", d.p.lightmap.size()},
                  {"grid_caches", d.p.has_grid ? d.p.grid.size() : 0}, {"links", d.p.lightmap_links.linkCount()},
                  {"grid_links", d.p.grid_links.linkCount()}, {"link_bands", d.p.lightmap_links.bands},
-                 {"lanes", args.lanes}};
+                 {"lanes", args.lanes}, {"emitter_lanes", args.gpu.emitter_lanes}};
   fmt::print("GPU {} ({}, EGL {}), CPU {} x {}\n", info.renderer, info.version, info.platform, bench::cpuModel(),
              tbb::info::default_concurrency());
   fmt::print("scene {} preset {}: {} surfels, {} nodes ({} levels), {} + {} caches, {} + {} links, {} bands\n",
