@@ -2,10 +2,11 @@
 // compute shader (shaders/emitter_points.comp), its shadow rays traced through a flat BVH of
 // the scene (core/rt/flat_bvh.h, built with Embree's builder on first use and kept resident).
 // It is the GPU backend's relight::detail::EmitterTracer: the relight pipeline hands it the
-// surfels, lightmap caches and grid caches to sample; it writes the same layers the host
-// sampler would (same samples, fp tolerance: docs/gpu.md) and reports its GPU time
-// (the relight's stage `<stage>_gpu`). It declines (the host samples, and the relight's plan says why) scenes with
-// alpha cut-outs among the shadow casters or emission read from a texture: neither is on the GPU.
+// surfels, lightmap caches, grid caches and direct-layer texels to sample; it writes the same
+// layers the host sampler would (same samples, sums in the same order: docs/gpu.md) and
+// reports its GPU time (the relight's stage `<stage>_gpu`). It declines (the host samples,
+// and the relight's plan says why) scenes with alpha cut-outs among the shadow casters or
+// emission read from a texture: neither is on the GPU.
 // Needs the backend's GL context current on every call.
 #pragma once
 

@@ -1,10 +1,10 @@
 // EmitterTracer: a backend's own run of the emitter sampler (the GPU's), in place of the host
 // loop of EmitterSampler (internal to core/relight).
 //
-// EmissionState hands each product's sampling to the backend's tracer when it has one: the
-// same estimator, tables (EmitterSampler::tables()), receivers and per-receiver rotations
-// (emitterRotation of the seeds in emitter_direct.h), writing the layers in the layout
-// LayeredEmitterLight expects. A tracer may decline a sampler it cannot run (an emissive
+// EmissionState and DirectLayer hand each product's sampling to the backend's tracer when it
+// has one: the same estimator, tables (EmitterSampler::tables()), receivers and per-receiver
+// rotations (emitterRotation of the seeds in emitter_direct.h), writing the layers in the
+// layout LayeredEmitterLight expects. A tracer may decline a sampler it cannot run (an emissive
 // texture, alpha cut-outs it does not model); then the host samples, and the reason goes to
 // the relight's plan notes. The device time of each run becomes a stage `<stage>_gpu` of the
 // relight's timings (traceEmitters below keeps both for the pipeline).
