@@ -243,29 +243,41 @@ scene::MeshInstance quad(const std::string& name, glm::vec3 corner, glm::vec3 e0
   return m;
 }
 
-// A 2 m floor, a 0.5 m lamp 1 m above it facing down, a plate halfway between that covers
-// half of the lamp's footprint: umbra, penumbra and lit floor.
-scene::Scene plateOverFloor(bool cutout_plate) {
+// A 2 m floor, a 0.5 m lamp 1 m above it facing down (as lamp_cells^2 quads of two emissive
+// materials in a checker), a plate halfway between that covers half of the lamp's footprint:
+// umbra, penumbra and lit floor.
+scene::Scene plateOverFloor(bool cutout_plate, int lamp_cells = 1) {
   scene::Scene s;
   scene::Material grey, lamp, plate;
   lamp.emissive_factor = glm::vec3(1.0f, 0.8f, 0.6f);
   lamp.emissive_strength = 5.0f;
   if (cutout_plate) plate.alpha_mode = scene::Material::AlphaMode::kMask;
-  s.materials = {grey, lamp, plate};
+  scene::Material lamp2 = lamp;  // a second emissive material: a second layer
+  lamp2.emissive_factor = glm::vec3(0.3f, 0.6f, 1.0f);
+  s.materials = {grey, lamp, plate, lamp2};
   s.meshes.push_back(quad("floor", glm::vec3(-1, 0, -1), glm::vec3(0, 0, 2), glm::vec3(2, 0, 0), 0));
-  s.meshes.push_back(quad("lamp", glm::vec3(-0.25f, 1, -0.25f), glm::vec3(0.5f, 0, 0), glm::vec3(0, 0, 0.5f), 1));
+  const float cell = 0.5f / float(lamp_cells);
+  for (int i = 0; i < lamp_cells; ++i)
+    for (int j = 0; j < lamp_cells; ++j)
+      s.meshes.push_back(quad("lamp", glm::vec3(-0.25f + cell * float(i), 1, -0.25f + cell * float(j)),
+                              glm::vec3(cell, 0, 0), glm::vec3(0, 0, cell), (i + j) % 2 ? 3 : 1));
   s.meshes.push_back(quad("plate", glm::vec3(0.0f, 0.5f, -0.4f), glm::vec3(0.8f, 0, 0), glm::vec3(0, 0, 0.8f), 2));
   s.scale = 2.9f;
   return s;
 }
 
-TEST(GpuEmitters, PlateShadowOnTheFloorMatchesTheHost) {
-  REQUIRE_GPU();
-  const scene::Scene s = plateOverFloor(false);
+// lamp_cells 1: 2 emitting triangles, each point picks by its own weights; 6: 72 triangles of
+// two materials (two layers), more than EmitterSampler::kLocalPickMax, so every point picks by
+// power alone.
+void plateShadow(int lamp_cells) {
+  const scene::Scene s = plateOverFloor(false, lamp_cells);
   auto accel = rt::Accel::build(s);
   ASSERT_TRUE(accel) << accel.status().toString();
-  const EmitterSampler sampler(s, *accel, {});
-  ASSERT_EQ(sampler.triangleCount(), 2u);
+  const auto layout = relight::detail::EmitterLayout::of(s, {}, 1024);
+  const EmitterSampler sampler(s, *accel, layout.sampled, layout.layer_of_material);
+  ASSERT_EQ(sampler.layerCount(), lamp_cells > 1 ? 2 : 1);
+  ASSERT_EQ(sampler.triangleCount(), std::size_t(2 * lamp_cells * lamp_cells));
+  ASSERT_EQ(sampler.triangleCount() > EmitterSampler::kLocalPickMax, lamp_cells > 5);
   std::vector<glm::vec3> pos, nrm;
   for (int i = 0; i < 48; ++i)
     for (int j = 0; j < 48; ++j) pos.push_back(glm::vec3(-0.98f + 0.04f * i, 0.0f, -0.98f + 0.04f * j));
@@ -289,15 +301,26 @@ TEST(GpuEmitters, PlateShadowOnTheFloorMatchesTheHost) {
     const EmitterSampler bare_sampler(bare, *bare_accel, {});
     std::size_t r = 0;
     const auto unshadowed = hostIrradiance(bare_sampler, pos, nrm, 64, r);
-    for (std::size_t k = 0; k < host.size(); ++k) lit += host[k], open += unshadowed[k];
+    for (float v : host) lit += v;
+    for (float v : unshadowed) open += v;
   }
-  const Compare c = compare(out, host, 3);
-  std::printf("plate over floor: rel RMS %.2e, points differing %.2f %%, umbra %.1f %%, plate keeps %.1f %% of the light\n",
-              c.rel_rms, 100 * c.differ, 100 * c.zero, 100 * (1.0 - lit / open));
+  const Compare c = compare(out, host, 3 * std::size_t(sampler.layerCount()));
+  std::printf("plate over floor, %zu lamp triangles: rel RMS %.2e, points differing %.2f %%, umbra %.1f %%, plate keeps %.1f %% of the light\n",
+              sampler.triangleCount(), c.rel_rms, 100 * c.differ, 100 * c.zero, 100 * (1.0 - lit / open));
   EXPECT_GT(1.0 - lit / open, 0.1);  // occlusion matters here
   EXPECT_LT(c.rel_rms, kRelRms);
   EXPECT_LT(c.differ, kDiffer);
   EXPECT_EQ(gpu_rays, host_rays);
+}
+
+TEST(GpuEmitters, PlateShadowOnTheFloorMatchesTheHost) {
+  REQUIRE_GPU();
+  plateShadow(1);
+}
+
+TEST(GpuEmitters, PlateShadowFromAManyTriangleLampMatchesTheHost) {
+  REQUIRE_GPU();
+  plateShadow(6);
 }
 
 TEST(GpuEmitters, CutoutsGoBackToTheHost) {
