@@ -428,6 +428,39 @@ TEST(GpuEmitters, DirectLayerSamplesTheEmittersOnTheGpu) {
   EXPECT_LT(cmp.differ, kDiffer);
 }
 
+TEST(GpuEmitters, TexturedEmissionGoesBackToTheHost) {
+  REQUIRE_GPU();
+  scene::Scene s = plateOverFloor(false);
+  scene::Texture t;
+  t.name = "glow";
+  t.width = t.height = 1;
+  t.rgba8 = {255, 128, 64, 255};
+  s.textures.push_back(t);
+  s.materials[1].emissive_texture.texture = 0;
+  for (auto& mesh : s.meshes)
+    if (mesh.material == 1) mesh.uv0.assign(mesh.positions.size(), glm::vec2(0.5f));
+  auto accel = rt::Accel::build(s);
+  ASSERT_TRUE(accel);
+  const EmitterSampler sampler(s, *accel, {});
+  EXPECT_FALSE(sampler.uniformRadiance());
+  Gpu gpu(s, *accel);
+  ASSERT_TRUE(gpu.sampling);
+  const std::vector<glm::vec3> pos{glm::vec3(0.0f)}, nrm{glm::vec3(0, 1, 0)};
+  const std::vector<glm::vec2> rot{glm::vec2(0.5f)};
+  std::vector<float> out;
+  std::size_t rays = 0;
+  auto ran = gpu.sampling->trace(sampler, EmitterReceivers{pos, nrm, {}, rot}, 8, 0, "surfel_emitter", out, rays);
+  ASSERT_TRUE(ran) << ran.status().toString();
+  EXPECT_FALSE(*ran);
+  EXPECT_NE(gpu.sampling->declined().find("texture"), std::string::npos) << gpu.sampling->declined();
+  // A kRadiance override replaces the texture by a constant: the GPU runs it.
+  const relight::EmissiveOverride constant{1, relight::EmissiveOverride::Mode::kRadiance, glm::vec3(2.0f)};
+  const EmitterSampler replaced(s, *accel, std::vector<relight::EmissiveOverride>{constant});
+  EXPECT_TRUE(replaced.uniformRadiance());
+  ran = gpu.sampling->trace(replaced, EmitterReceivers{pos, nrm, {}, rot}, 8, 0, "surfel_emitter", out, rays);
+  ASSERT_TRUE(ran && *ran) << gpu.sampling->declined();
+}
+
 // A scene with an alpha cut-out among the shadow casters: the relight samples the emitters on
 // the host and its plan says so (the block's material is a mask at alpha 1: still opaque).
 TEST(GpuEmitters, CutoutSceneIsSampledOnTheHostAndTheRelightSaysSo) {
