@@ -14,6 +14,9 @@
 
 #include "core/common/status.h"
 #include "core/relight/backend.h"
+#ifdef LIGHTLINK_HAVE_GPU
+#include "gpu/gpu_relight.h"
+#endif
 
 namespace lightlink::gpu {
 
@@ -39,7 +42,8 @@ const GpuProbe& probeGpu();
 Expected<std::unique_ptr<relight::RelightBackend>> makeGpuBackend(const scene::Scene& scene, const rt::Accel& accel,
                                                                   const precompute::Precomputation& p,
                                                                   links::LinksView lightmap_links,
-                                                                  links::LinksView grid_links);
+                                                                  links::LinksView grid_links,
+                                                                  const GpuOptions& options = {});
 #endif
 
 // The backend for one resident scene (inputs must outlive it). `note`, when given, receives

@@ -51,8 +51,9 @@ const GpuProbe& probeGpu() {
 Expected<std::unique_ptr<relight::RelightBackend>> makeGpuBackend(const scene::Scene& scene, const rt::Accel& accel,
                                                                   const precompute::Precomputation& p,
                                                                   links::LinksView lightmap_links,
-                                                                  links::LinksView grid_links) {
-  auto r = GpuRelighter::create(scene, accel, p, lightmap_links, grid_links);
+                                                                  links::LinksView grid_links,
+                                                                  const GpuOptions& options) {
+  auto r = GpuRelighter::create(scene, accel, p, lightmap_links, grid_links, options);
   if (!r) return r.status();
   return std::unique_ptr<relight::RelightBackend>(std::make_unique<GpuBackend>(std::move(*r)));
 }

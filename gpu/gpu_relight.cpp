@@ -17,6 +17,7 @@
 #include "core/relight/passes.h"
 #include "core/relight/pipeline.h"
 #include "core/relight/scene_tables.h"
+#include "gpu/emitter_sampling.h"
 #include "gpu/gl_objects.h"
 #include "gpu/shadow_maps.h"
 #include "shaders/gpu_layout.h"
@@ -141,6 +142,9 @@ class GpuPasses final : public relight::RelightPasses {
   Status setup();
 
   std::string_view backend() const override { return "gpu"; }
+  relight::detail::EmitterTracer* emitterTracer() override {
+    return options.emitter_sampling ? emitter_sampling_.get() : nullptr;
+  }
   std::string kernelName(const RelightOptions&) const override { return fmt::format("glsl-lanes{}", options.lanes); }
   Status begin(const RelightFrame& f) override;
   Status setEmission(std::span<const glm::vec3> emission_b, std::uint64_t generation) override;
@@ -208,6 +212,8 @@ class GpuPasses final : public relight::RelightPasses {
   GpuOptions options;
   std::unique_ptr<ShadowMaps> shadows;
   GpuTimers timers;
+  // The emitters' sampling on the GPU (declines what it cannot run; then the host samples).
+  std::unique_ptr<GpuEmitterSampling> emitter_sampling_;
 
   std::size_t ns = 0, nodes = 0, ncache = 0, ngrid = 0, texels_ = 0;
   std::vector<std::pair<std::uint32_t, std::uint32_t>> tree_levels;  // deepest first
@@ -243,6 +249,7 @@ class GpuPasses final : public relight::RelightPasses {
 };
 
 Status GpuPasses::setup() {
+  emitter_sampling_ = std::make_unique<GpuEmitterSampling>(scene, t_.accel, options.emitter_lanes);
   auto need = [](Expected<GlProgram> e, GlProgram& out) -> Status {
     if (!e) return e.status();
     out = std::move(*e);
@@ -778,6 +785,8 @@ Expected<std::unique_ptr<GpuRelighter>> GpuRelighter::create(const scene::Scene&
   if (const char* lanes = std::getenv("LIGHTLINK_GPU_LANES")) opts.lanes = std::atoi(lanes);
   if (opts.lanes < 1 || opts.lanes > 64 || (opts.lanes & (opts.lanes - 1)) != 0)
     return invalidInput("gpu: lanes {} must be a power of two in 1..64", opts.lanes);
+  if (opts.emitter_lanes < 1 || opts.emitter_lanes > 32 || (opts.emitter_lanes & (opts.emitter_lanes - 1)) != 0)
+    return invalidInput("gpu: emitter_lanes {} must be a power of two in 1..32", opts.emitter_lanes);
   if (!(opts.bias_scene >= 0.0f) || !(opts.normal_offset_texels >= 0.0f) || !(opts.slope_bias_texels >= 0.0f))
     return invalidInput("gpu: shadow biases must be finite and >= 0");
   auto tables = relight::SceneTables::build(scene, accel, p, lightmap_links, grid_links);

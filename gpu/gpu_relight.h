@@ -17,8 +17,9 @@
 // cache lighting, so the host waits only for work it issued anyway. Differences from the
 // CPU: shadow maps instead of ray-traced shadows for punctual lights (measured in tests/gpu
 // and bench/gpu), fp32 sums in a different order, no incremental relight of one changed
-// light (a full relight instead). The emitters' sampled light comes from the pipeline, as
-// on the CPU, and is uploaded when it changes.
+// light (a full relight instead). The emitters' sampled light is sampled on the GPU too
+// (gpu/emitter_sampling.h: a compute shader over a flat BVH), read back into the pipeline's
+// per-material layers and uploaded again when it changes.
 #pragma once
 
 #include <memory>
@@ -40,6 +41,13 @@ struct GpuOptions {
   float bias_scene = 2e-4f;
   float normal_offset_texels = 1.5f;
   float slope_bias_texels = 1.0f;
+  // Sample the emitters on the GPU (gpu/emitter_sampling.h); false: on the host, as the CPU
+  // backend does (parity tests that need identical emitter light on both backends).
+  bool emitter_sampling = true;
+  // Threads per point in the emitter sampling (1, 2, 4, ..., 32), its samples spread over
+  // them: 32 fills a GPU with few points (one workgroup per point), 1 runs a point's samples
+  // in one thread (fewer triangle set-ups per point). Results are identical for any value.
+  int emitter_lanes = 32;
 };
 
 class GpuRelighter {
@@ -56,7 +64,7 @@ class GpuRelighter {
   relight::EffectsPlan plan(const relight::LightSet& lights, const relight::RelightOptions& options) const;
   bool incrementalFor(const relight::LightSet& lights, const relight::RelightOptions& options) const;
   // RelightResult::timings holds GPU time per stage (timer queries) and host time for the
-  // CPU parts (emitter direct, readback).
+  // CPU parts (readback, and emitter sampling where the GPU declines it).
   Status relightInto(const relight::LightSet& lights, const relight::RelightOptions& options,
                      relight::RelightResult& out);
   void invalidate();

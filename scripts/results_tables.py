@@ -357,7 +357,10 @@ GPU_STAGES = [("shadow_maps", "shadow maps"), ("surfel_direct", "surfel direct")
               ("pull", "pull"), ("node_radiosity", "node radiosity"), ("cache_lighting", "cache lighting"),
               ("bounces_gather", "bounces: gather + fill"), ("bounces_pull", "bounces: pull"),
               ("bounces_cache_lighting", "bounces: cache lighting"), ("baked_direct", "baked direct"),
-              ("emissive_direct", "emitters' direct light (host)"), ("fill_dilate", "fill + texels + dilation"),
+              ("surfel_emitter", "emitters at the surfels"), ("surfel_emitter_gpu", "of which GPU sampling (device)"),
+              ("emissive_direct", "emitters' direct light per texel"),
+              ("emissive_direct_gpu", "of which GPU sampling (device)"), ("grid_emitter", "emitters at the grid caches"),
+              ("grid_emitter_gpu", "of which GPU sampling (device)"), ("fill_dilate", "fill + texels + dilation"),
               ("readback", "readback"), ("wall", "**relight wall time**")]
 
 
@@ -373,7 +376,8 @@ def gpu():
         cells = [f"{1e3 * r['gpu_seconds'][key]:.2f}" if key in r["gpu_seconds"] else "—" for r in runs]
         cells += [f"{1e3 * r['cpu_seconds'][key]:.2f}" if key in r["cpu_seconds"] else "—"
                   for r in runs if r["max_bounces"] > 0]
-        rows.append([label] + cells)
+        if any(c != "—" for c in cells):  # stages a run did not have (older data) leave no row
+            rows.append([label] + cells)
     out = provenance("gpu")
     out += [f"{m['gpu']}, OpenGL {m['gl']} through EGL ({m['egl_platform']}); host {m['cpu']} x {m['threads']}; "
             f"medium bundled Cornell box. GPU stage times are GL timer queries.", ""]

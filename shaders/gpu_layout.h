@@ -43,6 +43,16 @@ struct GpuShadowView {
                         // texel at unit distance (mode 0) or absolute (mode 1)
 };
 
+// One emitting triangle of the emitter sampler (core/relight/emitter_direct.h), world space;
+// the power pick's doubles (cdf, w_t, A_t) go in a separate double array (kEmPick).
+struct GpuEmitter {
+  vec4 p0_inv_pick;       // xyz first vertex (m), w 1 / P(t) of the power pick
+  vec4 e1_inv_pdf_area;   // xyz v1 - v0 (m), w 1 / pdf_A of the power pick (m^2)
+  vec4 e2_layer;          // xyz v2 - v0 (m), w its layer (a small integer as a float)
+  vec4 normal_two_sided;  // xyz unit geometric normal (glTF front), w 1 when double-sided
+  vec4 radiance;          // rgb L_e, constant over the triangle (docs/units.md), w unused
+};
+
 // ---- bindings, per shader -------------------------------------------------------------
 // shadow.vert / shadow.frag: uniforms only.
 // light_points.comp: direct light at a set of points (surfels or lightmap caches).
@@ -103,6 +113,18 @@ LL_CONST kTxCacheDirect = 3;
 LL_CONST kTxTexelSh = 4;
 LL_CONST kTxTexelDirect = 5;
 LL_CONST kTxTexelValid = 6;
+// emitter_points.comp (+ common_bvh.glsl): the emitters' sampled light at a set of points.
+LL_CONST kEmEmitters = 0;      // GpuEmitter[]
+LL_CONST kEmPick = 1;          // double x 4 per emitter: cdf, w_t, A_t, 0
+LL_CONST kEmPositions = 2;     // vec4 per point: xyz position
+LL_CONST kEmNormals = 3;       // vec4 per point: xyz unit normal (irradiance mode)
+LL_CONST kEmRotation = 4;      // vec2 per point: Cranley-Patterson rotation (r0, r1)
+LL_CONST kEmValid = 5;         // uint per point: 0 gets zeros
+LL_CONST kEmOut = 6;           // float: points x layers x stride
+LL_CONST kEmRays = 7;          // uint per point: shadow rays traced
+LL_CONST kEmBvhNodes = 8;      // vec4 x 2 per node (core/rt/flat_bvh.h)
+LL_CONST kEmBvhTriangles = 9;  // vec4 x 3 per triangle
+LL_CONST kEmLocalPickMax = 64;  // EmitterSampler::kLocalPickMax
 // bandwidth.comp (benchmark)
 LL_CONST kBwSource = 0;
 LL_CONST kBwDest = 1;
@@ -110,6 +132,7 @@ LL_CONST kBwDest = 1;
 #ifdef __cplusplus
 static_assert(sizeof(GpuLight) == 80, "GpuLight must match its std430 layout");
 static_assert(sizeof(GpuShadowView) == 96, "GpuShadowView must match its std430 layout");
+static_assert(sizeof(GpuEmitter) == 80, "GpuEmitter must match its std430 layout");
 #undef LL_CONST
 }  // namespace lightlink::gpu::glsl
 #endif

@@ -7,14 +7,17 @@
 //  2. The GPU's memory bandwidth, measured in the same context with a coalesced read and a
 //     copy kernel, and cache lighting expressed as a ratio to the time to stream the link
 //     bytes at that bandwidth.
-//  3. Shadow maps vs ray-traced shadows: for each --compare scene, CPU and GPU relights of
+//  3. The emitters' sampled light (surfels, lightmap caches, grid, direct layer), re-sampled
+//     in every measured relight (invalidate()): device time of the GPU sampler (stages
+//     `*_gpu`), the host wall time of the same stages on each backend, and shadow rays/s.
+//  4. Shadow maps vs ray-traced shadows: for each --compare scene, CPU and GPU relights of
 //     the scene's own lights (a sun when it has none), relative RMS difference of the
 //     baked direct light, of the surfels' radiosity and of the indirect lightmap.
 // Runs from any directory: every scene is a path argument. Usage:
 //   gpu_relight_bench [--scene F] [--preset medium] [--repeats N] [--lanes N]
 //                     [--stream-mb N] [--compare F]... [--compare-preset draft] [--json OUT]
 //                     [--shadow-resolution N] [--normal-offset TEXELS] [--slope-bias TEXELS]
-//                     [--bias-scene FRACTION]
+//                     [--bias-scene FRACTION] [--emitter-lanes N]
 #include <algorithm>
 #include <chrono>
 #include <cmath>
@@ -65,6 +68,7 @@ bool parse(int argc, char** argv, Args& a) {
     else if (k == "--json") a.json = v;
     else if (k == "--repeats") a.repeats = std::max(1, std::atoi(v));
     else if (k == "--lanes") a.lanes = std::atoi(v);
+    else if (k == "--emitter-lanes") a.gpu.emitter_lanes = std::atoi(v);
     else if (k == "--stream-mb") a.stream_mb = std::max(1, std::atoi(v));
     else if (k == "--shadow-resolution") a.gpu.shadow_resolution = std::atoi(v);
     else if (k == "--normal-offset") a.gpu.normal_offset_texels = std::stof(v);
@@ -122,7 +126,11 @@ std::map<std::string, double> breakdown(const std::function<Status(relight::Reli
       run[name] += st.seconds;
     }
     double total = 0.0;
-    for (auto& [k, v] : run) per[k].push_back(v), total += v;
+    for (auto& [k, v] : run) {
+      per[k].push_back(v);
+      // A `*_gpu` stage is the device time inside the host stage of the same name: not added twice.
+      if (!(k.size() > 4 && k.compare(k.size() - 4, 4, "_gpu") == 0)) total += v;
+    }
     per["sum_of_stages"].push_back(total);
   }
   std::map<std::string, double> out;
@@ -151,7 +159,8 @@ int main(int argc, char** argv) {
     std::fprintf(stderr,
                  "usage: gpu_relight_bench [--scene F] [--preset medium] [--repeats N] [--lanes N] [--stream-mb N]\n"
                  "                         [--compare F]... [--compare-preset draft] [--json OUT]\n"
-                 "                         [--shadow-resolution N] [--normal-offset T] [--slope-bias T] [--bias-scene F]\n");
+                 "                         [--shadow-resolution N] [--normal-offset T] [--slope-bias T] [--bias-scene F]\n"
+                 "                         [--emitter-lanes N]\n");
     return 1;
   }
   if (!std::getenv("MESA_SHADER_CACHE_DIR")) setenv("MESA_SHADER_CACHE_DISABLE", "true", 0);
@@ -181,7 +190,7 @@ int main(int argc, char** argv) {
                  {"tree_levels", d.p.tree.levelCount()}, {"lightmap_caches", d.p.lightmap.size()},
                  {"grid_caches", d.p.has_grid ? d.p.grid.size() : 0}, {"links", d.p.lightmap_links.linkCount()},
                  {"grid_links", d.p.grid_links.linkCount()}, {"link_bands", d.p.lightmap_links.bands},
-                 {"lanes", args.lanes}};
+                 {"lanes", args.lanes}, {"emitter_lanes", args.gpu.emitter_lanes}};
   fmt::print("GPU {} ({}, EGL {}), CPU {} x {}\n", info.renderer, info.version, info.platform, bench::cpuModel(),
              tbb::info::default_concurrency());
   fmt::print("scene {} preset {}: {} surfels, {} nodes ({} levels), {} + {} caches, {} + {} links, {} bands\n",
@@ -246,6 +255,20 @@ int main(int argc, char** argv) {
       e["link_stream_seconds_at_read_bw"] = stream_s;
       e["cache_lighting_over_stream"] = stream_s > 0 ? cl / stream_s : 0.0;
       e["cache_lighting_GBps"] = cl > 0 ? double(link_bytes) / cl * 1e-9 : 0.0;
+      // Emitter sampling: the GPU sampler's device time, and the host stages that hold it
+      // (on the GPU backend they add rotations, uploads, the read-back and the layer sums).
+      double em_device = 0.0, em_gpu_wall = 0.0, em_cpu = 0.0;
+      for (const char* st : {"surfel_emitter", "emissive_direct", "grid_emitter", "direct_layer_emitter"}) {
+        const std::string k(st);
+        if (g.count(k + "_gpu")) em_device += g.at(k + "_gpu");
+        if (g.count(k)) em_gpu_wall += g.at(k);
+        if (c.count(k)) em_cpu += c.at(k);
+      }
+      const double em_rays = double(rc.counts.shadow_rays);  // texel + grid rays, the same on both
+      e["emitter_sampling"] = {{"gpu_device_seconds", em_device}, {"gpu_backend_wall_seconds", em_gpu_wall},
+                               {"cpu_seconds", em_cpu}, {"shadow_rays", rc.counts.shadow_rays},
+                               {"gpu_rays_per_second", em_device > 0 ? em_rays / em_device : 0.0},
+                               {"cpu_rays_per_second", em_cpu > 0 ? em_rays / em_cpu : 0.0}};
       j["relight"].push_back(e);
       fmt::print("{} links, max bounces {} (ran {}, {}):\n", form_name, bounces, rg.bounce_log.size(), rg.bounce_stop);
       fmt::print("  {:<26} {:>10} {:>10}\n", "stage (median)", "GPU ms", "CPU ms");
@@ -253,8 +276,11 @@ int main(int argc, char** argv) {
         const auto it = c.find(k);
         fmt::print("  {:<26} {:>10.3f} {:>10}\n", k, v * 1e3, it == c.end() ? "" : fmt::format("{:.3f}", it->second * 1e3));
       }
-      fmt::print("  cache lighting: {:.3f} ms for {:.1f} MB of links = {:.2f} x the {:.3f} ms to stream them at {:.0f} GB/s\n\n",
+      fmt::print("  cache lighting: {:.3f} ms for {:.1f} MB of links = {:.2f} x the {:.3f} ms to stream them at {:.0f} GB/s\n",
                  cl * 1e3, link_bytes * 1e-6, stream_s > 0 ? cl / stream_s : 0.0, stream_s * 1e3, read_bw * 1e-9);
+      fmt::print("  emitter sampling: GPU {:.3f} ms device ({:.3f} ms in the backend's stages), CPU {:.3f} ms; "
+                 "{} shadow rays at lightmap/grid points\n\n",
+                 em_device * 1e3, em_gpu_wall * 1e3, em_cpu * 1e3, rc.counts.shadow_rays);
     }
   }
 

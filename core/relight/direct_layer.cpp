@@ -148,7 +148,15 @@ void DirectLayer::compute(const LightSet& lights, const RelightOptions& o, const
     const auto how = s.emitter.update(scene_, accel_, lights.emissive(), o.emitter_samples, n, 3,
                                       [&](const detail::EmitterSampler& sampler, std::vector<float>& layers) {
       // Salted so the layer's texels do not repeat the caches' noise pattern.
-      detail::sampleEmitters(sampler, dt, o.emitter_samples, std::uint64_t(1) << 40, layers, res.counts.shadow_rays);
+      constexpr std::uint64_t kSalt = std::uint64_t(1) << 40;
+      if (tracer_ && log_ && sampler.triangleCount() > 0) {
+        std::vector<glm::vec2> rot(n);
+        for (std::size_t c = 0; c < n; ++c) rot[c] = detail::emitterRotation(detail::texelEmitterSeed(dt.texel[c], kSalt));
+        if (detail::traceEmitters(tracer_, sampler, {dt.position, dt.normal, dt.valid, rot}, o.emitter_samples, 0,
+                                  "direct_layer_emitter", layers, res.counts.shadow_rays, *log_))
+          return;
+      }
+      detail::sampleEmitters(sampler, dt, o.emitter_samples, kSalt, layers, res.counts.shadow_rays);
     });
     if (how == detail::LayeredEmitterLight::Update::kSampled) res.passes.emissive_direct = 1;
     else res.counts.emitter_direct_reused = 1;

@@ -7,8 +7,8 @@
 // out crisp while the relight of the indirect stays as cheap as before. Each light's share is
 // kept and reused while that light is unchanged (an editor moving one lamp re-traces only that
 // lamp), the emitters' share while the emission is. The CPU Relighter and the GPU backend both
-// use it (on the CPU), so every backend writes the same direct layer. Deterministic for any
-// thread count.
+// use it; the punctual lights are traced on the CPU, the emitters on the backend's tracer when
+// it has one (emitter_tracer.h). Deterministic for any thread count.
 #pragma once
 
 #include <cstdint>
@@ -19,6 +19,7 @@
 #include <glm/glm.hpp>
 
 #include "core/precompute/precompute.h"
+#include "core/relight/emitter_tracer.h"
 #include "core/relight/light_set.h"
 #include "core/relight/relight.h"
 #include "core/rt/accel.h"
@@ -43,6 +44,11 @@ class DirectLayer {
   // the emitters (plan.emissive_direct, options.emitter_samples each).
   void compute(const LightSet& lights, const RelightOptions& options, const EffectsPlan& plan, RelightResult& res);
 
+  // The backend's tracer for the emitters (null: the host samples) and the log of its runs.
+  void setTracer(detail::EmitterTracer* tracer, detail::EmitterTraceLog* log) {
+    tracer_ = log ? tracer : nullptr, log_ = log;
+  }
+
   // Forget the kept per-light terms (kLightState) or the emitter term too (kEverything).
   void invalidate(bool everything);
 
@@ -52,6 +58,8 @@ class DirectLayer {
   const rt::Accel& accel_;
   const precompute::Precomputation& p_;
   std::unique_ptr<State> s_;
+  detail::EmitterTracer* tracer_ = nullptr;
+  detail::EmitterTraceLog* log_ = nullptr;
 };
 
 // The direct light at the lightmap's texels: res.direct itself, or a finer direct layer

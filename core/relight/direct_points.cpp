@@ -214,7 +214,7 @@ void sampleEmitters(const EmitterSampler& sampler, const caches::LightmapCaches&
     std::size_t r = 0;
     for (std::size_t c = begin; c < end; ++c) {
       if (!points.valid[c]) continue;
-      const std::uint64_t seed = mixBits(0x6c6c656d69747465ULL ^ (std::uint64_t(points.texel[c]) | salt));
+      const std::uint64_t seed = texelEmitterSeed(points.texel[c], salt);
       sampler.irradiance(points.position[c], points.normal[c], samples, seed, scratch,
                          reinterpret_cast<glm::vec3*>(layers.data() + c * L * 3), r);
     }
@@ -233,7 +233,7 @@ void sampleEmittersSh(const EmitterSampler& sampler, const caches::GridCaches& g
     std::size_t r = 0;
     for (std::size_t c = begin; c < end; ++c) {
       if (!grid.valid[c]) continue;
-      const std::uint64_t seed = mixBits(0x67726964656d6974ULL ^ std::uint64_t(c));
+      const std::uint64_t seed = gridEmitterSeed(c);
       sampler.radianceSh(grid.position[c], bands, samples, seed, scratch, layers.data() + c * L * stride, r);
     }
     chunk_rays[chunk] = r;

@@ -36,11 +36,30 @@ bool EmissionState::updateEmission(const LightSet& lights) {
   return true;
 }
 
+namespace {
+
+// Each point's rotation of the sample pattern, from its seed.
+template <class Seed>
+std::vector<glm::vec2> rotations(std::size_t n, Seed&& seed) {
+  std::vector<glm::vec2> r(n);
+  for (std::size_t i = 0; i < n; ++i) r[i] = detail::emitterRotation(seed(i));
+  return r;
+}
+
+}  // namespace
+
 EmitterUpdate EmissionState::updateSurfels(const LightSet& lights) {
   const auto& surfels = t_.p.surfels;
   return surfel_.update(t_.scene, t_.accel, lights.emissive(), kSurfelEmitterSamples, surfels.size(), 3,
                         [&](const detail::EmitterSampler& sampler, std::vector<float>& layers) {
     if (sampler.triangleCount() == 0) return;
+    if (tracer_) {
+      const auto rot = rotations(surfels.size(), [](std::size_t s) { return detail::surfelEmitterSeed(s); });
+      std::size_t uncounted = 0;  // as on the host, the surfels' rays are not counted
+      if (detail::traceEmitters(tracer_, sampler, {surfels.position, surfels.normal, {}, rot}, kSurfelEmitterSamples, 0,
+                                "surfel_emitter", layers, uncounted, *log_))
+        return;
+    }
     const std::size_t L = std::size_t(sampler.layerCount());
     forChunks(surfels.size(), kChunk, [&](std::size_t, std::size_t begin, std::size_t end) {
       detail::EmitterSampler::Scratch scratch;
@@ -48,7 +67,7 @@ EmitterUpdate EmissionState::updateSurfels(const LightSet& lights) {
       for (std::size_t s = begin; s < end; ++s) {
         // Seeded by the surfel, so its noise does not depend on the split; unbiased, and every
         // cache averages many surfels, so 16 samples suffice where a texel's direct needs more.
-        const std::uint64_t seed = mixBits(0x73757266656d6974ULL ^ std::uint64_t(s));
+        const std::uint64_t seed = detail::surfelEmitterSeed(s);
         sampler.irradiance(surfels.position[s], surfels.normal[s], kSurfelEmitterSamples, seed, scratch,
                            reinterpret_cast<glm::vec3*>(layers.data() + s * L * 3), r);
       }
@@ -59,7 +78,14 @@ EmitterUpdate EmissionState::updateSurfels(const LightSet& lights) {
 EmitterUpdate EmissionState::updateTexels(const LightSet& lights, int samples, std::size_t& rays) {
   const auto how = texel_.update(t_.scene, t_.accel, lights.emissive(), samples, t_.p.lightmap.size(), 3,
                                  [&](const detail::EmitterSampler& sampler, std::vector<float>& layers) {
-    detail::sampleEmitters(sampler, t_.p.lightmap, samples, 0, layers, rays);
+    const auto& lm = t_.p.lightmap;
+    if (tracer_ && sampler.triangleCount() > 0) {
+      const auto rot = rotations(lm.size(), [&](std::size_t c) { return detail::texelEmitterSeed(lm.texel[c], 0); });
+      if (detail::traceEmitters(tracer_, sampler, {lm.position, lm.normal, lm.valid, rot}, samples, 0,
+                                "emissive_direct", layers, rays, *log_))
+        return;
+    }
+    detail::sampleEmitters(sampler, lm, samples, 0, layers, rays);
   });
   if (how != EmitterUpdate::kKept) ++texel_generation_;
   return how;
@@ -81,8 +107,14 @@ EmitterUpdate EmissionState::updateGrid(const LightSet& lights, int bands, std::
   const std::size_t stride = std::size_t(3) * bands * bands;
   const auto how = grid_light_.update(t_.scene, t_.accel, lights.emissive(), bands, p.grid.size(), stride,
                                       [&](const detail::EmitterSampler& sampler, std::vector<float>& layers) {
-    if (sampler.triangleCount() > 0)
-      detail::sampleEmittersSh(sampler, p.grid, bands, kGridEmitterSamples, layers, rays);
+    if (sampler.triangleCount() == 0) return;
+    if (tracer_) {
+      const auto rot = rotations(p.grid.size(), [](std::size_t c) { return detail::gridEmitterSeed(c); });
+      if (detail::traceEmitters(tracer_, sampler, {p.grid.position, {}, p.grid.valid, rot}, kGridEmitterSamples, bands,
+                                "grid_emitter", layers, rays, *log_))
+        return;
+    }
+    detail::sampleEmittersSh(sampler, p.grid, bands, kGridEmitterSamples, layers, rays);
   });
   if (how == EmitterUpdate::kKept) return how;
   if (grid_light_.triangles() == 0) {

@@ -5,16 +5,19 @@
 // texel), and an editor moving punctual lights or the sky never changes it; a change of
 // emissive strengths or colours alone rescales the per-material layers it keeps
 // (emitter_layers.h) instead of sampling again. Owned by the relight pipeline (pipeline.h)
-// for every backend, so both backends see identical samples.
+// for every backend; a backend with its own emitter tracer (emitter_tracer.h, the GPU's)
+// runs the sampling, with the same samples, where it can.
 #pragma once
 
 #include <cstdint>
+#include <string>
 #include <span>
 #include <vector>
 
 #include <glm/glm.hpp>
 
 #include "core/relight/emitter_layers.h"
+#include "core/relight/emitter_tracer.h"
 #include "core/relight/light_set.h"
 #include "core/relight/passes.h"
 #include "core/relight/relight.h"
@@ -30,6 +33,12 @@ using EmitterUpdate = detail::LayeredEmitterLight::Update;
 class EmissionState {
  public:
   explicit EmissionState(const SceneTables& tables) : t_(tables) {}
+
+  // The backend's tracer for the sampling (null: the host samples every product), and the
+  // log its runs go to (both outlive this).
+  void setTracer(detail::EmitterTracer* tracer, detail::EmitterTraceLog* log) {
+    tracer_ = log ? tracer : nullptr, log_ = log;
+  }
 
   // pi * L_e per surfel; true when it changed.
   bool updateEmission(const LightSet& lights);
@@ -60,6 +69,8 @@ class EmissionState {
 
  private:
   const SceneTables& t_;
+  detail::EmitterTracer* tracer_ = nullptr;
+  detail::EmitterTraceLog* log_ = nullptr;
   bool emission_valid_ = false;
   std::vector<EmissiveOverride> emission_overrides_;
   std::vector<glm::vec3> emission_;

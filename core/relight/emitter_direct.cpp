@@ -110,6 +110,24 @@ bool anyEmitter(const scene::Scene& scene, std::span<const EmissiveOverride> ove
   return false;
 }
 
+glm::vec2 emitterRotation(std::uint64_t seed) {
+  const std::uint64_t bits = mixBits(seed);
+  return {unitFloat(bits), unitFloat(mixBits(bits))};
+}
+std::uint64_t surfelEmitterSeed(std::size_t surfel) { return mixBits(0x73757266656d6974ULL ^ std::uint64_t(surfel)); }
+std::uint64_t texelEmitterSeed(std::uint32_t texel, std::uint64_t salt) {
+  return mixBits(0x6c6c656d69747465ULL ^ (std::uint64_t(texel) | salt));
+}
+std::uint64_t gridEmitterSeed(std::size_t cache) { return mixBits(0x67726964656d6974ULL ^ std::uint64_t(cache)); }
+
+EmitterSampler::Tables EmitterSampler::tables() const {
+  return {p0_, e1_, e2_, normal_, double_sided_, layer_, cdf_, weight_, area_, inv_pick_, inv_pdf_area_};
+}
+
+bool EmitterSampler::uniformRadiance() const {
+  return std::none_of(textured_.begin(), textured_.end(), [](std::uint8_t t) { return t != 0; });
+}
+
 EmitterSampler::EmitterSampler(const scene::Scene& scene, const rt::Accel& accel,
                                std::span<const EmissiveOverride> overrides, std::span<const int> layer_of_material)
     : scene_(scene), accel_(accel) {
@@ -123,6 +141,9 @@ EmitterSampler::EmitterSampler(const scene::Scene& scene, const rt::Accel& accel
     if (!emits(bound)) continue;
     const MaterialEmission o = mesh.material >= 0 ? me[mesh.material] : MaterialEmission{};
     const bool two_sided = scene.materialOf(mesh).double_sided;
+    // emissionAt reads the emissive texture when it has one and the mesh has its TEXCOORD set.
+    const scene::TextureRef& tex = scene.materialOf(mesh).emissive_texture;
+    const bool textured = !o.replace && tex.valid() && !(tex.texcoord == 1 ? mesh.uv1 : mesh.uv0).empty();
     for (std::uint32_t t = 0; t < mesh.triangleCount(); ++t) {
       const glm::vec3 a = mesh.positions[mesh.indices[3 * t]], b = mesh.positions[mesh.indices[3 * t + 1]],
                       c = mesh.positions[mesh.indices[3 * t + 2]];
@@ -135,6 +156,7 @@ EmitterSampler::EmitterSampler(const scene::Scene& scene, const rt::Accel& accel
       mesh_.push_back(mi), triangle_.push_back(t);
       double_sided_.push_back(two_sided);
       replace_.push_back(o.replace);
+      textured_.push_back(textured);
       value_.push_back(o.value);
       const int layer = layer_of_material.empty() || mesh.material < 0 ? 0 : layer_of_material[mesh.material];
       layer_.push_back(std::uint16_t(std::max(0, layer)));
@@ -204,8 +226,8 @@ std::size_t EmitterSampler::sample(glm::vec3 position, const glm::vec3* normal_o
     cdf = scratch.cdf, inv_pick = scratch.inv_pick, inv_pdf_area = scratch.inv_pdf_area;
   }
   // Cranley-Patterson rotation of the Hammersley set: the receiver's own stratified pattern.
-  const std::uint64_t bits = mixBits(seed);
-  const double r0 = unitFloat(bits), r1 = unitFloat(mixBits(bits));
+  const glm::vec2 rotation = emitterRotation(seed);
+  const double r0 = rotation.x, r1 = rotation.y;
   std::size_t count = 0;
   // Stratified picks visit triangles in CDF order (one wrap-around): the set-up of the last
   // triangle serves the whole run of samples on it.

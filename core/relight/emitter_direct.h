@@ -48,6 +48,15 @@ namespace lightlink::relight::detail {
 // per mesh, no triangle loop).
 bool anyEmitter(const scene::Scene& scene, std::span<const EmissiveOverride> overrides);
 
+// A receiver's Cranley-Patterson rotation (r0, r1) of the Hammersley set, from its seed:
+// sample i is at (i / N + r0, radicalInverse(i, 2) + r1) mod 1.
+glm::vec2 emitterRotation(std::uint64_t seed);
+// The seeds of the receivers EmissionState and the direct layer sample: a surfel by its index,
+// a lightmap point by its texel or'ed with a salt, a grid cache by its index.
+std::uint64_t surfelEmitterSeed(std::size_t surfel);
+std::uint64_t texelEmitterSeed(std::uint32_t texel, std::uint64_t salt);
+std::uint64_t gridEmitterSeed(std::size_t cache);
+
 class EmitterSampler {
  public:
   // Collects the static triangles whose emission bound is > 0 after `overrides` (dynamic
@@ -59,6 +68,21 @@ class EmitterSampler {
 
   std::size_t triangleCount() const { return p0_.size(); }
   int layerCount() const { return layers_; }
+
+  // The per-triangle tables, for a backend that runs the same estimator itself
+  // (emitter_tracer.h). All spans have triangleCount() entries.
+  struct Tables {
+    std::span<const glm::vec3> p0, e1, e2, normal;
+    std::span<const std::uint8_t> double_sided;
+    std::span<const std::uint16_t> layer;
+    std::span<const double> cdf, weight, area;  // power pick, w_t, A_t (m^2)
+    std::span<const float> inv_pick, inv_pdf_area;
+  };
+  Tables tables() const;
+  // True when every triangle's radiance is one constant (no emissive texture to sample).
+  bool uniformRadiance() const;
+  // L_e of triangle e where it is constant (uniformRadiance()), after the overrides.
+  glm::vec3 constantRadiance(std::size_t e) const { return radianceAt(e, glm::vec2(0.0f)); }
 
   // Per-call scratch (one per task), so the hot loop does not allocate.
   struct Scratch {
@@ -104,6 +128,7 @@ class EmitterSampler {
   std::vector<std::uint32_t> mesh_, triangle_;
   std::vector<std::uint8_t> double_sided_;
   std::vector<std::uint8_t> replace_;    // 1: radiance = value_ (kRadiance override)
+  std::vector<std::uint8_t> textured_;   // 1: the emission is read from a texture
   std::vector<std::uint16_t> layer_;     // layer of each triangle
   int layers_ = 1;
   std::vector<glm::vec3> value_;         // kRadiance radiance, or the kScale factor (1 without override)

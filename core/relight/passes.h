@@ -26,6 +26,7 @@
 #include <glm/glm.hpp>
 
 #include "core/common/status.h"
+#include "core/relight/emitter_tracer.h"
 #include "core/relight/light_set.h"
 #include "core/relight/relight.h"
 
@@ -81,6 +82,9 @@ class RelightPasses {
   virtual ~RelightPasses() = default;
   virtual std::string_view backend() const = 0;  // "cpu" or "gpu"
   virtual std::string kernelName(const RelightOptions& options) const = 0;  // "avx2", "glsl-lanes8", ...
+
+  // The backend's own emitter sampling (emitter_tracer.h), or null: the host samples.
+  virtual detail::EmitterTracer* emitterTracer() { return nullptr; }
 
   // First in every relight: per-relight state reset, buffers sized for frame.stride.
   virtual Status begin(const RelightFrame& frame) = 0;

@@ -183,7 +183,10 @@ RelightPipeline::RelightPipeline(const SceneTables& tables, std::unique_ptr<Reli
       passes_(std::move(passes)),
       emission_(tables),
       layer_(tables.scene, tables.accel, tables.p),
-      seams_(SeamStitch::build(tables.scene, tables.p.lightmap.width, tables.p.lightmap.height)) {}
+      seams_(SeamStitch::build(tables.scene, tables.p.lightmap.width, tables.p.lightmap.height)) {
+  emission_.setTracer(passes_->emitterTracer(), &trace_log_);
+  layer_.setTracer(passes_->emitterTracer(), &trace_log_);
+}
 
 RelightPipeline::~RelightPipeline() = default;
 
@@ -219,6 +222,7 @@ Status RelightPipeline::relightInto(const LightSet& lights, const RelightOptions
   const int bands = o.bands == 0 ? link_bands : o.bands;
   if (Status s = validateRequest(lights, o, link_bands, t_.surfelCount(), t_.scene.materials.size()); !s) return s;
   resetResult(lights, o, bands, res);
+  trace_log_.clear();
   // Until this relight completes, the kept state is no base for a shortcut.
   const Memo* memo = memo_.valid ? &memo_ : nullptr;
   const bool warm = o.warm_start && memo && res.plan.bounces && warmBase(o, bands);
@@ -469,6 +473,11 @@ void RelightPipeline::finish(const RelightFrame& f, RelightResult& res) {
     }
   });
   if (layer_.active()) layer_.compute(f.lights, o, f.plan, res);
+  // The backend's emitter sampling: its device time per stage, and where it left the host to
+  // sample (with why).
+  for (auto& t : trace_log_.timings) res.timings.push_back(std::move(t));
+  for (auto& note : trace_log_.notes) res.plan.reasons.push_back(std::move(note));
+  trace_log_.clear();
   if (res.passes.incremental && !f.plan.bounces) res.bounce_stop = "disabled";
   if (res.passes.unchanged) res.bounce_stop = memo_.bounce_stop;
   if (t_.surfels_without_gather > 0 && f.plan.bounces)

@@ -90,6 +90,7 @@ class RelightPipeline {
   std::vector<float> smooth_scratch_;
   std::vector<float> sky_matrix_[3];
   Memo memo_;
+  detail::EmitterTraceLog trace_log_;  // the backend's emitter sampling in this relight
 };
 
 }  // namespace lightlink::relight
