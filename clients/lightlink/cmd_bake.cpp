@@ -1,6 +1,8 @@
 // `lightlink bake`: the CI job. Scene -> (unwrap) -> precompute (or a matching cached
 // artifact) -> relight with the scene's lights (+ a light-set file) -> EXR lightmap and
-// grid, PNG preview, the glTF with TEXCOORD_1, and one JSON report.
+// grid (and its three.js form), PNG preview, the glTF with TEXCOORD_1 that points at all of
+// them, and one JSON report.
+#include <algorithm>
 #include <cstdio>
 #include <filesystem>
 
@@ -15,6 +17,8 @@
 #include "core/common/isa.h"
 #include "core/bake/bake_options.h"
 #include "core/charts/gltf_writer.h"
+#include "core/output/grid_threejs.h"
+#include "core/output/lighting_description.h"
 #include "core/output/output.h"
 #include "core/precompute/resident.h"
 #include "core/relight/relight.h"
@@ -104,6 +108,9 @@ int runBake(const BakeArgs& args) {
     grid_underflowed = g->underflowed;
     if (Status s = output::writeGridJson(*result, p.grid, (out / "grid.json").string()); !s) return reportError(kCmd, s);
     if (Status s = output::writeGridRaw(*result, p.grid, (out / "grid.raw").string()); !s) return reportError(kCmd, s);
+    if (Status s = output::writeThreeJsGrid(*result, p.grid, (out / "grid_threejs.json").string(), "grid_threejs.bin");
+        !s)
+      return reportError(kCmd, s);
   }
   if (lm_stats->clamped + grid_clamped > 0)
     findings.warnings.push_back(fmt::format("lightmap.exr, grid.exr: {} values beyond the half range were clamped "
@@ -114,14 +121,28 @@ int runBake(const BakeArgs& args) {
                                             lm_stats->underflowed + grid_underflowed));
   // After the progress bar's last line, so no redraw hides them; with -q too.
   printWarnings(findings, stderr);
+
+  std::vector<std::string> outputs = {"lightmap.exr", "lightmap.png", "report.json"};
+  if (result->directIsFiner()) outputs.insert(outputs.begin() + 1, "direct.exr");
+  if (p.has_grid) outputs.insert(outputs.end(), {"grid.exr", "grid.json", "grid.raw", "grid_threejs.json", "grid_threejs.bin"});
+  auto wrote = [&](const char* name) { return std::find(outputs.begin(), outputs.end(), name) != outputs.end(); };
+  // The lightmapped scene, always (a kept TEXCOORD_1 too), pointing at the files above:
+  // MOZ_lightmap binds the plain irradiance map only where this bake wrote one.
+  output::LightingFiles files;
+  if (wrote("direct.exr")) files.direct = "direct.exr";
+  if (wrote("irradiance.exr")) files.irradiance = "irradiance.exr";
+  if (p.has_grid) files.grid_exr = "grid.exr", files.grid_json = "grid.json", files.grid_raw = "grid.raw",
+                  files.grid_threejs = "grid_threejs.json";
+  charts::GltfLighting gltf_lighting;
+  gltf_lighting.irradiance_uri = files.irradiance;
+  gltf_lighting.description = output::describeLighting(*result, p.has_grid ? &p.grid : nullptr, files);
   const std::string gltf_name = fs::path(args.scene_path).stem().string() + "_lm" +
                                 (fs::path(args.scene_path).extension() == ".glb" ? ".glb" : ".gltf");
-  if (atlas.generated) {
-    if (Status s = charts::writeGltfWithLightmapUv(args.scene_path, scene, atlas, (out / gltf_name).string(),
-                                                       request.load.files);
-        !s)
-      return reportError(kCmd, s);
-  }
+  if (Status s = charts::writeGltfWithLightmapUv(args.scene_path, scene, atlas, (out / gltf_name).string(),
+                                                 request.load.files, gltf_lighting);
+      !s)
+    return reportError(kCmd, s);
+  outputs.push_back(gltf_name);
 
   nlohmann::ordered_json report;
   report["lightlink"] = {{"version", lightlinkVersion()}, {"commit", lightlinkCommit()}};
@@ -140,11 +161,8 @@ int runBake(const BakeArgs& args) {
   report["effects_plan"] = result->plan.toJson();
   report["half_clamped_values"] = {{"lightmap", lm_stats->clamped}, {"grid", grid_clamped}};
   report["half_underflowed_values"] = {{"lightmap", lm_stats->underflowed}, {"grid", grid_underflowed}};
-  std::vector<std::string> outputs = {"lightmap.exr", "lightmap.png", "report.json"};
-  if (result->directIsFiner()) outputs.insert(outputs.begin() + 1, "direct.exr");
-  if (p.has_grid) outputs.insert(outputs.end(), {"grid.exr", "grid.json", "grid.raw"});
-  if (atlas.generated) outputs.push_back(gltf_name);
   report["outputs"] = outputs;
+
   // Static meshes whose indirect light is not in the lightmap: from the irradiance volume,
   // or none at all (receive_gi "off": the engine shades them without baked indirect light).
   nlohmann::ordered_json from_volume = nlohmann::ordered_json::array(), no_gi = nlohmann::ordered_json::array();
