@@ -38,8 +38,9 @@ void use(tinygltf::Model& model, const char* extension) {
 // The irradiance texture: linear filtering, clamped (texels past the chart edge are gutter),
 // its image named through LIGHTLINK_texture_exr (see the header).
 int addIrradianceTexture(tinygltf::Model& model, const std::string& uri) {
+  const char* name = "lightlink irradiance (L0)";
   tinygltf::Image image;
-  image.name = "lightlink irradiance (L0)";
+  image.name = name;
   image.uri = uri;
   model.images.push_back(std::move(image));
   tinygltf::Sampler sampler;
@@ -49,7 +50,7 @@ int addIrradianceTexture(tinygltf::Model& model, const std::string& uri) {
   sampler.wrapT = TINYGLTF_TEXTURE_WRAP_CLAMP_TO_EDGE;
   model.samplers.push_back(std::move(sampler));
   tinygltf::Texture texture;
-  texture.name = image.name;
+  texture.name = name;
   texture.sampler = static_cast<int>(model.samplers.size() - 1);
   tinygltf::Value::Object exr;
   exr["source"] = tinygltf::Value(static_cast<int>(model.images.size() - 1));
