@@ -36,8 +36,17 @@ void use(tinygltf::Model& model, const char* extension) {
 }
 
 // The irradiance texture: linear filtering, clamped (texels past the chart edge are gutter),
-// its image named through LIGHTLINK_texture_exr (see the header).
-int addIrradianceTexture(tinygltf::Model& model, const std::string& uri) {
+// its image named through LIGHTLINK_texture_exr (see the header). One that is there already
+// (the input was a lightmapped glTF) is reused.
+std::pair<int, int> addIrradianceTexture(tinygltf::Model& model, const std::string& uri) {
+  for (std::size_t t = 0; t < model.textures.size(); ++t) {
+    const auto it = model.textures[t].extensions.find("LIGHTLINK_texture_exr");
+    if (it == model.textures[t].extensions.end() || !it->second.Has("source")) continue;
+    const int image = it->second.Get("source").GetNumberAsInt();
+    if (image >= 0 && static_cast<std::size_t>(image) < model.images.size() &&
+        model.images[static_cast<std::size_t>(image)].uri == uri)
+      return {static_cast<int>(t), image};
+  }
   const char* name = "lightlink irradiance (L0)";
   tinygltf::Image image;
   image.name = name;
@@ -57,20 +66,20 @@ int addIrradianceTexture(tinygltf::Model& model, const std::string& uri) {
   texture.extensions["LIGHTLINK_texture_exr"] = tinygltf::Value(std::move(exr));
   model.textures.push_back(std::move(texture));
   use(model, "LIGHTLINK_texture_exr");
-  return static_cast<int>(model.textures.size() - 1);
+  return {static_cast<int>(model.textures.size() - 1), static_cast<int>(model.images.size() - 1)};
 }
 
 }  // namespace
 
-Status addGltfLighting(tinygltf::Model& model, const std::vector<std::pair<int, int>>& lightmapped,
-                       const GltfLighting& lighting) {
+Expected<int> addGltfLighting(tinygltf::Model& model, const std::vector<std::pair<int, int>>& lightmapped,
+                              const GltfLighting& lighting) {
   if (!lighting.description.is_null()) {
     if (!lighting.description.is_object())
       return invalidInput("glTF writer: the LIGHTLINK_lighting description must be a JSON object");
     model.extensions["LIGHTLINK_lighting"] = toValue(lighting.description);
     use(model, "LIGHTLINK_lighting");
   }
-  if (lighting.irradiance_uri.empty() || lightmapped.empty()) return Status::ok();
+  if (lighting.irradiance_uri.empty() || lightmapped.empty()) return -1;
 
   const std::set<std::pair<int, int>> lit(lightmapped.begin(), lightmapped.end());
   std::set<int> shared;  // materials (-1: none) used by a primitive without the lightmap
@@ -102,7 +111,7 @@ Status addGltfLighting(tinygltf::Model& model, const std::vector<std::pair<int, 
     }
     bound.insert(material);
   }
-  const int texture = addIrradianceTexture(model, lighting.irradiance_uri);
+  const auto [texture, image] = addIrradianceTexture(model, lighting.irradiance_uri);
   for (const int material : bound) {
     tinygltf::Value::Object moz;
     moz["index"] = tinygltf::Value(texture);
@@ -111,7 +120,7 @@ Status addGltfLighting(tinygltf::Model& model, const std::vector<std::pair<int, 
     model.materials[static_cast<std::size_t>(material)].extensions["MOZ_lightmap"] = tinygltf::Value(std::move(moz));
   }
   use(model, "MOZ_lightmap");
-  return Status::ok();
+  return image;
 }
 
 }  // namespace lightlink::charts

@@ -37,8 +37,10 @@ struct GltfLighting {
 // Used by the writers: adds `lighting` to `model`, whose lightmapped primitives are the
 // (mesh, primitive) pairs listed. A material they share with a primitive that is not
 // lightmapped is copied for them, and those with no material get a default one, so
-// MOZ_lightmap lands only where the lightmap uv means something.
-Status addGltfLighting(tinygltf::Model& model, const std::vector<std::pair<int, int>>& lightmapped,
-                       const GltfLighting& lighting);
+// MOZ_lightmap lands only where the lightmap uv means something. A model that is itself a
+// lightmapped glTF keeps one irradiance texture (reused, not added again). Returns the
+// image bound (-1: none): a file the bake wrote, which the writer must never copy over.
+Expected<int> addGltfLighting(tinygltf::Model& model, const std::vector<std::pair<int, int>>& lightmapped,
+                              const GltfLighting& lighting);
 
 }  // namespace lightlink::charts

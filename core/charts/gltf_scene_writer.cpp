@@ -179,7 +179,7 @@ Status writeGltfFromScene(const std::string& in_path, const scene::Scene& scene,
   model.scenes.push_back(std::move(root));
   model.defaultScene = 0;
   if (!lighting.empty())
-    if (Status s = addGltfLighting(model, lit_primitives, lighting); !s) return s;
+    if (Expected<int> bound = addGltfLighting(model, lit_primitives, lighting); !bound) return bound.status();
   model.buffers[0].uri = out_glb ? "" : out_fs.stem().string() + ".bin";
 
   tinygltf::TinyGLTF writer;

@@ -28,8 +28,7 @@ bool skipImageLoad(tinygltf::Image*, const int, std::string*, std::string*, int,
 struct ImageCopy {
   const scene::SceneFiles* from;
   fs::path to_dir;  // canonical
-  const std::vector<tinygltf::Image>* images;
-  std::size_t source_images;  // images past these were added by the writer, never copied
+  const tinygltf::Image* bake_image;  // the bound irradiance map: written by the bake, never copied
   Status status;
 };
 
@@ -52,7 +51,7 @@ Expected<fs::path> copyTarget(const fs::path& to_dir, const std::string& uri) {
 bool copyImageFile(const std::string*, const std::string*, const tinygltf::Image* image, bool, std::string*,
                    void* user) {
   auto* ctx = static_cast<ImageCopy*>(user);
-  if (image >= ctx->images->data() + ctx->source_images) return false;  // e.g. the irradiance map, written by bake
+  if (image == ctx->bake_image) return false;
   if (!ctx->status || image->uri.empty() || image->uri.rfind("data:", 0) == 0 || ctx->from->folder() == ctx->to_dir)
     return false;
   Expected<fs::path> from = ctx->from->resolveUri(image->uri, "image uri");
@@ -323,7 +322,7 @@ Status writeGltfWithLightmapUv(const std::string& in_path, const scene::Scene& s
   }
 
   // Lightmapped primitives where they now live (a static instance may have moved to a copy).
-  const std::size_t source_images = model.images.size();
+  int bake_image = -1;
   if (!lighting.empty()) {
     std::vector<std::pair<int, int>> lightmapped;
     for (std::size_t m = 0; m < scene.meshes.size(); ++m) {
@@ -333,14 +332,17 @@ Status writeGltfWithLightmapUv(const std::string& in_path, const scene::Scene& s
         continue;
       lightmapped.emplace_back(model.nodes[static_cast<std::size_t>(inst.gltf_node)].mesh, inst.gltf_primitive);
     }
-    if (Status s = addGltfLighting(model, lightmapped, lighting); !s) return s;
+    Expected<int> bound = addGltfLighting(model, lightmapped, lighting);
+    if (!bound) return bound.status();
+    bake_image = *bound;
   }
 
   const fs::path out_fs(out_path);
   if (!model.buffers.empty()) model.buffers[0].uri = out_glb ? "" : out_fs.stem().string() + ".bin";
   Expected<fs::path> out_dir = scene::resolvePath(fs::absolute(out_fs).parent_path());
   if (!out_dir) return out_dir.status();
-  ImageCopy images{&*files, *out_dir, &model.images, source_images, Status::ok()};
+  ImageCopy images{&*files, *out_dir, bake_image >= 0 ? &model.images[static_cast<std::size_t>(bake_image)] : nullptr,
+                   Status::ok()};
   tinygltf::TinyGLTF writer;  // default file callbacks: it writes the output, which the reader may not
   writer.SetImageWriter(&copyImageFile, &images);
   if (!writer.WriteGltfSceneToFile(&model, out_path, /*embedImages=*/false, /*embedBuffers=*/false,

@@ -356,6 +356,18 @@ void writeBoundAndUnbound(const fs::path& in, const fs::path& out_dir, const std
   Expected<scene::Scene> again = scene::loadGltf(bound.string(), {.load_textures = false});
   ASSERT_TRUE(again) << again.status().toString();
   expectSameGeometry(*scene, *again);
+  for (const std::string& w : again->warnings)  // lightlink's own pointers load silently
+    EXPECT_TRUE(w.find("MOZ_lightmap") == std::string::npos && w.find("LIGHTLINK_") == std::string::npos) << w;
+  // Same inputs, same bytes.
+  const fs::path twice = out_dir / (stem + "_bound_again.gltf");
+  ASSERT_TRUE(writeGltfWithLightmapUv(in.string(), *scene, result->atlas, twice.string(), {}, lighting));
+  std::string a = readBytes(bound), b = readBytes(twice);
+  const std::string bin_a = "\"" + stem + "_bound.bin\"", bin_b = "\"" + stem + "_bound_again.bin\"";
+  if (const auto pos = b.find(bin_b); pos != std::string::npos) b.replace(pos, bin_b.size(), bin_a);
+  EXPECT_EQ(a, b);
+  EXPECT_EQ(readBytes(out_dir / (stem + "_bound.bin")), readBytes(out_dir / (stem + "_bound_again.bin")));
+  fs::remove(twice);
+  fs::remove(out_dir / (stem + "_bound_again.bin"));
 
   lighting.irradiance_uri.clear();  // no irradiance map written: the description only
   const fs::path unbound = out_dir / (stem + "_unbound.gltf");
@@ -383,6 +395,33 @@ TEST(GltfLighting, BindsTheIrradianceMapOnlyWhenWritten) {
     SCOPED_TRACE(folder);
     lighting::writeBoundAndUnbound(in, dir, stem);
   }
+}
+
+// Baking a lightmapped glTF again, into another folder: its irradiance texture is reused,
+// not added twice, and the old irradiance.exr beside the input is never copied over the one
+// the new bake wrote.
+TEST(GltfLighting, ABakedGltfBakedAgainKeepsOneIrradianceTextureAndTheNewMap) {
+  const fs::path in = scenePath("cornell_box_original_gltf", "CornellBox-Original.gltf");
+  if (in.empty() || !fs::exists(in)) GTEST_SKIP() << "shared scenes not found";
+  lightlink::testing::TempDir tmp;
+  fs::create_directories(tmp / "first");
+  fs::create_directories(tmp / "second");
+  ASSERT_NO_FATAL_FAILURE(lighting::writeBoundAndUnbound(in, tmp / "first", "box"));
+  lightlink::testing::writeFile(tmp / "second" / "irradiance.exr", "the second bake's map");
+  const fs::path again_in = tmp / "first" / "box_bound.gltf";
+  Expected<scene::Scene> scene = scene::loadGltf(again_in.string(), {.load_textures = false});
+  ASSERT_TRUE(scene) << scene.status().toString();
+  Expected<UnwrapResult> result = unwrap(*scene, {});
+  ASSERT_TRUE(result) << result.status().toString();
+  GltfLighting lighting;
+  lighting.irradiance_uri = "irradiance.exr";
+  const fs::path out = tmp / "second" / "box_lm.gltf";
+  ASSERT_TRUE(writeGltfWithLightmapUv(again_in.string(), *scene, result->atlas, out.string(), {}, lighting));
+  EXPECT_EQ(readBytes(tmp / "second" / "irradiance.exr"), "the second bake's map");
+  const nlohmann::json j = nlohmann::json::parse(readBytes(out));
+  EXPECT_EQ(j["textures"].size(), 1u) << j["textures"].dump();
+  EXPECT_EQ(j["images"].size(), 1u) << j["images"].dump();
+  EXPECT_GT(lighting::expectBoundWhereLightmapped(j), 0);
 }
 
 TEST(GltfLighting, AMaterialSharedWithADynamicNodeIsCopiedForTheLightmappedOnes) {
