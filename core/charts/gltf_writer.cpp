@@ -297,8 +297,6 @@ Status writeGltfWithLightmapUv(const std::string& in_path, const scene::Scene& s
           attributes[out_name] = *a;
         }
         attributes["TEXCOORD_1"] = edit.addVec2(inst.uv1);
-        // glTF's TEXCOORD sets start at 0: one the source lacked is the lightmap uv too.
-        if (!attributes.count("TEXCOORD_0")) attributes["TEXCOORD_0"] = attributes["TEXCOORD_1"];
         if (old_uv1_set >= 0) prim.material = remapMaterialTexCoord1(model, prim.material, old_uv1_set, material_copies);
         for (std::map<std::string, int>& target_attrs : prim.targets) {
           for (auto& [name, accessor] : target_attrs) {
@@ -320,6 +318,13 @@ Status writeGltfWithLightmapUv(const std::string& in_path, const scene::Scene& s
       }
     }
   }
+
+  // glTF's TEXCOORD sets start at 0: where the source had none, the lightmap uv (written
+  // here, or a kept TEXCOORD_1 the source gave without a set 0) is set 0 too.
+  for (tinygltf::Mesh& mesh : model.meshes)
+    for (tinygltf::Primitive& prim : mesh.primitives)
+      if (const auto uv1 = prim.attributes.find("TEXCOORD_1"); uv1 != prim.attributes.end() && !prim.attributes.count("TEXCOORD_0"))
+        prim.attributes["TEXCOORD_0"] = uv1->second;
 
   // Lightmapped primitives where they now live (a static instance may have moved to a copy).
   int bake_image = -1;

@@ -8,8 +8,8 @@
 // mixed-scene policy in unwrap.h) is kept as the first free TEXCOORD_n (n >= 2), and a
 // material whose core textures sample set 1 is copied with those references moved to n,
 // so the surface looks as before (textures inside material extensions are not remapped).
-// A primitive that had no TEXCOORD_0 gets the lightmap uv as TEXCOORD_0 too (the same
-// accessor): glTF requires the sets to start at 0 and run without gaps.
+// A primitive with a TEXCOORD_1 (written or kept) but no TEXCOORD_0 gets it as TEXCOORD_0
+// too (the same accessor): glTF requires the sets to start at 0 and run without gaps.
 // Everything else (nodes, materials, images, extensions, extras, untouched primitives) is
 // written as tinygltf read it. All buffers are merged into one (old bytes kept, new ones
 // appended): the .bin next to a .gltf output is named after it, a .glb output embeds it,

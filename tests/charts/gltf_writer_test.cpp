@@ -240,6 +240,43 @@ TEST(GltfWriter, ReplacedTexcoord1MovesWithItsMaterial) {
   expectSameGeometry(*scene, *again);
 }
 
+// A kept TEXCOORD_1 that came without a TEXCOORD_0 (invalid glTF: the sets start at 0) is
+// written as set 0 too, so what lightlink writes validates even when its input did not.
+TEST(GltfWriter, AKeptTexcoord1WithoutSet0BecomesSet0Too) {
+  const float pos[12] = {0, 0, 0, 1, 0, 0, 1, 0, -1, 0, 0, -1};
+  const float uv[8] = {0.1f, 0.1f, 0.9f, 0.1f, 0.9f, 0.9f, 0.1f, 0.9f};
+  const std::uint16_t idx[6] = {0, 1, 2, 0, 2, 3};
+  std::string bin(reinterpret_cast<const char*>(pos), sizeof(pos));
+  bin.append(reinterpret_cast<const char*>(uv), sizeof(uv));
+  bin.append(reinterpret_cast<const char*>(idx), sizeof(idx));
+  const std::string json = R"({
+    "asset": {"version": "2.0"},
+    "scene": 0, "scenes": [{"nodes": [0]}],
+    "nodes": [{"mesh": 0}],
+    "meshes": [{"primitives": [{"attributes": {"POSITION": 0, "TEXCOORD_1": 1}, "indices": 2}]}],
+    "accessors": [
+      {"bufferView": 0, "componentType": 5126, "count": 4, "type": "VEC3", "min": [0, 0, -1], "max": [1, 0, 0]},
+      {"bufferView": 1, "componentType": 5126, "count": 4, "type": "VEC2"},
+      {"bufferView": 2, "componentType": 5123, "count": 6, "type": "SCALAR"}],
+    "bufferViews": [{"buffer": 0, "byteOffset": 0, "byteLength": 48}, {"buffer": 0, "byteOffset": 48, "byteLength": 32},
+                    {"buffer": 0, "byteOffset": 80, "byteLength": 12}],
+    "buffers": [{"byteLength": 92, "uri": "data:application/octet-stream;base64,)" + base64(bin) + R"("}]
+  })";
+  lightlink::testing::TempDir tmp;
+  const std::string in = lightlink::testing::writeFile(tmp / "kept.gltf", json);
+  Expected<scene::Scene> scene = scene::loadGltf(in, {.load_textures = false});
+  ASSERT_TRUE(scene) << scene.status().toString();
+  Expected<UnwrapResult> result = unwrap(*scene, {});
+  ASSERT_TRUE(result) << result.status().toString();
+  ASSERT_FALSE(result->report.generated) << "the quad's own TEXCOORD_1 is kept";
+  const fs::path out = tmp / "kept_lm.gltf";
+  ASSERT_TRUE(writeGltfWithLightmapUv(in, *scene, result->atlas, out.string()));
+  const nlohmann::json j = nlohmann::json::parse(readBytes(out));
+  const nlohmann::json& attributes = j["meshes"][0]["primitives"][0]["attributes"];
+  ASSERT_TRUE(attributes.contains("TEXCOORD_0")) << attributes.dump();
+  EXPECT_EQ(attributes["TEXCOORD_0"], attributes["TEXCOORD_1"]);
+}
+
 // External images are copied next to the output only inside the output's folder: an image
 // uri with `..` (readable when the scene is trusted with reading outside its folder) must not
 // make the writer create files elsewhere.
