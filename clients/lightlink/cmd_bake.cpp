@@ -1,6 +1,8 @@
 // `lightlink bake`: the CI job. Scene -> (unwrap) -> precompute (or a matching cached
 // artifact) -> relight with the scene's lights (+ a light-set file) -> EXR lightmap and
-// grid, PNG preview, the glTF with TEXCOORD_1, and one JSON report.
+// grid (and its three.js form), PNG preview, the glTF with TEXCOORD_1 that points at all of
+// them, and one JSON report.
+#include <algorithm>
 #include <cstdio>
 #include <filesystem>
 
@@ -16,6 +18,8 @@
 #include "core/lights/scenarios.h"
 #include "core/bake/bake_options.h"
 #include "core/charts/gltf_writer.h"
+#include "core/output/grid_threejs.h"
+#include "core/output/lighting_description.h"
 #include "core/output/output.h"
 #include "core/precompute/resident.h"
 #include "core/relight/relight.h"
@@ -34,15 +38,15 @@ Status makeDirectory(const fs::path& dir) {
 }
 
 // What writeLightingFiles wrote, and what the half writers clamped or lost.
-struct LightingFiles {
+struct WrittenFiles {
   std::vector<std::string> outputs;
   std::size_t lightmap_clamped = 0, lightmap_underflowed = 0, grid_clamped = 0, grid_underflowed = 0;
 };
 
 // The lighting of one relight into `dir`: lightmap (+ finer direct), preview, grid files.
-Expected<LightingFiles> writeLightingFiles(const relight::RelightResult& result, const precompute::Precomputation& p,
+Expected<WrittenFiles> writeLightingFiles(const relight::RelightResult& result, const precompute::Precomputation& p,
                                            const fs::path& dir, const output::ExrOptions& exr) {
-  LightingFiles f;
+  WrittenFiles f;
   auto lm_stats = output::writeLightmapExr(result, (dir / "lightmap.exr").string(), exr);
   if (!lm_stats) return lm_stats.status();
   f.outputs.push_back("lightmap.exr");
@@ -67,12 +71,15 @@ Expected<LightingFiles> writeLightingFiles(const relight::RelightResult& result,
     f.grid_underflowed = g->underflowed;
     if (Status s = output::writeGridJson(result, p.grid, (dir / "grid.json").string()); !s) return s;
     if (Status s = output::writeGridRaw(result, p.grid, (dir / "grid.raw").string()); !s) return s;
-    f.outputs.insert(f.outputs.end(), {"grid.exr", "grid.json", "grid.raw"});
+    if (Status s = output::writeThreeJsGrid(result, p.grid, (dir / "grid_threejs.json").string(), "grid_threejs.bin");
+        !s)
+      return s;
+    f.outputs.insert(f.outputs.end(), {"grid.exr", "grid.json", "grid.raw", "grid_threejs.json", "grid_threejs.bin"});
   }
   return f;
 }
 
-void addWriterWarnings(const LightingFiles& f, const std::string& prefix, std::vector<std::string>& warnings) {
+void addWriterWarnings(const WrittenFiles& f, const std::string& prefix, std::vector<std::string>& warnings) {
   if (f.lightmap_clamped + f.grid_clamped > 0)
     warnings.push_back(fmt::format("{}lightmap.exr, grid.exr: {} values beyond the half range were clamped "
                                    "(use --float)", prefix, f.lightmap_clamped + f.grid_clamped));
@@ -180,9 +187,9 @@ int runBake(const BakeArgs& args) {
   output::ExrOptions exr;
   exr.half = !args.float_exr;
   exr.scene_hash = key_hex;
-  auto files = writeLightingFiles(*result, p, out, exr);
-  if (!files) return reportError(kCmd, files.status());
-  addWriterWarnings(*files, "", findings.warnings);
+  auto written = writeLightingFiles(*result, p, out, exr);
+  if (!written) return reportError(kCmd, written.status());
+  addWriterWarnings(*written, "", findings.warnings);
 
   // Lighting scenarios: one relight each over the same precomputation, written under
   // scenarios/<name>/ (docs/outputs.md "Lighting scenarios").
@@ -213,14 +220,27 @@ int runBake(const BakeArgs& args) {
   }
   // After the progress bar's last line, so no redraw hides them; with -q too.
   printWarnings(findings, stderr);
+
+  std::vector<std::string> outputs = written->outputs;
+  outputs.push_back("report.json");
+  auto wrote = [&](const char* name) { return std::find(outputs.begin(), outputs.end(), name) != outputs.end(); };
+  // The lightmapped scene, always (a kept TEXCOORD_1 too), pointing at the files above:
+  // MOZ_lightmap binds the plain irradiance map only where this bake wrote one.
+  output::LightingFiles files;
+  if (wrote("direct.exr")) files.direct = "direct.exr";
+  if (wrote("irradiance.exr")) files.irradiance = "irradiance.exr";
+  if (p.has_grid) files.grid_exr = "grid.exr", files.grid_json = "grid.json", files.grid_raw = "grid.raw",
+                  files.grid_threejs = "grid_threejs.json";
+  charts::GltfLighting gltf_lighting;
+  gltf_lighting.irradiance_uri = files.irradiance;
+  gltf_lighting.description = output::describeLighting(*result, p.has_grid ? &p.grid : nullptr, files);
   const std::string gltf_name = fs::path(args.scene_path).stem().string() + "_lm" +
                                 (fs::path(args.scene_path).extension() == ".glb" ? ".glb" : ".gltf");
-  if (atlas.generated) {
-    if (Status s = charts::writeGltfWithLightmapUv(args.scene_path, scene, atlas, (out / gltf_name).string(),
-                                                       request.load.files);
-        !s)
-      return reportError(kCmd, s);
-  }
+  if (Status s = charts::writeGltfWithLightmapUv(args.scene_path, scene, atlas, (out / gltf_name).string(),
+                                                 request.load.files, gltf_lighting);
+      !s)
+    return reportError(kCmd, s);
+  outputs.push_back(gltf_name);
 
   nlohmann::ordered_json report;
   report["lightlink"] = {{"version", lightlinkVersion()}, {"commit", lightlinkCommit()}};
@@ -237,14 +257,12 @@ int runBake(const BakeArgs& args) {
   report["precompute"] = resident->precomputeReport();
   report["relight"] = result->report();
   report["effects_plan"] = result->plan.toJson();
-  report["half_clamped_values"] = {{"lightmap", files->lightmap_clamped}, {"grid", files->grid_clamped}};
-  report["half_underflowed_values"] = {{"lightmap", files->lightmap_underflowed}, {"grid", files->grid_underflowed}};
-  std::vector<std::string> outputs = files->outputs;
-  outputs.push_back("report.json");
-  if (atlas.generated) outputs.push_back(gltf_name);
+  report["half_clamped_values"] = {{"lightmap", written->lightmap_clamped}, {"grid", written->grid_clamped}};
+  report["half_underflowed_values"] = {{"lightmap", written->lightmap_underflowed}, {"grid", written->grid_underflowed}};
   if (!scenarios.empty()) outputs.push_back("scenarios.json");
   if (!scenarios.empty()) report["scenarios"] = scenario_reports;
   report["outputs"] = outputs;
+
   // Static meshes whose indirect light is not in the lightmap: from the irradiance volume,
   // or none at all (receive_gi "off": the engine shades them without baked indirect light).
   nlohmann::ordered_json from_volume = nlohmann::ordered_json::array(), no_gi = nlohmann::ordered_json::array();

@@ -17,6 +17,7 @@
 #include "clients/lightlink/commands.h"
 #include "clients/lightlink/exit_codes.h"
 #include "core/bake/bake_options.h"
+#include "core/output/grid_threejs.h"
 #include "core/output/output.h"
 
 namespace lightlink::cli {
@@ -353,7 +354,10 @@ int runPull(const PullArgs& args) {
     if (!g) return reportError(kCmd, g.status());
     if (Status s = output::writeGridJson(*result, *grid, (out / "grid.json").string()); !s) return reportError(kCmd, s);
     if (Status s = output::writeGridRaw(*result, *grid, (out / "grid.raw").string()); !s) return reportError(kCmd, s);
-    written.insert(written.end(), {"grid.exr", "grid.json", "grid.raw"});
+    if (Status s = output::writeThreeJsGrid(*result, *grid, (out / "grid_threejs.json").string(), "grid_threejs.bin");
+        !s)
+      return reportError(kCmd, s);
+    written.insert(written.end(), {"grid.exr", "grid.json", "grid.raw", "grid_threejs.json", "grid_threejs.bin"});
   }
   nlohmann::ordered_json info;
   info["scene_id"] = remote->session.scene.id;

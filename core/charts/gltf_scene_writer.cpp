@@ -94,7 +94,8 @@ bool keepImageUri(const std::string*, const std::string*, const tinygltf::Image*
 }  // namespace
 
 Status writeGltfFromScene(const std::string& in_path, const scene::Scene& scene, const std::string& out_path,
-                          const scene::FileAccess& access) {
+                          const scene::FileAccess& access, const GltfLighting& lighting,
+                          const std::vector<bool>& lightmapped) {
   const bool out_glb = endsWith(out_path, ".glb");
   if (!out_glb && !endsWith(out_path, ".gltf"))
     return invalidInput("glTF writer: output '{}' must end in .gltf or .glb", out_path);
@@ -136,7 +137,9 @@ Status writeGltfFromScene(const std::string& in_path, const scene::Scene& scene,
   if (emissive_strength_used) model.extensionsUsed.push_back("KHR_materials_emissive_strength");
 
   tinygltf::Scene root;
-  for (const scene::MeshInstance& inst : scene.meshes) {
+  std::vector<std::pair<int, int>> lit_primitives;
+  for (std::size_t m = 0; m < scene.meshes.size(); ++m) {
+    const scene::MeshInstance& inst = scene.meshes[m];
     if (inst.positions.empty() || inst.indices.empty()) continue;
     const std::size_t n = inst.positions.size();
     if (inst.normals.size() != n || (!inst.uv0.empty() && inst.uv0.size() != n) ||
@@ -149,12 +152,17 @@ Status writeGltfFromScene(const std::string& in_path, const scene::Scene& scene,
     prim.attributes["POSITION"] = build.addVec3(inst.positions, true);
     prim.attributes["NORMAL"] = build.addVec3(inst.normals, false);
     if (!inst.uv0.empty()) prim.attributes["TEXCOORD_0"] = build.addVec2(inst.uv0);
-    if (!inst.uv1.empty()) prim.attributes["TEXCOORD_1"] = build.addVec2(inst.uv1);
+    if (!inst.uv1.empty()) {
+      prim.attributes["TEXCOORD_1"] = build.addVec2(inst.uv1);
+      // glTF's TEXCOORD sets start at 0: without a uv0 the lightmap uv is set 0 too.
+      if (inst.uv0.empty()) prim.attributes["TEXCOORD_0"] = prim.attributes["TEXCOORD_1"];
+    }
     prim.indices = build.addIndices(inst.indices, inst.positions.size());
     tinygltf::Mesh mesh;
     mesh.name = inst.name;
     mesh.primitives.push_back(std::move(prim));
     model.meshes.push_back(std::move(mesh));
+    if (m < lightmapped.size() && lightmapped[m]) lit_primitives.emplace_back(static_cast<int>(model.meshes.size() - 1), 0);
     tinygltf::Node node;
     node.name = inst.name;
     node.mesh = static_cast<int>(model.meshes.size() - 1);
@@ -170,6 +178,8 @@ Status writeGltfFromScene(const std::string& in_path, const scene::Scene& scene,
   }
   model.scenes.push_back(std::move(root));
   model.defaultScene = 0;
+  if (!lighting.empty())
+    if (Expected<int> bound = addGltfLighting(model, lit_primitives, lighting); !bound) return bound.status();
   model.buffers[0].uri = out_glb ? "" : out_fs.stem().string() + ".bin";
 
   tinygltf::TinyGLTF writer;

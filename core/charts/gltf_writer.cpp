@@ -28,6 +28,7 @@ bool skipImageLoad(tinygltf::Image*, const int, std::string*, std::string*, int,
 struct ImageCopy {
   const scene::SceneFiles* from;
   fs::path to_dir;  // canonical
+  const tinygltf::Image* bake_image;  // the bound irradiance map: written by the bake, never copied
   Status status;
 };
 
@@ -50,6 +51,7 @@ Expected<fs::path> copyTarget(const fs::path& to_dir, const std::string& uri) {
 bool copyImageFile(const std::string*, const std::string*, const tinygltf::Image* image, bool, std::string*,
                    void* user) {
   auto* ctx = static_cast<ImageCopy*>(user);
+  if (image == ctx->bake_image) return false;
   if (!ctx->status || image->uri.empty() || image->uri.rfind("data:", 0) == 0 || ctx->from->folder() == ctx->to_dir)
     return false;
   Expected<fs::path> from = ctx->from->resolveUri(image->uri, "image uri");
@@ -198,8 +200,15 @@ bool endsWith(const std::string& s, const std::string& suffix) {
 
 }  // namespace
 
+bool isLightmapped(const scene::Scene& scene, const LightmapAtlas& atlas, std::size_t m) {
+  const scene::MeshInstance& inst = scene.meshes[m];
+  return inst.is_static && !inst.uv1.empty() &&
+         std::find(atlas.probe_lit.begin(), atlas.probe_lit.end(), static_cast<std::uint32_t>(m)) == atlas.probe_lit.end();
+}
+
 Status writeGltfWithLightmapUv(const std::string& in_path, const scene::Scene& scene, const LightmapAtlas& atlas,
-                               const std::string& out_path, const scene::FileAccess& access) {
+                               const std::string& out_path, const scene::FileAccess& access,
+                               const GltfLighting& lighting) {
   const bool out_glb = endsWith(out_path, ".glb");
   if (!out_glb && !endsWith(out_path, ".gltf"))
     return invalidInput("glTF writer: output '{}' must end in .gltf or .glb", out_path);
@@ -209,7 +218,11 @@ Status writeGltfWithLightmapUv(const std::string& in_path, const scene::Scene& s
   if (atlas.meshes.size() != scene.meshes.size())
     return internalError("glTF writer: atlas has {} meshes, scene {}", atlas.meshes.size(), scene.meshes.size());
   // An OBJ or FBX has no glTF to edit: the lightmapped scene is written from the Scene.
-  if (scene::isAssimpScenePath(in_path)) return writeGltfFromScene(in_path, scene, out_path, access);
+  if (scene::isAssimpScenePath(in_path)) {
+    std::vector<bool> lightmapped(scene.meshes.size());
+    for (std::size_t m = 0; m < scene.meshes.size(); ++m) lightmapped[m] = isLightmapped(scene, atlas, m);
+    return writeGltfFromScene(in_path, scene, out_path, access, lighting, lightmapped);
+  }
 
   Expected<scene::SceneFiles> files = scene::SceneFiles::forScene(in_path, access);
   if (!files) return files.status();
@@ -306,11 +319,35 @@ Status writeGltfWithLightmapUv(const std::string& in_path, const scene::Scene& s
     }
   }
 
+  // glTF's TEXCOORD sets start at 0: where the source had none, the lightmap uv (written
+  // here, or a kept TEXCOORD_1 the source gave without a set 0) is set 0 too.
+  for (tinygltf::Mesh& mesh : model.meshes)
+    for (tinygltf::Primitive& prim : mesh.primitives)
+      if (const auto uv1 = prim.attributes.find("TEXCOORD_1"); uv1 != prim.attributes.end() && !prim.attributes.count("TEXCOORD_0"))
+        prim.attributes["TEXCOORD_0"] = uv1->second;
+
+  // Lightmapped primitives where they now live (a static instance may have moved to a copy).
+  int bake_image = -1;
+  if (!lighting.empty()) {
+    std::vector<std::pair<int, int>> lightmapped;
+    for (std::size_t m = 0; m < scene.meshes.size(); ++m) {
+      const scene::MeshInstance& inst = scene.meshes[m];
+      if (!isLightmapped(scene, atlas, m) || inst.gltf_node < 0 ||
+          static_cast<std::size_t>(inst.gltf_node) >= model.nodes.size())
+        continue;
+      lightmapped.emplace_back(model.nodes[static_cast<std::size_t>(inst.gltf_node)].mesh, inst.gltf_primitive);
+    }
+    Expected<int> bound = addGltfLighting(model, lightmapped, lighting);
+    if (!bound) return bound.status();
+    bake_image = *bound;
+  }
+
   const fs::path out_fs(out_path);
   if (!model.buffers.empty()) model.buffers[0].uri = out_glb ? "" : out_fs.stem().string() + ".bin";
   Expected<fs::path> out_dir = scene::resolvePath(fs::absolute(out_fs).parent_path());
   if (!out_dir) return out_dir.status();
-  ImageCopy images{&*files, *out_dir, Status::ok()};
+  ImageCopy images{&*files, *out_dir, bake_image >= 0 ? &model.images[static_cast<std::size_t>(bake_image)] : nullptr,
+                   Status::ok()};
   tinygltf::TinyGLTF writer;  // default file callbacks: it writes the output, which the reader may not
   writer.SetImageWriter(&copyImageFile, &images);
   if (!writer.WriteGltfSceneToFile(&model, out_path, /*embedImages=*/false, /*embedBuffers=*/false,

@@ -1,5 +1,6 @@
 #include "core/scene/gltf_structure.h"
 
+#include <algorithm>
 #include <array>
 
 namespace lightlink::scene::gltf {
@@ -33,6 +34,10 @@ constexpr std::array<Approximated, 14> kApproximated = {{
     {"KHR_materials_diffuse_transmission", "diffuse transmission is ignored"},
 }};
 
+// Pointers to baked lighting that lightlink itself writes (docs/outputs.md, "The glTF and
+// its lighting"): a bake recomputes what they point at, so loading ignores them silently.
+constexpr std::array<std::string_view, 3> kBakeOutputs = {"MOZ_lightmap", "LIGHTLINK_lighting", "LIGHTLINK_texture_exr"};
+
 }  // namespace
 
 bool isSupportedExtension(std::string_view name) {
@@ -54,6 +59,7 @@ Status validateExtensions(const Context& ctx) {
   }
   for (const std::string& name : ctx.model.extensionsUsed) {
     if (isSupportedExtension(name)) continue;
+    if (std::find(kBakeOutputs.begin(), kBakeOutputs.end(), name) != kBakeOutputs.end()) continue;
     bool known = false;
     for (const Approximated& a : kApproximated) {
       if (a.name == name) {

@@ -141,8 +141,18 @@ TEST(Bake, WritesEverythingThenReusesTheArtifact) {
   const auto first = runShell(cmd);
   ASSERT_EQ(first.exit_code, 0) << first.output;
   for (const char* f : {"lightmap.exr", "lightmap.png", "report.json", "grid.exr", "grid.json", "grid.raw",
-                        "cornell_box_lm.gltf"})
+                        "grid_threejs.json", "grid_threejs.bin", "cornell_box_lm.gltf"})
     EXPECT_TRUE(std::filesystem::exists(dir / "out" / f)) << f;
+  // The glTF points at its lighting: the grid's placement as grid.json states it.
+  const auto gltf = nlohmann::json::parse(readAll(dir / "out" / "cornell_box_lm.gltf"));
+  const auto grid_json = nlohmann::json::parse(readAll(dir / "out" / "grid.json"));
+  ASSERT_TRUE(gltf["extensions"].contains("LIGHTLINK_lighting")) << gltf["extensionsUsed"];
+  const auto& lighting = gltf["extensions"]["LIGHTLINK_lighting"];
+  EXPECT_EQ(lighting["lightmap"]["uri"], "lightmap.exr");
+  EXPECT_EQ(lighting["grid"]["dims"], grid_json["dims"]);
+  EXPECT_EQ(lighting["grid"]["origin_m"], grid_json["origin_m"]);
+  EXPECT_EQ(lighting["grid"]["spacing_m"], grid_json["spacing_m"]);
+  EXPECT_EQ(lighting["grid"]["threejs"]["uri"], "grid_threejs.json");
   auto report = nlohmann::json::parse(readAll(dir / "out" / "report.json"));
   EXPECT_EQ(report["artifact"].get<std::string>().rfind("computed", 0), 0u) << report["artifact"];
   EXPECT_TRUE(report["effects_plan"].is_object());
