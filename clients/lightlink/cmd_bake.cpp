@@ -1,6 +1,8 @@
 // `lightlink bake`: the CI job. Scene -> (unwrap) -> precompute (or a matching cached
 // artifact) -> relight with the scene's lights (+ a light-set file) -> EXR lightmap and
-// grid, PNG preview, the glTF with TEXCOORD_1, and one JSON report.
+// grid in the chosen encoding (l0, l1, l2), PNG preview, the glTF with TEXCOORD_1, and one
+// JSON report.
+#include <chrono>
 #include <cstdio>
 #include <filesystem>
 
@@ -81,37 +83,40 @@ int runBake(const BakeArgs& args) {
   if (!relit) return reportError(kCmd, relit);
   BakeFindings findings = collectFindings(scene, resident->precomputeReport(), *result);
 
+  auto encoding = output::parseEncoding(args.encoding);
+  if (!encoding) return reportError(kCmd, encoding.status());
   output::ExrOptions exr;
   exr.half = !args.float_exr;
   exr.scene_hash = key_hex;
-  auto lm_stats = output::writeLightmapExr(*result, (out / "lightmap.exr").string(), exr);
-  if (!lm_stats) return reportError(kCmd, lm_stats.status());
-  if (result->directIsFiner()) {
-    auto d = output::writeDirectExr(*result, (out / "direct.exr").string(), exr);
-    if (!d) return reportError(kCmd, d.status());
-    lm_stats->clamped += d->clamped;
-    lm_stats->underflowed += d->underflowed;
-  }
+  exr.encoding = *encoding;
   if (Status s = output::writeIrradiancePng(*result, p.lightmap, (out / "lightmap.png").string(), {},
                                             p.hasDirectLayer() ? &p.direct_texels : nullptr);
       !s)
     return reportError(kCmd, s);
-  std::size_t grid_clamped = 0, grid_underflowed = 0;
+  const auto t_write = std::chrono::steady_clock::now();
+  auto lm = output::writeLightmapExrs(*result, p.lightmap, out.string(), exr,
+                                      p.hasDirectLayer() ? &p.direct_texels : nullptr);
+  if (!lm) return reportError(kCmd, lm.status());
+  output::WrittenExrs grid_files;
   if (p.has_grid) {
-    auto g = output::writeGridExr(*result, p.grid, (out / "grid.exr").string(), exr);
+    auto g = output::writeGridExrs(*result, p.grid, out.string(), exr);
     if (!g) return reportError(kCmd, g.status());
-    grid_clamped = g->clamped;
-    grid_underflowed = g->underflowed;
-    if (Status s = output::writeGridJson(*result, p.grid, (out / "grid.json").string()); !s) return reportError(kCmd, s);
-    if (Status s = output::writeGridRaw(*result, p.grid, (out / "grid.raw").string()); !s) return reportError(kCmd, s);
+    grid_files = std::move(*g);
+    if (Status s = output::writeGridJson(*result, p.grid, (out / "grid.json").string(), *encoding); !s)
+      return reportError(kCmd, s);
+    if (Status s = output::writeGridRaw(*result, p.grid, (out / "grid.raw").string(), *encoding); !s)
+      return reportError(kCmd, s);
   }
-  if (lm_stats->clamped + grid_clamped > 0)
-    findings.warnings.push_back(fmt::format("lightmap.exr, grid.exr: {} values beyond the half range were clamped "
-                                            "(use --float)", lm_stats->clamped + grid_clamped));
-  if (lm_stats->underflowed + grid_underflowed > 0)
-    findings.warnings.push_back(fmt::format("lightmap.exr, grid.exr: {} non-zero values below the smallest normal "
+  const double write_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t_write).count();
+  const output::WriteStats& lm_stats = lm->stats;
+  const std::size_t grid_clamped = grid_files.stats.clamped, grid_underflowed = grid_files.stats.underflowed;
+  if (lm_stats.clamped + grid_clamped > 0)
+    findings.warnings.push_back(fmt::format("EXR outputs: {} values beyond the half range were clamped "
+                                            "(use --float)", lm_stats.clamped + grid_clamped));
+  if (lm_stats.underflowed + grid_underflowed > 0)
+    findings.warnings.push_back(fmt::format("EXR outputs: {} non-zero values below the smallest normal "
                                             "half lost precision (use --float)",
-                                            lm_stats->underflowed + grid_underflowed));
+                                            lm_stats.underflowed + grid_underflowed));
   // After the progress bar's last line, so no redraw hides them; with -q too.
   printWarnings(findings, stderr);
   const std::string gltf_name = fs::path(args.scene_path).stem().string() + "_lm" +
@@ -138,11 +143,20 @@ int runBake(const BakeArgs& args) {
   report["precompute"] = resident->precomputeReport();
   report["relight"] = result->report();
   report["effects_plan"] = result->plan.toJson();
-  report["half_clamped_values"] = {{"lightmap", lm_stats->clamped}, {"grid", grid_clamped}};
-  report["half_underflowed_values"] = {{"lightmap", lm_stats->underflowed}, {"grid", grid_underflowed}};
-  std::vector<std::string> outputs = {"lightmap.exr", "lightmap.png", "report.json"};
-  if (result->directIsFiner()) outputs.insert(outputs.begin() + 1, "direct.exr");
-  if (p.has_grid) outputs.insert(outputs.end(), {"grid.exr", "grid.json", "grid.raw"});
+  report["half_clamped_values"] = {{"lightmap", lm_stats.clamped}, {"grid", grid_clamped}};
+  report["half_underflowed_values"] = {{"lightmap", lm_stats.underflowed}, {"grid", grid_underflowed}};
+  report["encoding"] = {{"name", output::encodingName(*encoding)},
+                        {"lightmap_bands", output::lightmapBands(*encoding, result->bands)},
+                        {"grid_bands", p.has_grid ? output::gridBands(*encoding, result->bands) : 0},
+                        {"exr_layout", output::kExrLayout},
+                        {"precision", exr.half ? "half" : "float"},
+                        {"write_seconds", write_s}};
+  std::vector<std::string> outputs = lm->files;
+  outputs.insert(outputs.end(), {"lightmap.png", "report.json"});
+  if (p.has_grid) {
+    outputs.insert(outputs.end(), grid_files.files.begin(), grid_files.files.end());
+    outputs.insert(outputs.end(), {"grid.json", "grid.raw"});
+  }
   if (atlas.generated) outputs.push_back(gltf_name);
   report["outputs"] = outputs;
   // Static meshes whose indirect light is not in the lightmap: from the irradiance volume,

@@ -140,13 +140,15 @@ TEST(Bake, WritesEverythingThenReusesTheArtifact) {
                           " --preset draft --bounces 2 -q";
   const auto first = runShell(cmd);
   ASSERT_EQ(first.exit_code, 0) << first.output;
-  for (const char* f : {"lightmap.exr", "lightmap.png", "report.json", "grid.exr", "grid.json", "grid.raw",
-                        "cornell_box_lm.gltf"})
+  for (const char* f : {"irradiance.exr", "lightmap_L00.exr", "lightmap_L22.exr", "direct.exr", "valid.exr",
+                        "lightmap.png", "report.json", "grid_L00.exr", "grid_L22.exr", "grid_valid.exr", "grid.json",
+                        "grid.raw", "cornell_box_lm.gltf"})
     EXPECT_TRUE(std::filesystem::exists(dir / "out" / f)) << f;
   auto report = nlohmann::json::parse(readAll(dir / "out" / "report.json"));
   EXPECT_EQ(report["artifact"].get<std::string>().rfind("computed", 0), 0u) << report["artifact"];
   EXPECT_TRUE(report["effects_plan"].is_object());
   EXPECT_EQ(report["relight"]["backend"], "cpu");
+  EXPECT_EQ(report["encoding"]["name"], "l2");
 
   const auto second = runShell(cmd);
   ASSERT_EQ(second.exit_code, 0) << second.output;
