@@ -6,6 +6,13 @@
 #include "core/sh/sh.h"
 
 namespace lightlink::output {
+namespace {
+
+// How far (in texels) dilated texels of the irradiance image are filled from evaluated ones;
+// the relight's own dilation reaches a few texels into the gutter.
+constexpr int kMaxDilationPasses = 16;
+
+}  // namespace
 std::vector<float> truncateSh(const std::vector<float>& sh, int from_bands, int to_bands) {
   const std::size_t from = std::size_t(from_bands) * from_bands, to = std::size_t(to_bands) * to_bands;
   if (from == 0 || to >= from) return sh;
@@ -98,6 +105,34 @@ Expected<IrradianceImage> evaluateIrradiance(const relight::RelightResult& resul
                                   sh::irradiance(result.bands, sh.data() + 2 * nc, nrm));
     if (include_direct) img.irradiance[t] += result.direct[t];
     img.lit[t] = 1;
+  }
+  // Texels the relight filled by dilation (valid, but no cache: no normal of their own) take
+  // the mean of their evaluated 8-neighbours, pass by pass outwards, as the relight's dilation
+  // spread the SH and direct values: bilinear sampling at a chart's edge then never blends in
+  // the black of an empty texel.
+  const std::vector<std::uint8_t>& holds = fine ? result.direct_valid : result.texel_valid;
+  std::vector<std::size_t> filled;
+  for (int pass = 0; pass < kMaxDilationPasses; ++pass) {
+    filled.clear();
+    for (std::size_t t = 0; t < out_texels; ++t) {
+      if (img.lit[t] || !holds[t]) continue;
+      const int x = int(t % ow), y = int(t / ow);
+      glm::vec3 sum(0.0f);
+      int n = 0;
+      for (int dy = -1; dy <= 1; ++dy)
+        for (int dx = -1; dx <= 1; ++dx) {
+          const int nx = x + dx, ny = y + dy;
+          if (nx < 0 || ny < 0 || nx >= ow || ny >= oh) continue;
+          const std::size_t s = std::size_t(ny) * ow + nx;
+          if (img.lit[s]) sum += img.irradiance[s], ++n;
+        }
+      if (n > 0) {
+        img.irradiance[t] = sum / float(n);
+        filled.push_back(t);
+      }
+    }
+    if (filled.empty()) break;
+    for (std::size_t t : filled) img.lit[t] = 1;  // after the pass: the result does not depend on the scan order
   }
   return img;
 }

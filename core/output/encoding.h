@@ -49,7 +49,9 @@ struct IrradianceImage {
 // With a finer direct layer and its texels (Precomputation::direct_texels), the image has
 // the direct layer's size: the indirect SH interpolated bilinearly over valid lightmap
 // texels, evaluated at the direct texel's own normal. A finer layer without its texels is
-// refused when include_direct is set (its direct light has no lightmap-size form).
+// refused when include_direct is set (its direct light has no lightmap-size form). Texels the
+// relight filled by dilation (valid, without a cache) take the mean of their evaluated
+// neighbours, so the gutters around charts hold light as the SH layer's do.
 Expected<IrradianceImage> evaluateIrradiance(const relight::RelightResult& result,
                                              const caches::LightmapCaches& lightmap, bool include_direct = true,
                                              const caches::LightmapCaches* direct_texels = nullptr);
