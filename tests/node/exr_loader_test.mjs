@@ -123,16 +123,20 @@ function checkGridAgainstRaw(dir, encoding, decoded) {
 }
 
 const cache = join(work, 'cache');
-const runs = [['l0', []], ['l1', []], ['l2', []], ['l2', ['--float']]];
+// Draft has no finer direct layer; medium (direct scale 2) adds direct_valid.exr and an
+// irradiance.exr at the direct layer's size.
+const runs = [['l0', ['--preset', 'draft']], ['l1', ['--preset', 'draft']], ['l2', ['--preset', 'draft']],
+              ['l2', ['--preset', 'draft', '--float']], ['l1', ['--preset', 'medium']]];
 for (const [encoding, extra] of runs) {
   const out = join(work, encoding + extra.join(''));
-  execFileSync(cli, ['bake', demo, '-o', out, '--preset', 'draft', '--encoding', encoding, '--cache-dir', cache, '-q', ...extra],
+  execFileSync(cli, ['bake', demo, '-o', out, '--encoding', encoding, '--cache-dir', cache, '-q', ...extra],
                { stdio: 'inherit' });
   const report = JSON.parse(readFileSync(join(out, 'report.json'), 'utf8'));
   const exrs = readdirSync(out).filter((f) => f.endsWith('.exr')).sort();
   const listed = report.outputs.filter((f) => f.endsWith('.exr')).sort();
   if (exrs.join() !== listed.join()) fail(`${encoding}: report lists ${listed}, the folder holds ${exrs}`);
   if (!exrs.includes('irradiance.exr')) fail(`${encoding}: no irradiance.exr`);
+  if (extra.includes('medium') && !exrs.includes('direct_valid.exr')) fail(`${encoding} medium: no direct_valid.exr`);
   const want = { l0: 0, l1: 4, l2: 9 }[encoding];
   const sh = exrs.filter((f) => f.startsWith('lightmap_L'));
   if (sh.length !== want) fail(`${encoding}: ${sh.length} lightmap SH files, expected ${want}`);
