@@ -108,6 +108,7 @@ Expected<viewer::BakedLighting> toBakedLighting(const Textures& t) {
     b.origin = g->origin;
     b.spacing_m = g->spacing_m;
     b.grid_sh = t.floats(Payload::kGridSh);
+    b.grid_bands = t.info.bands;
     b.grid_valid = t.floats(Payload::kGridValid);
   }
   return b;

@@ -1,8 +1,10 @@
 // `lightlink bake`: the CI job. Scene -> (unwrap) -> precompute (or a matching cached
 // artifact) -> relight with the scene's lights (+ a light-set file) -> EXR lightmap and
-// grid (and its three.js form), PNG preview, the glTF with TEXCOORD_1 that points at all of
-// them, and one JSON report.
+// grid in the chosen encoding (l0, l1, l2) and the grid's three.js form, PNG preview, the
+// glTF with TEXCOORD_1 that points at all of them, and one JSON report; with --scenario, the
+// lighting of each scenario in its own folder.
 #include <algorithm>
+#include <chrono>
 #include <cstdio>
 #include <filesystem>
 
@@ -45,46 +47,39 @@ struct WrittenFiles {
 
 // The lighting of one relight into `dir`: lightmap (+ finer direct), preview, grid files.
 Expected<WrittenFiles> writeLightingFiles(const relight::RelightResult& result, const precompute::Precomputation& p,
-                                           const fs::path& dir, const output::ExrOptions& exr) {
+                                          const fs::path& dir, const output::ExrOptions& exr) {
   WrittenFiles f;
-  auto lm_stats = output::writeLightmapExr(result, (dir / "lightmap.exr").string(), exr);
-  if (!lm_stats) return lm_stats.status();
-  f.outputs.push_back("lightmap.exr");
-  f.lightmap_clamped = lm_stats->clamped;
-  f.lightmap_underflowed = lm_stats->underflowed;
-  if (result.directIsFiner()) {
-    auto d = output::writeDirectExr(result, (dir / "direct.exr").string(), exr);
-    if (!d) return d.status();
-    f.outputs.push_back("direct.exr");
-    f.lightmap_clamped += d->clamped;
-    f.lightmap_underflowed += d->underflowed;
-  }
-  if (Status s = output::writeIrradiancePng(result, p.lightmap, (dir / "lightmap.png").string(), {},
-                                            p.hasDirectLayer() ? &p.direct_texels : nullptr);
-      !s)
+  const caches::LightmapCaches* direct_texels = p.hasDirectLayer() ? &p.direct_texels : nullptr;
+  auto lm = output::writeLightmapExrs(result, p.lightmap, dir.string(), exr, direct_texels);
+  if (!lm) return lm.status();
+  f.outputs = lm->files;
+  f.lightmap_clamped = lm->stats.clamped;
+  f.lightmap_underflowed = lm->stats.underflowed;
+  if (Status s = output::writeIrradiancePng(result, p.lightmap, (dir / "lightmap.png").string(), {}, direct_texels); !s)
     return s;
   f.outputs.push_back("lightmap.png");
   if (p.has_grid) {
-    auto g = output::writeGridExr(result, p.grid, (dir / "grid.exr").string(), exr);
+    auto g = output::writeGridExrs(result, p.grid, dir.string(), exr);
     if (!g) return g.status();
-    f.grid_clamped = g->clamped;
-    f.grid_underflowed = g->underflowed;
-    if (Status s = output::writeGridJson(result, p.grid, (dir / "grid.json").string()); !s) return s;
-    if (Status s = output::writeGridRaw(result, p.grid, (dir / "grid.raw").string()); !s) return s;
+    f.grid_clamped = g->stats.clamped;
+    f.grid_underflowed = g->stats.underflowed;
+    f.outputs.insert(f.outputs.end(), g->files.begin(), g->files.end());
+    if (Status s = output::writeGridJson(result, p.grid, (dir / "grid.json").string(), exr.encoding); !s) return s;
+    if (Status s = output::writeGridRaw(result, p.grid, (dir / "grid.raw").string(), exr.encoding); !s) return s;
     if (Status s = output::writeThreeJsGrid(result, p.grid, (dir / "grid_threejs.json").string(), "grid_threejs.bin");
         !s)
       return s;
-    f.outputs.insert(f.outputs.end(), {"grid.exr", "grid.json", "grid.raw", "grid_threejs.json", "grid_threejs.bin"});
+    f.outputs.insert(f.outputs.end(), {"grid.json", "grid.raw", "grid_threejs.json", "grid_threejs.bin"});
   }
   return f;
 }
 
 void addWriterWarnings(const WrittenFiles& f, const std::string& prefix, std::vector<std::string>& warnings) {
   if (f.lightmap_clamped + f.grid_clamped > 0)
-    warnings.push_back(fmt::format("{}lightmap.exr, grid.exr: {} values beyond the half range were clamped "
+    warnings.push_back(fmt::format("{}EXR outputs: {} values beyond the half range were clamped "
                                    "(use --float)", prefix, f.lightmap_clamped + f.grid_clamped));
   if (f.lightmap_underflowed + f.grid_underflowed > 0)
-    warnings.push_back(fmt::format("{}lightmap.exr, grid.exr: {} non-zero values below the smallest normal "
+    warnings.push_back(fmt::format("{}EXR outputs: {} non-zero values below the smallest normal "
                                    "half lost precision (use --float)",
                                    prefix, f.lightmap_underflowed + f.grid_underflowed));
 }
@@ -137,6 +132,8 @@ int runBake(const BakeArgs& args) {
 
   auto fail_on = parseFailOn(args.fail_on);
   if (!fail_on) return reportError(kCmd, fail_on.status());
+  auto encoding = output::parseEncoding(args.encoding);
+  if (!encoding) return reportError(kCmd, encoding.status());
 
   const fs::path out(args.output_dir);
   const fs::path cache_dir = args.cache_dir.empty() ? out / "cache" : fs::path(args.cache_dir);
@@ -187,9 +184,12 @@ int runBake(const BakeArgs& args) {
   output::ExrOptions exr;
   exr.half = !args.float_exr;
   exr.scene_hash = key_hex;
+  exr.encoding = *encoding;
+  const auto t_write = std::chrono::steady_clock::now();
   auto written = writeLightingFiles(*result, p, out, exr);
   if (!written) return reportError(kCmd, written.status());
   addWriterWarnings(*written, "", findings.warnings);
+  const double write_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t_write).count();
 
   // Lighting scenarios: one relight each over the same precomputation, written under
   // scenarios/<name>/ (docs/outputs.md "Lighting scenarios").
@@ -223,14 +223,10 @@ int runBake(const BakeArgs& args) {
 
   std::vector<std::string> outputs = written->outputs;
   outputs.push_back("report.json");
-  auto wrote = [&](const char* name) { return std::find(outputs.begin(), outputs.end(), name) != outputs.end(); };
   // The lightmapped scene, always (a kept TEXCOORD_1 too), pointing at the files above:
   // MOZ_lightmap binds the plain irradiance map only where this bake wrote one.
-  output::LightingFiles files;
-  if (wrote("direct.exr")) files.direct = "direct.exr";
-  if (wrote("irradiance.exr")) files.irradiance = "irradiance.exr";
-  if (p.has_grid) files.grid_exr = "grid.exr", files.grid_json = "grid.json", files.grid_raw = "grid.raw",
-                  files.grid_threejs = "grid_threejs.json";
+  const output::LightingFiles files =
+      output::LightingFiles::fromWritten(written->outputs, std::string(output::encodingName(*encoding)));
   charts::GltfLighting gltf_lighting;
   gltf_lighting.irradiance_uri = files.irradiance;
   gltf_lighting.description = output::describeLighting(*result, p.has_grid ? &p.grid : nullptr, files);
@@ -259,6 +255,12 @@ int runBake(const BakeArgs& args) {
   report["effects_plan"] = result->plan.toJson();
   report["half_clamped_values"] = {{"lightmap", written->lightmap_clamped}, {"grid", written->grid_clamped}};
   report["half_underflowed_values"] = {{"lightmap", written->lightmap_underflowed}, {"grid", written->grid_underflowed}};
+  report["encoding"] = {{"name", output::encodingName(*encoding)},
+                        {"lightmap_bands", output::lightmapBands(*encoding, result->bands)},
+                        {"grid_bands", p.has_grid ? output::gridBands(*encoding, result->bands) : 0},
+                        {"exr_layout", output::kExrLayout},
+                        {"precision", exr.half ? "half" : "float"},
+                        {"write_seconds", write_s}};
   if (!scenarios.empty()) outputs.push_back("scenarios.json");
   if (!scenarios.empty()) report["scenarios"] = scenario_reports;
   report["outputs"] = outputs;

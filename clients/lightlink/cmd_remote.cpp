@@ -338,26 +338,35 @@ int runPull(const PullArgs& args) {
   std::error_code ec;
   fs::create_directories(out, ec);
   if (ec) return reportError(kCmd, ioError("cannot create directory {}: {}", out.string(), ec.message()));
+  auto encoding = output::parseEncoding(args.encoding);
+  if (!encoding) return reportError(kCmd, encoding.status());
   output::ExrOptions exr;
   exr.half = !args.float_exr;
   exr.scene_hash = remote->session.scene.info.cache_key();
-  auto lm = output::writeLightmapExr(*result, (out / "lightmap.exr").string(), exr);
-  if (!lm) return reportError(kCmd, lm.status());
+  exr.encoding = *encoding;
+  // The wire carries no surface normals: irradiance.exr and the preview evaluate the SH at
+  // the texel's dominant light direction (client::previewCachesOf), an approximation.
   const caches::LightmapCaches preview = client::previewCachesOf(*tex);
+  auto lm = output::writeLightmapExrs(*result, preview, out.string(), exr);
+  if (!lm) return reportError(kCmd, lm.status());
   if (Status s = output::writeIrradiancePng(*result, preview, (out / "lightmap.png").string()); !s)
     return reportError(kCmd, s);
-  std::vector<std::string> written = {"lightmap.exr", "lightmap.png"};
+  std::vector<std::string> written = lm->files;
+  written.push_back("lightmap.png");
   if (tex->info.has_grid && tex->has(client::Payload::kGridSh)) {
     auto grid = client::gridCachesOf(*tex);
     if (!grid) return reportError(kCmd, grid.status());
-    auto g = output::writeGridExr(*result, *grid, (out / "grid.exr").string(), exr);
+    auto g = output::writeGridExrs(*result, *grid, out.string(), exr);
     if (!g) return reportError(kCmd, g.status());
-    if (Status s = output::writeGridJson(*result, *grid, (out / "grid.json").string()); !s) return reportError(kCmd, s);
-    if (Status s = output::writeGridRaw(*result, *grid, (out / "grid.raw").string()); !s) return reportError(kCmd, s);
+    if (Status s = output::writeGridJson(*result, *grid, (out / "grid.json").string(), *encoding); !s)
+      return reportError(kCmd, s);
+    if (Status s = output::writeGridRaw(*result, *grid, (out / "grid.raw").string(), *encoding); !s)
+      return reportError(kCmd, s);
     if (Status s = output::writeThreeJsGrid(*result, *grid, (out / "grid_threejs.json").string(), "grid_threejs.bin");
         !s)
       return reportError(kCmd, s);
-    written.insert(written.end(), {"grid.exr", "grid.json", "grid.raw", "grid_threejs.json", "grid_threejs.bin"});
+    written.insert(written.end(), g->files.begin(), g->files.end());
+    written.insert(written.end(), {"grid.json", "grid.raw", "grid_threejs.json", "grid_threejs.bin"});
   }
   nlohmann::ordered_json info;
   info["scene_id"] = remote->session.scene.id;
@@ -365,6 +374,7 @@ int runPull(const PullArgs& args) {
   info["backend"] = tex->info.backend;
   info["bands"] = tex->info.bands;
   info["precision"] = args.float_exr ? "float" : "half";
+  info["encoding"] = output::encodingName(*encoding);
   info["lightmap"] = {{"width", tex->info.width}, {"height", tex->info.height}};
   info["relight_ms"] = tex->info.relight_ms;
   info["fetch_ms"] = fetch_ms;

@@ -56,6 +56,7 @@ struct BakeArgs {
   std::string cache_dir;           // artifacts by cache key; empty = <output_dir>/cache
   std::string backend = "cpu";     // cpu | gpu | auto (gpu/backend_factory.h)
   bool float_exr = false;
+  std::string encoding = "l2";     // l0 | l1 | l2 (core/output/encoding.h)
   bool no_cache = false;           // recompute even when a matching artifact exists
   bool quiet = false;
   bool allow_outside_scene = false;  // read files the scene names outside its folder
@@ -66,7 +67,7 @@ int runBake(const BakeArgs& args);
 
 struct RenderArgs {
   std::string scene_path;    // the *_lm.gltf a bake wrote (static meshes carry TEXCOORD_1)
-  std::string bake_dir;      // lightmap.exr (+ grid.raw)
+  std::string bake_dir;      // lightmap_<c>.exr or irradiance.exr (+ grid.raw)
   std::string output_png;
   std::string lights_path;   // same light set as the bake
   std::vector<float> eye, target;  // 3 values each; empty = defaultCamera()
@@ -165,6 +166,7 @@ struct PullArgs {
   std::uint64_t version = 0;  // 0 = newest
   bool float_exr = false;     // float32 payloads and EXR
   int bands = 0;
+  std::string encoding = "l2";  // l0 | l1 | l2, as bake's --encoding
   bool quiet = false;
 };
 int runPull(const PullArgs& args);

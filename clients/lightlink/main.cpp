@@ -113,6 +113,10 @@ int main(int argc, char** argv) {
   bake_cmd->add_option("--backend", bake.backend, "Relight backend: cpu, gpu, or auto (GPU when a headless EGL context works)")
       ->capture_default_str();
   bake_cmd->add_flag("--float", bake.float_exr, "32-bit float EXR instead of half");
+  bake_cmd->add_option("--encoding", bake.encoding,
+                       "Lightmap and grid encoding: l0 (RGB irradiance), l1 (4 SH coefficients) or l2 (all bands); "
+                       "irradiance.exr is written for every encoding")
+      ->capture_default_str();
   bake_cmd->add_flag("--no-cache", bake.no_cache, "Recompute even when a matching artifact exists");
   bake_cmd->add_flag("-q,--quiet", bake.quiet, "No progress bar, no summary");
   bake_cmd->add_flag("--allow-outside-scene", bake.allow_outside_scene, "Read files the scene names outside its own folder (only for scenes you trust)");
@@ -124,7 +128,7 @@ int main(int argc, char** argv) {
   RenderArgs render;
   auto* render_cmd = app.add_subcommand("render", "Render a camera view lit by a bake's lightmap and grid, to PNG");
   render_cmd->add_option("scene", render.scene_path, "The *_lm.gltf written by bake")->required();
-  render_cmd->add_option("--bake", render.bake_dir, "Bake output directory (lightmap.exr, grid.raw)")->required();
+  render_cmd->add_option("--bake", render.bake_dir, "Bake output directory (lightmap_<c>.exr or irradiance.exr, grid.raw)")->required();
   render_cmd->add_option("-o,--output", render.output_png, "PNG to write")->required();
   render_cmd->add_option("--lights", render.lights_path, "Light-set JSON (the one given to bake)");
   render_cmd->add_option("--eye", render.eye, "Camera position x,y,z (m)")->expected(3)->delimiter(',');
@@ -213,6 +217,8 @@ int main(int argc, char** argv) {
   pull_cmd->add_option("--version", pull.version, "Light-set version (0 = newest)");
   pull_cmd->add_option("--bands", pull.bands, "SH bands to fetch (0 = all)");
   pull_cmd->add_flag("--float", pull.float_exr, "32-bit float instead of half");
+  pull_cmd->add_option("--encoding", pull.encoding, "Written encoding: l0, l1 or l2, as bake's --encoding")
+      ->capture_default_str();
   pull_cmd->add_flag("-q,--quiet", pull.quiet, "No summary");
 #endif
 

@@ -13,6 +13,7 @@
 #include <OpenEXR/ImfHeader.h>
 #include <OpenEXR/ImfInputFile.h>
 #include <OpenEXR/ImfIntAttribute.h>
+#include <OpenEXR/ImfStringAttribute.h>
 
 #include "core/output/output.h"
 #include "core/sh/sh.h"
@@ -120,9 +121,16 @@ bool finite3(const float v[3]) { return std::isfinite(v[0]) && std::isfinite(v[1
 
 namespace {
 
-// One reader for lightmap.exr and direct.exr (the direct layer alone, when it is finer than
-// the lightmap): the same checks, the channels each file must hold.
-Status readExr(const std::string& path, BakedLighting& b, std::uint64_t max_texels, bool direct_file) {
+// The channels each kind of file holds.
+int channelsOfKind(const std::string& kind) {
+  if (kind == "irradiance" || kind == "lightmap_sh" || kind == "direct" || kind == "grid_sh") return 3;
+  if (kind == "valid" || kind == "direct_valid" || kind == "grid_valid") return 1;
+  return 0;
+}
+
+}  // namespace
+
+Status readLightlinkExr(const std::string& path, ExrImage& out, std::uint64_t max_texels) {
   auto file_bytes = regularFileSize(path);
   if (!file_bytes) return file_bytes.status();
   if (Status s = checkExrHeader(path, *file_bytes); !s) return s;
@@ -144,84 +152,155 @@ Status readExr(const std::string& path, BakedLighting& b, std::uint64_t max_texe
     Imf::InputFile file(path.c_str());
     limits.reset();
     const Imf::Header& h = file.header();
+    const auto* layout = h.findTypedAttribute<Imf::IntAttribute>("lightlink.layout");
+    if (layout == nullptr) {
+      if (h.findTypedAttribute<Imf::IntAttribute>("lightlink.bands") != nullptr)
+        return invalidInput("{} is a lightlink EXR of layout 1 (one file of L00.R, ... layers), which this lightlink "
+                            "no longer reads: bake again to write layout {}",
+                            path, output::kExrLayout);
+      return invalidInput("{} is not a lightlink EXR (no lightlink.layout attribute)", path);
+    }
+    if (layout->value() != output::kExrLayout)
+      return invalidInput("{}: lightlink.layout {} is not the layout this lightlink reads ({})", path, layout->value(),
+                          output::kExrLayout);
+    const auto* kind = h.findTypedAttribute<Imf::StringAttribute>("lightlink.kind");
+    const int channels = kind ? channelsOfKind(kind->value()) : 0;
+    if (channels == 0)
+      return invalidInput("{}: lightlink.kind '{}' is not one this lightlink reads", path,
+                          kind ? kind->value().substr(0, 64) : std::string("(missing)"));
     const auto* bands = h.findTypedAttribute<Imf::IntAttribute>("lightlink.bands");
-    if (bands == nullptr || bands->value() < 1 || bands->value() > 4)
-      return invalidInput("{} is not a lightlink lightmap (no valid lightlink.bands attribute)", path);
+    if (bands == nullptr || bands->value() < 0 || bands->value() > 4)
+      return invalidInput("{}: lightlink.bands is missing or out of range (0..4)", path);
+    const bool sh_file = kind->value() == "lightmap_sh" || kind->value() == "grid_sh";
+    const auto* index = h.findTypedAttribute<Imf::IntAttribute>("lightlink.sh_index");
+    if (sh_file && (index == nullptr || index->value() < 0 || index->value() >= bands->value() * bands->value()))
+      return invalidInput("{}: lightlink.sh_index is missing or out of range for {} bands", path, bands->value());
+    const auto* scale = h.findTypedAttribute<Imf::IntAttribute>("lightlink.direct_scale");
+    const int direct_scale = scale ? scale->value() : 1;
+    if (direct_scale < 1 || direct_scale > 64)
+      return invalidInput("{}: lightlink.direct_scale {} is out of range (1..64)", path, direct_scale);
     const Imath::Box2i dw = h.dataWindow();
     const std::int64_t w = std::int64_t(dw.max.x) - dw.min.x + 1, hgt = std::int64_t(dw.max.y) - dw.min.y + 1;
     // Each side bounded first: the product of two 2^32 sides would wrap.
     if (w < 1 || hgt < 1 || std::uint64_t(w) > max_texels || std::uint64_t(hgt) > max_texels ||
         std::uint64_t(w) * std::uint64_t(hgt) > max_texels)
       return invalidInput("{}: data window {}x{} is out of range (1 to {} texels)", path, w, hgt, max_texels);
-    const auto* scale = h.findTypedAttribute<Imf::IntAttribute>("lightlink.direct_scale");
-    const int direct_scale = scale ? scale->value() : 1;
-    if (direct_scale < 1 || direct_scale > 64)
-      return invalidInput("{}: lightlink.direct_scale {} is out of range (1..64)", path, direct_scale);
-    if (direct_file) {
-      if (b.width < 1 || direct_scale != b.direct_scale || w != std::int64_t(b.width) * direct_scale ||
-          hgt != std::int64_t(b.height) * direct_scale)
-        return invalidInput("{}: a {}x{} direct layer at scale {} does not match the {}x{} lightmap at scale {}", path,
-                            w, hgt, direct_scale, b.width, b.height, b.direct_scale);
-    } else {
-      b.bands = bands->value();
-      b.width = static_cast<int>(w);
-      b.height = static_cast<int>(hgt);
-      b.direct_scale = direct_scale;
-    }
-    const std::size_t texels = std::size_t(w) * std::size_t(hgt), nc = std::size_t(b.bands) * b.bands;
-    // Channels are read straight into their interleaved place (no planar copy).
-    if (!direct_file) b.lightmap_sh.assign(texels * 3 * nc, 0.0f);
-    b.direct.assign(texels, glm::vec3(0.0f));
-    b.direct_width = static_cast<int>(w);
-    b.direct_height = static_cast<int>(hgt);
-    std::vector<float> valid(texels, 0.0f);
+    static const char* kRgb[3] = {"R", "G", "B"};
+    const std::vector<const char*> names = channels == 3 ? std::vector<const char*>{kRgb[0], kRgb[1], kRgb[2]}
+                                                         : std::vector<const char*>{"Y"};
+    std::size_t present = 0;
+    for (auto it = h.channels().begin(); it != h.channels().end(); ++it) ++present;
+    if (present != names.size())
+      return invalidInput("{}: a '{}' file holds the channels {}, but this one has {} channels", path, kind->value(),
+                          channels == 3 ? "R, G, B" : "Y", present);
+    const std::size_t texels = std::size_t(w) * std::size_t(hgt);
+    std::vector<float> values(texels * std::size_t(channels), 0.0f);
     const std::ptrdiff_t origin = std::ptrdiff_t(dw.min.x) + std::ptrdiff_t(dw.min.y) * std::ptrdiff_t(w);
+    const std::size_t xs = sizeof(float) * std::size_t(channels);
     Imf::FrameBuffer fb;
-    auto slice = [&](const std::string& name, float* first, std::size_t stride_floats) {
-      if (h.channels().findChannel(name.c_str()) == nullptr) return false;
-      const std::size_t xs = sizeof(float) * stride_floats;
-      char* base = reinterpret_cast<char*>(first) - origin * std::ptrdiff_t(xs);
-      fb.insert(name.c_str(), Imf::Slice(Imf::FLOAT, base, xs, xs * std::size_t(w)));
-      return true;
-    };
-    const char* rgb[3] = {".R", ".G", ".B"};
-    for (std::size_t i = 0; i < nc && !direct_file; ++i)
-      for (int ch = 0; ch < 3; ++ch)
-        if (!slice(output::shLayerName(static_cast<int>(i)) + rgb[ch], b.lightmap_sh.data() + ch * nc + i, 3 * nc))
-          return invalidInput("{}: channel {}{} is missing", path, output::shLayerName(static_cast<int>(i)), rgb[ch]);
-    for (int ch = 0; ch < 3; ++ch)
-      if (!slice(std::string("direct") + rgb[ch], &b.direct[0][ch], 3) && direct_file)
-        return invalidInput("{}: channel direct{} is missing", path, rgb[ch]);
-    if (!slice("valid.Y", valid.data(), 1)) return invalidInput("{}: channel valid.Y is missing", path);
+    for (int c = 0; c < channels; ++c) {
+      if (h.channels().findChannel(names[std::size_t(c)]) == nullptr)
+        return invalidInput("{}: channel {} is missing", path, names[std::size_t(c)]);
+      char* base = reinterpret_cast<char*>(values.data() + c) - origin * std::ptrdiff_t(xs);
+      fb.insert(names[std::size_t(c)], Imf::Slice(Imf::FLOAT, base, xs, xs * std::size_t(w)));
+    }
     file.setFrameBuffer(fb);
     file.readPixels(dw.min.y, dw.max.y);
-    std::vector<float>& valid_out = direct_file ? b.direct_valid : b.valid;
-    valid_out.resize(texels);
-    for (std::size_t t = 0; t < texels; ++t) {
-      const float* sh = b.lightmap_sh.data() + t * 3 * nc;
-      for (std::size_t k = 0; k < 3 * nc && !direct_file; ++k)
-        if (!std::isfinite(sh[k]))
-          return invalidInput("{}: channel {}{} of texel ({}, {}) is not finite", path,
-                              output::shLayerName(static_cast<int>(k % nc)), rgb[k / nc], t % w, t / w);
-      if (!finite3(&b.direct[t][0]))
-        return invalidInput("{}: channel direct of texel ({}, {}) is not finite", path, t % w, t / w);
-      valid_out[t] = valid[t] > 0.5f ? 1.0f : 0.0f;  // NaN counts as invalid
-    }
+    for (std::size_t k = 0; k < values.size(); ++k)
+      if (!std::isfinite(values[k]))
+        return invalidInput("{}: channel {} of texel ({}, {}) is not finite", path, names[k % std::size_t(channels)],
+                            (k / std::size_t(channels)) % std::size_t(w), (k / std::size_t(channels)) / std::size_t(w));
+    out.kind = kind->value();
+    out.bands = bands->value();
+    out.sh_index = sh_file ? index->value() : -1;
+    out.direct_scale = direct_scale;
+    out.width = static_cast<int>(w);
+    out.height = static_cast<int>(hgt);
+    out.channels = channels;
+    out.values = std::move(values);
   } catch (const std::exception& e) {
     return invalidInput("cannot read lightmap {}: {}", path, e.what());
   }
   return {};
 }
 
-}  // namespace
+namespace {
 
-Status readLightmapExr(const std::string& path, BakedLighting& b, std::uint64_t max_texels) {
-  b.direct_valid.clear();
-  return readExr(path, b, max_texels, /*direct_file=*/false);
+// Reads `path` and checks it is a `kind` file of w x h texels (w = 0: any size).
+Expected<ExrImage> readKind(const std::string& path, const std::string& kind, int w, int h, std::uint64_t max_texels) {
+  ExrImage img;
+  if (Status s = readLightlinkExr(path, img, max_texels); !s) return s;
+  if (img.kind != kind) return invalidInput("{}: lightlink.kind is '{}', expected '{}'", path, img.kind, kind);
+  if (w > 0 && (img.width != w || img.height != h))
+    return invalidInput("{}: {}x{} texels, but the lightmap has {}x{}", path, img.width, img.height, w, h);
+  return img;
 }
 
-Status readDirectExr(const std::string& path, BakedLighting& b, std::uint64_t max_texels) {
-  return readExr(path, b, max_texels, /*direct_file=*/true);
+std::vector<glm::vec3> toVec3(const std::vector<float>& rgb) {
+  std::vector<glm::vec3> out(rgb.size() / 3);
+  for (std::size_t t = 0; t < out.size(); ++t) out[t] = glm::vec3(rgb[3 * t], rgb[3 * t + 1], rgb[3 * t + 2]);
+  return out;
+}
+
+}  // namespace
+
+Status readLightmapExrs(const std::string& dir, BakedLighting& b, std::uint64_t max_texels) {
+  const std::filesystem::path d(dir);
+  auto first = readKind((d / "lightmap_L00.exr").string(), "lightmap_sh", 0, 0, max_texels);
+  if (!first) return first.status();
+  if (first->bands < 1) return invalidInput("{}: lightlink.bands is 0 in an SH file", (d / "lightmap_L00.exr").string());
+  const int w = first->width, h = first->height, bands = first->bands, nc = bands * bands;
+  const std::size_t texels = std::size_t(w) * std::size_t(h);
+  b.bands = bands;
+  b.width = w;
+  b.height = h;
+  b.direct_scale = first->direct_scale;
+  b.irradiance.clear();
+  b.lightmap_sh.assign(texels * 3 * std::size_t(nc), 0.0f);
+  for (int i = 0; i < nc; ++i) {
+    const std::string path = (d / ("lightmap_" + output::shLayerName(i) + ".exr")).string();
+    Expected<ExrImage> img = i == 0 ? std::move(first) : readKind(path, "lightmap_sh", w, h, max_texels);
+    if (!img) return img.status();
+    if (img->bands != bands || img->sh_index != i || img->direct_scale != b.direct_scale)
+      return invalidInput("{}: coefficient {} of {} bands at direct scale {}, but lightmap_L00.exr says {} of {} at {}",
+                          path, img->sh_index, img->bands, img->direct_scale, 0, bands, b.direct_scale);
+    for (std::size_t t = 0; t < texels; ++t)
+      for (int ch = 0; ch < 3; ++ch) b.lightmap_sh[t * 3 * nc + std::size_t(ch * nc + i)] = img->values[3 * t + ch];
+  }
+  auto valid = readKind((d / "valid.exr").string(), "valid", w, h, max_texels);
+  if (!valid) return valid.status();
+  b.valid.resize(texels);
+  for (std::size_t t = 0; t < texels; ++t) b.valid[t] = valid->values[t] > 0.5f ? 1.0f : 0.0f;
+  const int dw = w * b.direct_scale, dh = h * b.direct_scale;
+  auto direct = readKind((d / "direct.exr").string(), "direct", dw, dh, max_texels);
+  if (!direct) return direct.status();
+  b.direct = toVec3(direct->values);
+  b.direct_width = dw;
+  b.direct_height = dh;
+  b.direct_valid.clear();
+  if (b.direct_scale > 1) {  // the direct layer is finer: its own validity
+    auto dvalid = readKind((d / "direct_valid.exr").string(), "direct_valid", dw, dh, max_texels);
+    if (!dvalid) return dvalid.status();
+    b.direct_valid.resize(dvalid->values.size());
+    for (std::size_t t = 0; t < b.direct_valid.size(); ++t) b.direct_valid[t] = dvalid->values[t] > 0.5f ? 1.0f : 0.0f;
+  }
+  return {};
+}
+
+Status readIrradianceExr(const std::string& path, BakedLighting& b, std::uint64_t max_texels) {
+  auto img = readKind(path, "irradiance", 0, 0, max_texels);
+  if (!img) return img.status();
+  b.bands = 0;
+  b.width = img->width;
+  b.height = img->height;
+  b.direct_scale = 1;
+  b.lightmap_sh.clear();
+  b.irradiance = toVec3(img->values);
+  b.valid.assign(b.irradiance.size(), 1.0f);
+  b.direct.clear();
+  b.direct_valid.clear();
+  b.direct_width = b.direct_height = 0;
+  return {};
 }
 
 Status readGridRaw(const std::string& path, BakedLighting& b) {
@@ -241,8 +320,6 @@ Status readGridRaw(const std::string& path, BakedLighting& b) {
     return ioError("{}: cannot read the header", path);
   if (std::memcmp(magic, "LLGRID01", 8) != 0) return invalidInput("{} is not a lightlink grid (bad magic)", path);
   if (bands < 1 || bands > 4) return invalidInput("{}: field 'bands' is {} (must be 1..4)", path, bands);
-  if (b.bands != 0 && int(bands) != b.bands)
-    return invalidInput("{}: field 'bands' is {}, but the lightmap has {}", path, bands, b.bands);
   // Each dim is bounded first, so the product cannot overflow (2^24 * 2^24 < 2^64).
   std::uint64_t points = 1;
   for (int a = 0; a < 3; ++a) {
@@ -278,7 +355,7 @@ Status readGridRaw(const std::string& path, BakedLighting& b) {
   b.grid_sh = std::move(sh);
   b.grid_valid.assign(valid.begin(), valid.end());
   b.has_grid = true;
-  b.bands = int(bands);
+  b.grid_bands = int(bands);
   (void)version;
   return {};
 }
@@ -308,6 +385,17 @@ void bilinearTaps(glm::vec2 uv, int w, int h, const std::vector<float>& valid, T
 
 bool BakedLighting::sampleLightmap(glm::vec2 uv, const glm::vec3& normal, glm::vec3& irradiance) const {
   if (width < 1 || height < 1 || !std::isfinite(uv.x) || !std::isfinite(uv.y)) return false;
+  if (bands == 0) {  // L0: the irradiance map, baked for the surface's normal
+    glm::vec3 e(0.0f);
+    float wsum = 0.0f;
+    bilinearTaps(uv, width, height, valid, [&](std::size_t t, float w) {
+      e += w * this->irradiance[t];
+      wsum += w;
+    });
+    if (wsum <= 0.0f) return false;
+    irradiance = e / wsum;
+    return true;
+  }
   const int nc = bands * bands;
   float sh[3 * 16] = {};
   glm::vec3 dir(0.0f);
@@ -343,7 +431,7 @@ bool BakedLighting::sampleGrid(const glm::vec3& p, const glm::vec3& normal, glm:
   g = glm::clamp(g, glm::vec3(0.0f), glm::vec3(dims - 1));
   const glm::ivec3 i0 = glm::clamp(glm::ivec3(glm::floor(g)), glm::ivec3(0), dims - 1);
   const glm::vec3 a = glm::clamp(g - glm::vec3(i0), 0.0f, 1.0f);
-  const int nc = bands * bands;
+  const int nc = grid_bands * grid_bands;
   float sh[3 * 16] = {};
   float wsum = 0.0f;
   for (int corner = 0; corner < 8; ++corner) {
@@ -357,21 +445,33 @@ bool BakedLighting::sampleGrid(const glm::vec3& p, const glm::vec3& normal, glm:
   }
   if (wsum <= 0.0f) return false;
   for (int k = 0; k < 3 * nc; ++k) sh[k] /= wsum;
-  irradiance = shIrradiance(sh, bands, normal);
+  irradiance = shIrradiance(sh, grid_bands, normal);
   return true;
 }
 
 Expected<BakedLighting> loadBakedLighting(const std::string& dir) {
   BakedLighting b;
   const std::filesystem::path d(dir);
-  if (Status s = readLightmapExr((d / "lightmap.exr").string(), b); !s) return s;
-  if (b.direct_scale > 1) {  // the direct layer is finer: its own file
-    if (Status s = readDirectExr((d / "direct.exr").string(), b); !s) return s;
+  std::error_code ec;
+  const auto exists = [&](const char* name) { return std::filesystem::exists(d / name, ec); };
+  if (exists("lightmap_L00.exr")) {  // an L1 or L2 bake: the SH set
+    if (Status s = readLightmapExrs(dir, b); !s) return s;
+  } else if (exists("irradiance.exr")) {  // an L0 bake
+    if (Status s = readIrradianceExr((d / "irradiance.exr").string(), b); !s) return s;
+  } else if (exists("lightmap.exr")) {
+    return invalidInput("{} holds a lightmap.exr of EXR layout 1, which this lightlink no longer reads: bake again "
+                        "to write layout {} (lightmap_<c>.exr, irradiance.exr; docs/outputs.md)",
+                        dir, output::kExrLayout);
+  } else {
+    return ioError("{} holds no lightmap: neither lightmap_L00.exr (an L1/L2 bake) nor irradiance.exr (L0)", dir);
   }
   const std::string grid = (d / "grid.raw").string();
-  std::error_code ec;
   if (std::filesystem::exists(grid, ec)) {
     if (Status s = readGridRaw(grid, b); !s) return s;
+    const int expected = b.bands == 0 ? 1 : b.bands;  // an L0 bake keeps the grid's L00
+    if (b.grid_bands != expected)
+      return invalidInput("{}: field 'bands' is {}, but the lightmap's encoding keeps {}", grid, b.grid_bands,
+                          expected);
   }
   return b;
 }

@@ -5,6 +5,7 @@
 #pragma once
 
 #include <string>
+#include <vector>
 
 #include <nlohmann/json.hpp>
 
@@ -13,12 +14,18 @@
 
 namespace lightlink::output {
 
-// Names (relative to the glTF) of what the bake wrote; empty = not written.
+// Names (relative to the glTF) of what the bake wrote (EXR layout 2, docs/outputs.md);
+// empty = not written.
 struct LightingFiles {
-  std::string lightmap = "lightmap.exr";
-  std::string direct;      // direct.exr, when the direct layer is finer than the lightmap
-  std::string irradiance;  // the plain RGB L0 map bound through MOZ_lightmap
-  std::string grid_exr, grid_json, grid_raw, grid_threejs;
+  std::string encoding = "l2";           // l0 | l1 | l2
+  std::vector<std::string> lightmap_sh;  // lightmap_<c>.exr, in SH index order (none for L0)
+  std::string direct, valid, direct_valid;
+  std::string irradiance;                // the plain RGB L0 map bound through MOZ_lightmap
+  std::vector<std::string> grid_sh;      // grid_<c>.exr, in SH index order
+  std::string grid_valid, grid_json, grid_raw, grid_threejs;
+
+  // Sorts a bake's file names into the fields above.
+  static LightingFiles fromWritten(const std::vector<std::string>& names, std::string encoding);
 };
 
 // `grid` is null when the bake has no grid.

@@ -4,6 +4,7 @@
 #include <bit>
 #include <cmath>
 #include <cstring>
+#include <filesystem>
 #include <fstream>
 
 #include <OpenEXR/ImfChannelList.h>
@@ -55,8 +56,15 @@ struct Planes {
   }
 };
 
+// What a file's header says besides the common attributes.
+struct FileTags {
+  std::string kind;      // irradiance, lightmap_sh, direct, valid, direct_valid, grid_sh, grid_valid
+  int bands = 0;         // SH bands of the set the file belongs to (0: the L0 irradiance)
+  int sh_index = -1;     // SH coefficient of a *_sh file
+};
+
 Expected<WriteStats> writeExr(Planes& planes, const std::string& path, const relight::RelightResult& result,
-                              const ExrOptions& options, const std::string& kind) {
+                              const ExrOptions& options, const FileTags& tags) {
   try {
     Imf::Header header(planes.width, planes.height);
     header.compression() = Imf::ZIP_COMPRESSION;
@@ -68,15 +76,21 @@ Expected<WriteStats> writeExr(Planes& planes, const std::string& path, const rel
       char* base = planes.half ? reinterpret_cast<char*>(planes.h[c].data()) : reinterpret_cast<char*>(planes.f[c].data());
       fb.insert(planes.names[c], Imf::Slice(type, base, elem, elem * planes.width));
     }
-    header.insert("lightlink.kind", Imf::StringAttribute(kind));
+    header.insert("lightlink.layout", Imf::IntAttribute(kExrLayout));
+    header.insert("lightlink.kind", Imf::StringAttribute(tags.kind));
+    header.insert("lightlink.encoding", Imf::StringAttribute(std::string(encodingName(options.encoding))));
     header.insert("lightlink.sh_convention", Imf::StringAttribute(kShConvention));
     header.insert("lightlink.units", Imf::StringAttribute(options.units));
-    header.insert("lightlink.bands", Imf::IntAttribute(result.bands));
+    header.insert("lightlink.bands", Imf::IntAttribute(tags.bands));
+    if (tags.sh_index >= 0) {
+      header.insert("lightlink.sh_index", Imf::IntAttribute(tags.sh_index));
+      header.insert("lightlink.sh_name", Imf::StringAttribute(shLayerName(tags.sh_index)));
+    }
     header.insert("lightlink.version", Imf::StringAttribute(std::to_string(result.version)));
     header.insert("lightlink.scene_hash", Imf::StringAttribute(options.scene_hash));
     header.insert("lightlink.link_form",
                   Imf::StringAttribute(std::string(relight::linkFormName(result.link_form))));
-    // How many direct texels per lightmap texel (1: `direct` is in the lightmap file itself).
+    // How many direct texels per lightmap texel (1: direct.exr has the lightmap's size).
     if (result.width > 0)
       header.insert("lightlink.direct_scale", Imf::IntAttribute(std::max(1, result.direct_width / result.width)));
     Imf::OutputFile file(path.c_str(), header);
@@ -88,19 +102,68 @@ Expected<WriteStats> writeExr(Planes& planes, const std::string& path, const rel
   return planes.stats;
 }
 
-// Channel planes of SH data laid out per element as [R coeffs][G coeffs][B coeffs]; element
-// e goes to pixel pixel_of(e).
+void addStats(WriteStats& to, const WriteStats& from) {
+  to.values += from.values;
+  to.clamped += from.clamped;
+  to.underflowed += from.underflowed;
+}
+
+// One file per SH coefficient of `sh` (laid out per element as [R coeffs][G coeffs][B coeffs]
+// with nc coefficients, of which the first `keep` are written), named <prefix>_<coef>.exr;
+// element e goes to pixel pixel_of(e).
 template <typename PixelOf>
-void addShPlanes(Planes& planes, const std::vector<float>& sh, std::size_t elements, int nc, PixelOf pixel_of) {
-  const std::size_t pixels = std::size_t(planes.width) * planes.height;
+Status writeShFiles(const std::vector<float>& sh, std::size_t elements, int nc, int keep_bands, int width, int height,
+                    PixelOf pixel_of, const std::string& dir, const std::string& prefix,
+                    const relight::RelightResult& result, const ExrOptions& options, WrittenExrs& written) {
+  const std::size_t pixels = std::size_t(width) * height;
   static const char* kCh[3] = {"R", "G", "B"};
   std::vector<float> plane(pixels);
-  for (int i = 0; i < nc; ++i)
+  for (int i = 0; i < keep_bands * keep_bands; ++i) {
+    Planes planes{width, height, options.half};
     for (int ch = 0; ch < 3; ++ch) {
       std::fill(plane.begin(), plane.end(), 0.0f);
       for (std::size_t e = 0; e < elements; ++e) plane[pixel_of(e)] = sh[e * 3 * nc + ch * nc + i];
-      planes.add(shLayerName(i) + "." + kCh[ch], plane, /*signal=*/i == 0);
+      planes.add(kCh[ch], plane, /*signal=*/i == 0);
     }
+    const std::string name = prefix + "_" + shLayerName(i) + ".exr";
+    auto s = writeExr(planes, (std::filesystem::path(dir) / name).string(), result, options,
+                      {prefix + "_sh", keep_bands, i});
+    if (!s) return s.status();
+    addStats(written.stats, *s);
+    written.files.push_back(name);
+  }
+  return {};
+}
+
+// A one-channel `Y` file of 0/1 validity.
+Status writeValidFile(const std::vector<float>& plane, int width, int height, const std::string& dir,
+                      const std::string& name, const std::string& kind, int bands,
+                      const relight::RelightResult& result, const ExrOptions& options, WrittenExrs& written) {
+  Planes planes{width, height, options.half};
+  planes.add("Y", plane);
+  auto s = writeExr(planes, (std::filesystem::path(dir) / name).string(), result, options, {kind, bands});
+  if (!s) return s.status();
+  addStats(written.stats, *s);
+  written.files.push_back(name);
+  return {};
+}
+
+// An R,G,B file of per-texel vec3 values.
+Status writeRgbFile(const std::vector<glm::vec3>& values, int width, int height, const std::string& dir,
+                    const std::string& name, const std::string& kind, int bands,
+                    const relight::RelightResult& result, const ExrOptions& options, WrittenExrs& written) {
+  Planes planes{width, height, options.half};
+  std::vector<float> plane(values.size());
+  static const char* kCh[3] = {"R", "G", "B"};
+  for (int ch = 0; ch < 3; ++ch) {
+    for (std::size_t t = 0; t < values.size(); ++t) plane[t] = values[t][ch];
+    planes.add(kCh[ch], plane, /*signal=*/true);
+  }
+  auto s = writeExr(planes, (std::filesystem::path(dir) / name).string(), result, options, {kind, bands});
+  if (!s) return s.status();
+  addStats(written.stats, *s);
+  written.files.push_back(name);
+  return {};
 }
 
 template <typename T>
@@ -127,78 +190,98 @@ std::string shLayerName(int index) {
   return m < 0 ? fmt::format("L{}m{}", l, -m) : fmt::format("L{}{}", l, m);
 }
 
-Expected<WriteStats> writeLightmapExr(const relight::RelightResult& result, const std::string& path,
-                                      const ExrOptions& options) {
+Expected<WrittenExrs> writeLightmapExrs(const relight::RelightResult& result, const caches::LightmapCaches& lightmap,
+                                        const std::string& dir, const ExrOptions& options,
+                                        const caches::LightmapCaches* direct_texels) {
   const std::size_t texels = std::size_t(result.width) * result.height;
   const int nc = result.coeffCount();
   const bool finer = result.directIsFiner();
-  if (texels == 0 || result.lightmap_sh.size() != texels * 3 * nc || (!finer && result.direct.size() != texels))
+  if (texels == 0 || result.lightmap_sh.size() != texels * 3 * nc || (!finer && result.direct.size() != texels) ||
+      result.texel_valid.size() != texels)
     return invalidInput("lightmap EXR: result holds no {}x{} lightmap", result.width, result.height);
-  Planes planes{result.width, result.height, options.half};
-  addShPlanes(planes, result.lightmap_sh, texels, nc, [](std::size_t t) { return t; });
+  WrittenExrs written;
+  auto irradiance = evaluateIrradiance(result, lightmap, /*include_direct=*/true, direct_texels);
+  if (!irradiance) return irradiance.status();
+  if (Status s = writeRgbFile(irradiance->irradiance, irradiance->width, irradiance->height, dir, "irradiance.exr",
+                              "irradiance", 0, result, options, written);
+      !s)
+    return s;
+  const int bands = lightmapBands(options.encoding, result.bands);
+  if (bands == 0) return written;
+  if (Status s = writeShFiles(result.lightmap_sh, texels, nc, bands, result.width, result.height,
+                              [](std::size_t t) { return t; }, dir, "lightmap", result, options, written);
+      !s)
+    return s;
+  if (Status s = writeRgbFile(result.direct, finer ? result.direct_width : result.width,
+                              finer ? result.direct_height : result.height, dir, "direct.exr", "direct", bands, result,
+                              options, written);
+      !s)
+    return s;
   std::vector<float> plane(texels);
-  static const char* kCh[3] = {"R", "G", "B"};
-  // A finer direct layer goes to its own file (writeDirectExr); the header says its scale.
-  for (int ch = 0; ch < 3 && !finer; ++ch) {
-    for (std::size_t t = 0; t < texels; ++t) plane[t] = result.direct[t][ch];
-    planes.add(std::string("direct.") + kCh[ch], plane, /*signal=*/true);
-  }
   for (std::size_t t = 0; t < texels; ++t) plane[t] = result.texel_valid[t] ? 1.0f : 0.0f;
-  planes.add("valid.Y", plane);
-  return writeExr(planes, path, result, options, "lightmap");
-}
-
-Expected<WriteStats> writeDirectExr(const relight::RelightResult& result, const std::string& path,
-                                    const ExrOptions& options) {
-  const std::size_t texels = std::size_t(result.direct_width) * std::size_t(result.direct_height);
-  const bool finer = result.directIsFiner();
-  const std::vector<std::uint8_t>& valid = finer ? result.direct_valid : result.texel_valid;
-  if (texels == 0 || result.direct.size() != texels || valid.size() != texels)
-    return invalidInput("direct EXR: result holds no {}x{} direct layer", result.direct_width, result.direct_height);
-  Planes planes{result.direct_width, result.direct_height, options.half};
-  std::vector<float> plane(texels);
-  static const char* kCh[3] = {"R", "G", "B"};
-  for (int ch = 0; ch < 3; ++ch) {
-    for (std::size_t t = 0; t < texels; ++t) plane[t] = result.direct[t][ch];
-    planes.add(std::string("direct.") + kCh[ch], plane, /*signal=*/true);
+  if (Status s = writeValidFile(plane, result.width, result.height, dir, "valid.exr", "valid", bands, result, options,
+                                written);
+      !s)
+    return s;
+  if (finer) {
+    const std::size_t dt = std::size_t(result.direct_width) * result.direct_height;
+    if (result.direct_valid.size() != dt)
+      return invalidInput("lightmap EXR: the {}x{} direct layer has no validity", result.direct_width,
+                          result.direct_height);
+    plane.assign(dt, 0.0f);
+    for (std::size_t t = 0; t < dt; ++t) plane[t] = result.direct_valid[t] ? 1.0f : 0.0f;
+    if (Status s = writeValidFile(plane, result.direct_width, result.direct_height, dir, "direct_valid.exr",
+                                  "direct_valid", bands, result, options, written);
+        !s)
+      return s;
   }
-  for (std::size_t t = 0; t < texels; ++t) plane[t] = valid[t] ? 1.0f : 0.0f;
-  planes.add("valid.Y", plane);
-  return writeExr(planes, path, result, options, "direct");
+  return written;
 }
 
-Expected<WriteStats> writeGridExr(const relight::RelightResult& result, const caches::GridCaches& grid,
-                                  const std::string& path, const ExrOptions& options) {
+Expected<WrittenExrs> writeGridExrs(const relight::RelightResult& result, const caches::GridCaches& grid,
+                                    const std::string& dir, const ExrOptions& options) {
   if (Status s = checkGrid(result, grid); !s) return s;
   const glm::ivec3 d = grid.dims;
-  Planes planes{d.x * d.z, d.y, options.half};
   // Cache index (z * dims.y + y) * dims.x + x -> pixel (z * dims.x + x, y).
   auto pixel_of = [&](std::size_t e) {
     const std::size_t x = e % d.x, y = (e / d.x) % d.y, z = e / (std::size_t(d.x) * d.y);
     return y * std::size_t(d.x) * d.z + z * d.x + x;
   };
-  addShPlanes(planes, result.grid_sh, grid.size(), result.coeffCount(), pixel_of);
+  WrittenExrs written;
+  const int bands = gridBands(options.encoding, result.bands);
+  if (Status s = writeShFiles(result.grid_sh, grid.size(), result.coeffCount(), bands, d.x * d.z, d.y, pixel_of, dir,
+                              "grid", result, options, written);
+      !s)
+    return s;
   std::vector<float> plane(grid.size());
   for (std::size_t e = 0; e < grid.size(); ++e) plane[pixel_of(e)] = grid.valid[e] ? 1.0f : 0.0f;
-  planes.add("valid.Y", plane);
-  return writeExr(planes, path, result, options, "grid");
+  if (Status s = writeValidFile(plane, d.x * d.z, d.y, dir, "grid_valid.exr", "grid_valid", bands, result, options,
+                                written);
+      !s)
+    return s;
+  return written;
 }
 
-Status writeGridJson(const relight::RelightResult& result, const caches::GridCaches& grid, const std::string& path) {
+Status writeGridJson(const relight::RelightResult& result, const caches::GridCaches& grid, const std::string& path,
+                     Encoding encoding) {
   if (Status s = checkGrid(result, grid); !s) return s;
+  const int bands = gridBands(encoding, result.bands);
   nlohmann::ordered_json j;
   j["format"] = "lightlink.grid";
-  j["format_version"] = 1;
+  j["format_version"] = 2;
   j["version"] = result.version;
-  j["bands"] = result.bands;
+  j["encoding"] = encodingName(encoding);
+  j["bands"] = bands;
   j["origin_m"] = {grid.origin.x, grid.origin.y, grid.origin.z};
   j["spacing_m"] = grid.spacing_m;
   j["dims"] = {grid.dims.x, grid.dims.y, grid.dims.z};
   j["index"] = "(z * dims[1] + y) * dims[0] + x; world = origin_m + spacing_m * (x, y, z)";
   j["exr_atlas"] = "slice z at pixel x offset z * dims[0], pixel row = y";
-  std::vector<std::string> layers;
-  for (int i = 0; i < result.coeffCount(); ++i) layers.push_back(shLayerName(i));
-  j["sh_layers"] = layers;
+  j["exr_layout"] = kExrLayout;
+  std::vector<std::string> files;
+  for (int i = 0; i < bands * bands; ++i) files.push_back("grid_" + shLayerName(i) + ".exr");
+  j["sh_files"] = files;
+  j["valid_file"] = "grid_valid.exr";
   j["valid"] = grid.valid;
   std::ofstream out(path, std::ios::binary | std::ios::trunc);
   if (!out) return ioError("{}: cannot write grid JSON", path);
@@ -206,17 +289,20 @@ Status writeGridJson(const relight::RelightResult& result, const caches::GridCac
   return out ? Status{} : ioError("{}: write failed", path);
 }
 
-Status writeGridRaw(const relight::RelightResult& result, const caches::GridCaches& grid, const std::string& path) {
+Status writeGridRaw(const relight::RelightResult& result, const caches::GridCaches& grid, const std::string& path,
+                    Encoding encoding) {
   if (Status s = checkGrid(result, grid); !s) return s;
+  const int bands = gridBands(encoding, result.bands);
+  const std::vector<float> sh = truncateSh(result.grid_sh, result.bands, bands);
   std::ofstream out(path, std::ios::binary | std::ios::trunc);
   if (!out) return ioError("{}: cannot write raw grid", path);
   out.write("LLGRID01", 8);
   putLe<std::uint64_t>(out, result.version);
-  putLe<std::uint32_t>(out, std::uint32_t(result.bands));
+  putLe<std::uint32_t>(out, std::uint32_t(bands));
   for (int a = 0; a < 3; ++a) putLe<std::uint32_t>(out, std::uint32_t(grid.dims[a]));
   for (int a = 0; a < 3; ++a) putLe<float>(out, grid.origin[a]);
   putLe<float>(out, grid.spacing_m);
-  out.write(reinterpret_cast<const char*>(result.grid_sh.data()), std::streamsize(result.grid_sh.size() * sizeof(float)));
+  out.write(reinterpret_cast<const char*>(sh.data()), std::streamsize(sh.size() * sizeof(float)));
   out.write(reinterpret_cast<const char*>(grid.valid.data()), std::streamsize(grid.valid.size()));
   return out ? Status{} : ioError("{}: write failed", path);
 }
@@ -224,58 +310,12 @@ Status writeGridRaw(const relight::RelightResult& result, const caches::GridCach
 Status writeIrradiancePng(const relight::RelightResult& result, const caches::LightmapCaches& lightmap,
                           const std::string& path, const PreviewOptions& options,
                           const caches::LightmapCaches* direct_texels) {
-  const int w = result.width, h = result.height;
-  const std::size_t texels = std::size_t(w) * h;
-  const int nc = result.coeffCount();
-  if (texels == 0 || lightmap.cache_of_texel.size() != texels || result.lightmap_sh.size() != texels * 3 * nc)
-    return invalidInput("irradiance preview: result and lightmap caches disagree ({}x{})", w, h);
-  // With a finer direct layer (and its texels) the preview is drawn at the direct layer's
-  // size: the indirect SH interpolated bilinearly over valid lightmap texels, evaluated at the
-  // direct texel's own normal, plus its direct light. Otherwise texel by texel.
-  const bool fine = result.directIsFiner() && direct_texels != nullptr && direct_texels->width == result.direct_width &&
-                    direct_texels->height == result.direct_height &&
-                    result.direct.size() == std::size_t(result.direct_width) * result.direct_height;
-  const int ow = fine ? result.direct_width : w, oh = fine ? result.direct_height : h;
+  auto img = evaluateIrradiance(result, lightmap, options.include_direct, direct_texels);
+  if (!img) return img.status();
+  const int ow = img->width, oh = img->height;
   const std::size_t out_texels = std::size_t(ow) * oh;
-  if (!fine && result.directIsFiner() && options.include_direct)
-    return invalidInput("irradiance preview: a {}x{} direct layer needs its texels", result.direct_width,
-                        result.direct_height);
-  std::vector<glm::vec3> e(out_texels, glm::vec3(0.0f));
-  std::vector<std::uint8_t> lit(out_texels, 0);
-  std::vector<float> sh(3 * std::size_t(nc));
-  for (std::size_t t = 0; t < out_texels; ++t) {
-    glm::vec3 nrm;
-    if (fine) {
-      const std::int32_t c = direct_texels->cache_of_texel[t];
-      if (c < 0 || !result.direct_valid[t]) continue;
-      nrm = direct_texels->normal[c];
-      const float fx = (float(t % ow) + 0.5f) * float(w) / float(ow) - 0.5f;
-      const float fy = (float(t / ow) + 0.5f) * float(h) / float(oh) - 0.5f;
-      const int x0 = int(std::floor(fx)), y0 = int(std::floor(fy));
-      std::fill(sh.begin(), sh.end(), 0.0f);
-      float wsum = 0.0f;
-      for (int dy = 0; dy < 2; ++dy)
-        for (int dx = 0; dx < 2; ++dx) {
-          const int x = std::clamp(x0 + dx, 0, w - 1), y = std::clamp(y0 + dy, 0, h - 1);
-          const std::size_t s = std::size_t(y) * w + x;
-          const float wt = (dx ? fx - float(x0) : 1.0f - (fx - float(x0))) * (dy ? fy - float(y0) : 1.0f - (fy - float(y0)));
-          if (!result.texel_valid[s] || wt <= 0.0f) continue;
-          for (int k = 0; k < 3 * nc; ++k) sh[k] += wt * result.lightmap_sh[s * 3 * nc + k];
-          wsum += wt;
-        }
-      if (wsum > 0.0f)
-        for (float& v : sh) v /= wsum;
-    } else {
-      const std::int32_t c = lightmap.cache_of_texel[t];
-      if (c < 0 || !result.texel_valid[t]) continue;
-      nrm = lightmap.normal[c];
-      std::copy_n(result.lightmap_sh.data() + t * 3 * nc, 3 * nc, sh.data());
-    }
-    e[t] = glm::vec3(sh::irradiance(result.bands, sh.data(), nrm), sh::irradiance(result.bands, sh.data() + nc, nrm),
-                     sh::irradiance(result.bands, sh.data() + 2 * nc, nrm));
-    if (options.include_direct) e[t] += result.direct[t];
-    lit[t] = 1;
-  }
+  const std::vector<glm::vec3>& e = img->irradiance;
+  const std::vector<std::uint8_t>& lit = img->lit;
   double sum = 0.0;
   std::size_t n = 0;
   for (std::size_t t = 0; t < out_texels; ++t)

@@ -1,18 +1,22 @@
 // Output: what a relight hands to engines and people (DESIGN.md sec 8, docs/outputs.md).
 //
-//   lightmap  OpenEXR, one layer per SH coefficient `L<l><m>` with channels R, G, B
-//             (m < 0 written as `m<|m|>`: L00, L1m1, L10, L11, L2m2, ...), plus `direct.{R,G,B}`
-//             (baked direct irradiance; in its own file `direct` at its own size when the
-//             direct layer is finer, header `lightlink.direct_scale`) and `valid.Y` (1 where
-//             the texel holds a value).
+//   EXR       layout 2: single-part scanline files with plain channels, so standard readers
+//             (three.js's EXRLoader, OpenEXR tools, tinyexr) load each as a texture and each
+//             maps to one glTF image or KTX2 file:
+//               irradiance.exr        R,G,B  the L0 map (encoding.h), every encoding
+//               lightmap_<c>.exr      R,G,B  SH coefficient c (L00, L1m1, L10, L11, L2m2, ...)
+//                                            of the lightmap, L1/L2 encodings only
+//               direct.exr            R,G,B  baked direct irradiance (its own size when finer)
+//               valid.exr             Y      1 where a lightmap texel holds a value
+//               direct_valid.exr      Y      the same for a finer direct layer
+//               grid_<c>.exr          R,G,B  SH coefficient c of the grid, an atlas of z-slices
+//               grid_valid.exr        Y      grid validity in the same atlas
 //             Half by default, float on request. Row 0 = texel row 0 = glTF v = 0 (top).
-//             Header attributes `lightlink.*` state the SH convention, units, bands, link form,
-//             light-set version and scene hash.
-//   grid      OpenEXR atlas of z-slices (slice z at x offset z * dims.x, row = y), same
-//             channels minus `direct`; a JSON sidecar (origin, spacing, dims, bands, validity);
-//             and a raw little-endian form for streaming (layout in docs/outputs.md).
-//   preview   PNG of total irradiance (indirect SH evaluated at the cache normal + direct),
-//             Reinhard tone-mapped and sRGB-encoded, for people.
+//             Header attributes `lightlink.*` state the layout version, kind, encoding, SH
+//             convention, units, bands, coefficient, link form, light-set version and scene hash.
+//   grid      plus a JSON sidecar (origin, spacing, dims, bands, validity, file names) and a raw
+//             little-endian form for streaming (layout in docs/outputs.md).
+//   preview   PNG of the irradiance of irradiance.exr, Reinhard tone-mapped and sRGB-encoded.
 //   report    JSON: the relight report plus what the writers clamped.
 //
 // Values beyond the half range are clamped to +-65504 in half files and counted, never
@@ -27,12 +31,18 @@
 
 #include "core/caches/caches.h"
 #include "core/common/status.h"
+#include "core/output/encoding.h"
 #include "core/relight/relight.h"
 
 namespace lightlink::output {
 
+// The EXR layout version every file carries in `lightlink.layout`. Layout 1 (before issue 49)
+// was one multi-layer file, lightmap.exr with `L00.R`... channels, that standard readers refuse.
+inline constexpr int kExrLayout = 2;
+
 struct ExrOptions {
   bool half = true;            // false: 32-bit float channels
+  Encoding encoding = Encoding::kL2;
   std::string scene_hash;      // e.g. the artifact cache key in hex
   std::string units = "incident radiance SH and irradiance in the units of docs/units.md (lights in cd/lux)";
 };
@@ -47,28 +57,39 @@ struct WriteStats {
   std::size_t underflowed = 0;
 };
 
-// Channel name stem of SH coefficient i (docs/sh.md order): "L00", "L1m1", "L10", "L11", ...
+// Name stem of SH coefficient i (docs/sh.md order): "L00", "L1m1", "L10", "L11", ...
 std::string shLayerName(int index);
 
-Expected<WriteStats> writeLightmapExr(const relight::RelightResult& result, const std::string& path,
-                                      const ExrOptions& options = {});
-// The direct layer alone (`direct.{R,G,B}`, `valid.Y`) at its own size: what bake writes as
-// direct.exr when the direct layer is finer than the lightmap (lightlink.direct_scale > 1).
-Expected<WriteStats> writeDirectExr(const relight::RelightResult& result, const std::string& path,
-                                    const ExrOptions& options = {});
-Expected<WriteStats> writeGridExr(const relight::RelightResult& result, const caches::GridCaches& grid,
-                                  const std::string& path, const ExrOptions& options = {});
-// JSON metadata for the grid (origin, spacing, dims, bands, channel order, validity mask).
-Status writeGridJson(const relight::RelightResult& result, const caches::GridCaches& grid, const std::string& path);
-// Raw little-endian: header (docs/outputs.md) + float32 SH per cache + uint8 validity.
-Status writeGridRaw(const relight::RelightResult& result, const caches::GridCaches& grid, const std::string& path);
+struct WrittenExrs {
+  std::vector<std::string> files;  // file names in `dir`, in writing order
+  WriteStats stats;
+};
+// The lightmap files of options.encoding in `dir`: irradiance.exr always (evaluateIrradiance:
+// with a finer direct layer pass its texels, and irradiance.exr has the direct layer's size);
+// for L1/L2 also lightmap_<c>.exr per kept coefficient, direct.exr, valid.exr and, when the
+// direct layer is finer, direct_valid.exr.
+Expected<WrittenExrs> writeLightmapExrs(const relight::RelightResult& result, const caches::LightmapCaches& lightmap,
+                                        const std::string& dir, const ExrOptions& options = {},
+                                        const caches::LightmapCaches* direct_texels = nullptr);
+// grid_<c>.exr per coefficient the encoding keeps (gridBands) and grid_valid.exr in `dir`.
+Expected<WrittenExrs> writeGridExrs(const relight::RelightResult& result, const caches::GridCaches& grid,
+                                    const std::string& dir, const ExrOptions& options = {});
+// JSON metadata for the grid (origin, spacing, dims, the bands `encoding` keeps, file names,
+// validity mask).
+Status writeGridJson(const relight::RelightResult& result, const caches::GridCaches& grid, const std::string& path,
+                     Encoding encoding = Encoding::kL2);
+// Raw little-endian: header (docs/outputs.md) + float32 SH per cache (the bands `encoding`
+// keeps) + uint8 validity.
+Status writeGridRaw(const relight::RelightResult& result, const caches::GridCaches& grid, const std::string& path,
+                    Encoding encoding = Encoding::kL2);
 
 struct PreviewOptions {
   float exposure = 0.0f;  // multiplies irradiance before tone mapping; 0 = auto (mean lit texel -> 0.5)
   bool include_direct = true;
 };
-// With a finer direct layer, pass its texels (Precomputation::direct_texels): the preview is
-// then drawn at the direct layer's size.
+// The image of evaluateIrradiance (with include_direct as options say). With a finer direct
+// layer, pass its texels (Precomputation::direct_texels): the preview is then drawn at the
+// direct layer's size.
 Status writeIrradiancePng(const relight::RelightResult& result, const caches::LightmapCaches& lightmap,
                           const std::string& path, const PreviewOptions& options = {},
                           const caches::LightmapCaches* direct_texels = nullptr);

@@ -76,7 +76,7 @@ TEST(BakeWarnings, MissingAndUndecodableTexturesBakeWithTheWarningsListed) {
   // --fail-on warning makes CI fail it, with every output still written.
   const ProcessRun strict = runProcess(bake(scene, dir / "out", "--fail-on warning"));
   EXPECT_EQ(strict.exit_code, cli::kExitWarnings) << strict.output;
-  EXPECT_TRUE(std::filesystem::exists(dir / "out" / "lightmap.exr"));
+  EXPECT_TRUE(std::filesystem::exists(dir / "out" / "lightmap_L00.exr"));
   EXPECT_EQ(runProcess(bake(scene, dir / "out", "--fail-on dark")).exit_code, cli::kExitOk);
 }
 

@@ -140,15 +140,18 @@ TEST(Bake, WritesEverythingThenReusesTheArtifact) {
                           " --preset draft --bounces 2 -q";
   const auto first = runShell(cmd);
   ASSERT_EQ(first.exit_code, 0) << first.output;
-  for (const char* f : {"lightmap.exr", "lightmap.png", "report.json", "grid.exr", "grid.json", "grid.raw",
-                        "grid_threejs.json", "grid_threejs.bin", "cornell_box_lm.gltf"})
+  for (const char* f : {"irradiance.exr", "lightmap_L00.exr", "lightmap_L22.exr", "direct.exr", "valid.exr",
+                        "lightmap.png", "report.json", "grid_L00.exr", "grid_L22.exr", "grid_valid.exr", "grid.json",
+                        "grid.raw", "grid_threejs.json", "grid_threejs.bin", "cornell_box_lm.gltf"})
     EXPECT_TRUE(std::filesystem::exists(dir / "out" / f)) << f;
   // The glTF points at its lighting: the grid's placement as grid.json states it.
   const auto gltf = nlohmann::json::parse(readAll(dir / "out" / "cornell_box_lm.gltf"));
   const auto grid_json = nlohmann::json::parse(readAll(dir / "out" / "grid.json"));
   ASSERT_TRUE(gltf["extensions"].contains("LIGHTLINK_lighting")) << gltf["extensionsUsed"];
   const auto& lighting = gltf["extensions"]["LIGHTLINK_lighting"];
-  EXPECT_EQ(lighting["lightmap"]["uri"], "lightmap.exr");
+  EXPECT_EQ(lighting["lightmap"]["sh"][0], "lightmap_L00.exr");
+  EXPECT_EQ(lighting["irradiance"]["uri"], "irradiance.exr");
+  EXPECT_EQ(gltf["images"].back()["uri"], "irradiance.exr") << "MOZ_lightmap binds the L0 map bake wrote";
   EXPECT_EQ(lighting["grid"]["dims"], grid_json["dims"]);
   EXPECT_EQ(lighting["grid"]["origin_m"], grid_json["origin_m"]);
   EXPECT_EQ(lighting["grid"]["spacing_m"], grid_json["spacing_m"]);
@@ -157,6 +160,7 @@ TEST(Bake, WritesEverythingThenReusesTheArtifact) {
   EXPECT_EQ(report["artifact"].get<std::string>().rfind("computed", 0), 0u) << report["artifact"];
   EXPECT_TRUE(report["effects_plan"].is_object());
   EXPECT_EQ(report["relight"]["backend"], "cpu");
+  EXPECT_EQ(report["encoding"]["name"], "l2");
 
   const auto second = runShell(cmd);
   ASSERT_EQ(second.exit_code, 0) << second.output;

@@ -59,8 +59,8 @@ TEST(ScenariosCli, EachScenarioIsRelitIntoItsOwnFolderFromOnePrecompute) {
       EXPECT_TRUE(fs::exists(out / "scenarios" / name / f.get<std::string>())) << name << "/" << f;
   EXPECT_TRUE(fs::exists(out / "scenarios" / "day" / "grid.json"));
   // Different lights give different lighting; the base (no scenario) is written too.
-  EXPECT_NE(slurp(out / "scenarios" / "day" / "lightmap.exr"), slurp(out / "scenarios" / "night" / "lightmap.exr"));
-  EXPECT_TRUE(fs::exists(out / "lightmap.exr"));
+  EXPECT_NE(slurp(out / "scenarios" / "day" / "lightmap_L00.exr"), slurp(out / "scenarios" / "night" / "lightmap_L00.exr"));
+  EXPECT_TRUE(fs::exists(out / "irradiance.exr"));
   const auto report = readJson(out / "report.json");
   ASSERT_EQ(report["scenarios"].size(), 2u);
   EXPECT_GT(report["scenarios"][0]["relight_ms"].get<double>(), 0.0);
@@ -92,7 +92,7 @@ TEST(ScenariosCli, BadScenarioSpecsAreRefusedNamingWhatIsWrong) {
     const auto r = runCli("bake " + kDemo + " -o " + out.string() + kFlags + " " + c.spec);
     EXPECT_EQ(r.exit_code, cli::kExitBadInput) << c.spec << "\n" << r.output;
     EXPECT_NE(r.output.find(c.message), std::string::npos) << c.spec << "\n" << r.output;
-    EXPECT_FALSE(fs::exists(out / "lightmap.exr")) << c.spec << ": nothing is written for a bad spec";
+    EXPECT_FALSE(fs::exists(out / "irradiance.exr")) << c.spec << ": nothing is written for a bad spec";
   }
 }
 

@@ -399,7 +399,8 @@ TEST_F(ClientDaemon, CliOpenSetLightPullWatch) {
   auto pull = runCommand({cli(), "pull", "--session", session, "-o", out.string(), "--version", std::to_string(version)},
                          std::chrono::seconds(60));
   ASSERT_EQ(pull.exit_code, 0) << pull.err;
-  for (const char* f : {"lightmap.exr", "lightmap.png", "pull.json"}) EXPECT_TRUE(fs::exists(out / f)) << f;
+  for (const char* f : {"irradiance.exr", "lightmap_L00.exr", "lightmap.png", "pull.json"})
+    EXPECT_TRUE(fs::exists(out / f)) << f;
   // What pull wrote is what the viewer (and an engine) reads.
   auto baked = viewer::loadBakedLighting(out.string());
   ASSERT_TRUE(baked) << baked.status().toString();

@@ -212,7 +212,7 @@ namespace {
 void sampleLikeRender(const viewer::BakedLighting& b) {
   const float nan = std::numeric_limits<float>::quiet_NaN();
   glm::vec3 e;
-  if (!b.lightmap_sh.empty())
+  if (b.width > 0)
     for (const glm::vec2 uv : {glm::vec2(0.5f), glm::vec2(0.0f), glm::vec2(1.0f), glm::vec2(-7.0f, 3e9f),
                                glm::vec2(1e38f, -1e38f), glm::vec2(nan)})
       (void)b.sampleLightmap(uv, {0.0f, 1.0f, 0.0f}, e);
@@ -227,9 +227,14 @@ void sampleLikeRender(const viewer::BakedLighting& b) {
 
 Status readLightmapExrBytes(std::span<const std::uint8_t> bytes) {
   const std::string path = scratch().write("lightmap.exr", bytes);
-  viewer::BakedLighting b;
-  if (Status s = viewer::readLightmapExr(path, b, std::uint64_t(1) << 16); !s) return s;
-  sampleLikeRender(b);
+  viewer::ExrImage img;
+  if (Status s = viewer::readLightlinkExr(path, img, std::uint64_t(1) << 16); !s) return s;
+  // An irradiance map loads as an L0 bake and is sampled as render samples it.
+  if (img.kind == "irradiance") {
+    viewer::BakedLighting b;
+    if (Status s = viewer::readIrradianceExr(path, b, std::uint64_t(1) << 16); !s) return s;
+    sampleLikeRender(b);
+  }
   return {};
 }
 
@@ -351,11 +356,22 @@ Status writeSeedBakeOutputs(const std::string& dir) {
   auto result = relighter->relight(relight::LightSet::fromSceneLights(s.lights), {});
   if (!result) return result.status();
   const fs::path d(dir);
+  // Of each precision: the irradiance map, an SH coefficient and a validity file (the three
+  // channel layouts a lightlink EXR has), renamed so both precisions fit one folder.
   for (const bool half : {false, true}) {
     output::ExrOptions options;
     options.half = half;
-    auto w = output::writeLightmapExr(*result, (d / (half ? "lightmap_half.exr" : "lightmap_float.exr")).string(), options);
+    const fs::path tmp = d / (half ? "tmp_half" : "tmp_float");
+    std::error_code ec;
+    fs::create_directories(tmp, ec);
+    auto w = output::writeLightmapExrs(*result, p->lightmap, tmp.string(), options,
+                                       p->hasDirectLayer() ? &p->direct_texels : nullptr);
     if (!w) return w.status();
+    for (const char* f : {"irradiance", "lightmap_L00", "valid"}) {
+      fs::rename(tmp / (std::string(f) + ".exr"), d / (std::string(f) + (half ? "_half.exr" : "_float.exr")), ec);
+      if (ec) return ioError("cannot move {} into {}: {}", f, dir, ec.message());
+    }
+    fs::remove_all(tmp, ec);
   }
   return output::writeGridRaw(*result, p->grid, (d / "grid.raw").string());
 }

@@ -57,9 +57,11 @@ struct LightSetVerdict {
 LightSetVerdict loadLightSetBytes(std::span<const std::uint8_t> bytes);
 
 // The bake outputs `lightlink render` and the game client read (clients/viewer): the bytes as
-// a lightmap.exr (viewer::readLightmapExr, at most 2^16 texels: larger windows cost the
-// fuzzer seconds per input, and the size check itself is covered by the replay test), or as a grid.raw (viewer::readGridRaw). What loads is then sampled as
-// `render` samples it: UVs and points inside, on the edges, far outside and NaN.
+// one lightmap EXR of layout 2 (viewer::readLightlinkExr, at most 2^16 texels: larger windows
+// cost the fuzzer seconds per input, and the size check itself is covered by the replay
+// test; an irradiance map is then loaded as an L0 bake), or as a grid.raw
+// (viewer::readGridRaw). What loads is then sampled as `render` samples it: UVs and points
+// inside, on the edges, far outside and NaN.
 Status readLightmapExrBytes(std::span<const std::uint8_t> bytes);
 Status readGridRawBytes(std::span<const std::uint8_t> bytes);
 

@@ -1,4 +1,4 @@
-// libFuzzer target: arbitrary bytes as a bake's lightmap.exr through viewer::readLightmapExr
+// libFuzzer target: arbitrary bytes as one of a bake's lightmap EXRs through viewer::readLightlinkExr
 // (OpenEXR, then lightlink's checks), then sampled as `lightlink render` samples it.
 #include <cstddef>
 #include <cstdint>

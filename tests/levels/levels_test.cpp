@@ -56,7 +56,7 @@ using Case = std::tuple<const char*, const char*>;
 class SharedSceneBake : public ::testing::TestWithParam<Case> {};
 
 // Bakes a shared scene with the CLI at `preset` (with its committed light set when there is
-// one) and reads its report.json; the bake must exit 0 and write lightmap.exr.
+// one) and reads its report.json; the bake must exit 0 and write the lightmap (lightmap_L00.exr).
 void bakeShared(const fs::path& scene, const std::string& preset, nlohmann::json& report) {
   ASSERT_TRUE(fs::exists(scene)) << scene;
   const fs::path lights = testing::sourceDir() / "tests/levels/lights" / (scene.stem().string() + ".json");
@@ -66,7 +66,7 @@ void bakeShared(const fs::path& scene, const std::string& preset, nlohmann::json
   if (fs::exists(lights)) command += " --lights '" + lights.string() + "'";
   const testing::ShellResult r = testing::runShell(command);
   ASSERT_EQ(r.exit_code, 0) << command << "\n" << r.output;
-  EXPECT_TRUE(fs::exists(out.path() / "lightmap.exr")) << command;
+  EXPECT_TRUE(fs::exists(out.path() / "lightmap_L00.exr")) << command;
   std::ifstream in(out.path() / "report.json");
   ASSERT_TRUE(in) << "no report.json: " << command;
   report = nlohmann::json::parse(in);

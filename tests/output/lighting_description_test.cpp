@@ -13,16 +13,21 @@ TEST(LightingDescription, NamesWhatWasWrittenAndOnlyThat) {
   result.width = 64;
   result.height = 32;
   result.version = 5;
-  LightingFiles files;
+  LightingFiles files = LightingFiles::fromWritten(
+      {"irradiance.exr", "lightmap_L00.exr", "lightmap_L1m1.exr", "lightmap_L10.exr", "lightmap_L11.exr",
+       "direct.exr", "valid.exr", "lightmap.png"},
+      "l1");
+  files.irradiance.clear();
   nlohmann::json j = describeLighting(result, nullptr, files);
-  EXPECT_EQ(j["version"], 1);
+  EXPECT_EQ(j["version"], 2);
+  EXPECT_EQ(j["encoding"], "l1");
   EXPECT_EQ(j["light_set_version"], 5);
-  EXPECT_EQ(j["sh"]["bands"], 2);
-  EXPECT_EQ(j["sh"]["layers"], nlohmann::json::array({"L00", "L1m1", "L10", "L11"}));
-  EXPECT_EQ(j["lightmap"]["uri"], "lightmap.exr");
+  EXPECT_EQ(j["lightmap"]["sh"], nlohmann::json::array({"lightmap_L00.exr", "lightmap_L1m1.exr", "lightmap_L10.exr",
+                                                        "lightmap_L11.exr"}));
+  EXPECT_EQ(j["lightmap"]["valid"], "valid.exr");
   EXPECT_EQ(j["lightmap"]["texCoord"], 1);
   EXPECT_EQ(j["lightmap"]["width"], 64);
-  EXPECT_EQ(j["lightmap"]["direct"]["uri"], "lightmap.exr");
+  EXPECT_EQ(j["lightmap"]["direct"]["uri"], "direct.exr");
   EXPECT_EQ(j["units"]["irradiance"], "lux per linear RGB channel");
   EXPECT_FALSE(j.contains("irradiance"));
   EXPECT_FALSE(j.contains("grid"));
@@ -35,7 +40,7 @@ TEST(LightingDescription, NamesWhatWasWrittenAndOnlyThat) {
   grid.valid = {1, 0, 1, 1, 1, 0};
   result.direct_width = 128;
   result.direct_height = 64;
-  files.direct = "direct.exr";
+  files.direct_valid = "direct_valid.exr";
   files.irradiance = "irradiance.exr";
   files.grid_json = "grid.json";
   files.grid_threejs = "grid_threejs.json";

@@ -1,5 +1,6 @@
 #include "core/output/output.h"
 
+#include <algorithm>
 #include <cstring>
 #include <filesystem>
 #include <fstream>
@@ -14,6 +15,7 @@
 #include <png.h>
 
 #include "core/common/half.h"
+#include "core/sh/sh.h"
 #include "tests/common/testing.h"
 #include "tests/relight/relight_fixture.h"
 
@@ -100,121 +102,249 @@ TEST(Output, LayerNames) {
   for (int i = 0; i < 16; ++i) EXPECT_EQ(shLayerName(i), expected[i]);
 }
 
-TEST(Output, LightmapExrRoundTripsFloatBitExactlyAndHalfWithinRounding) {
+int intAttr(const ExrImage& img, const char* name) {
+  const auto* a = img.header.findTypedAttribute<Imf::IntAttribute>(name);
+  EXPECT_NE(a, nullptr) << name;
+  return a ? a->value() : -999;
+}
+
+std::string stringAttr(const ExrImage& img, const char* name) {
+  const auto* a = img.header.findTypedAttribute<Imf::StringAttribute>(name);
+  EXPECT_NE(a, nullptr) << name;
+  return a ? a->value() : "";
+}
+
+std::vector<std::string> filesIn(const std::filesystem::path& dir) {
+  std::vector<std::string> names;
+  for (const auto& e : std::filesystem::directory_iterator(dir)) names.push_back(e.path().filename().string());
+  std::sort(names.begin(), names.end());
+  return names;
+}
+
+TEST(Output, LightmapExrsRoundTripFloatBitExactlyAndHalfWithinRounding) {
   const auto& l = lit();
   ASSERT_TRUE(l.baked);
   const auto& r = l.result;
   const int nc = r.coeffCount();
   ASSERT_EQ(nc, 9);
+  ASSERT_FALSE(r.directIsFiner()) << "this test reads direct.exr at the lightmap's size";
   testing::TempDir dir;
   for (bool half : {false, true}) {
-    const std::string path = (dir / (half ? "lm_half.exr" : "lm_float.exr")).string();
-    auto stats = writeLightmapExr(r, path, {.half = half, .scene_hash = "abc123"});
-    ASSERT_TRUE(stats) << stats.status().toString();
-    const ExrImage img = readExr(path);
-    ASSERT_EQ(img.width, r.width);
-    ASSERT_EQ(img.height, r.height);
-    ASSERT_EQ(img.names.size(), std::size_t(3 * nc + 3 + 1));
-    for (auto t : img.types) EXPECT_EQ(t, half ? Imf::HALF : Imf::FLOAT);
-    const char* ch[3] = {"R", "G", "B"};
+    const std::filesystem::path sub = dir / (half ? "half" : "float");
+    std::filesystem::create_directories(sub);
+    auto written = writeLightmapExrs(r, l.baked->p.lightmap, sub.string(), {.half = half, .scene_hash = "abc123"});
+    ASSERT_TRUE(written) << written.status().toString();
+    std::vector<std::string> expected_files = {"irradiance.exr"};
+    for (int i = 0; i < nc; ++i) expected_files.push_back("lightmap_" + shLayerName(i) + ".exr");
+    expected_files.insert(expected_files.end(), {"direct.exr", "valid.exr"});
+    EXPECT_EQ(written->files, expected_files);
     bool clamped_unused = false;
-    for (int i = 0; i < nc; ++i)
+    const auto stored = [&](float v) {
+      return half ? fromHalf(toHalfSaturating(v, clamped_unused)) : v;
+    };
+    for (int i = 0; i < nc; ++i) {
+      const ExrImage img = readExr((sub / ("lightmap_" + shLayerName(i) + ".exr")).string());
+      ASSERT_EQ(img.width, r.width);
+      ASSERT_EQ(img.height, r.height);
+      // Plain R, G, B channels: what three.js's EXRLoader and every EXR reader load.
+      ASSERT_EQ(img.names, (std::vector<std::string>{"B", "G", "R"}));
+      for (auto t : img.types) EXPECT_EQ(t, half ? Imf::HALF : Imf::FLOAT);
+      EXPECT_EQ(intAttr(img, "lightlink.layout"), kExrLayout);
+      EXPECT_EQ(intAttr(img, "lightlink.sh_index"), i);
+      EXPECT_EQ(intAttr(img, "lightlink.bands"), 3);
+      EXPECT_EQ(stringAttr(img, "lightlink.kind"), "lightmap_sh");
+      EXPECT_EQ(stringAttr(img, "lightlink.encoding"), "l2");
+      EXPECT_EQ(stringAttr(img, "lightlink.scene_hash"), "abc123");
+      EXPECT_NE(stringAttr(img, "lightlink.sh_convention").find("l*l+l+m"), std::string::npos);
+      const char* ch[3] = {"R", "G", "B"};
       for (int c = 0; c < 3; ++c) {
-        const auto& p = plane(img, shLayerName(i) + "." + ch[c]);
+        const auto& p = plane(img, ch[c]);
         for (std::size_t t = 0; t < p.size(); ++t) {
           const float v = r.lightmap_sh[t * 3 * nc + c * nc + i];
           if (half) {
-            const float expected = fromHalf(toHalfSaturating(v, clamped_unused));
-            ASSERT_EQ(p[t], expected) << shLayerName(i) << " texel " << t;
+            ASSERT_EQ(p[t], stored(v)) << shLayerName(i) << " texel " << t;
             ASSERT_LE(std::abs(p[t] - v), std::abs(v) * 1e-3f + 1e-7f);
           } else {
             ASSERT_EQ(std::memcmp(&p[t], &v, sizeof(float)), 0) << shLayerName(i) << " texel " << t;
           }
         }
       }
-    const auto& dr = plane(img, "direct.R");
+    }
+    const ExrImage direct = readExr((sub / "direct.exr").string());
+    const auto& dr = plane(direct, "R");
     std::size_t over = 0;
     for (std::size_t t = 0; t < dr.size(); ++t) {
-      if (half) {
-        over += r.direct[t].x > kHalfMax;
-        ASSERT_EQ(dr[t], fromHalf(toHalfSaturating(r.direct[t].x, clamped_unused)));
-      } else {
-        ASSERT_EQ(dr[t], r.direct[t].x);
-      }
+      over += half && r.direct[t].x > kHalfMax;
+      ASSERT_EQ(dr[t], stored(r.direct[t].x));
     }
     if (half) {
       EXPECT_GT(over, 0u) << "the fixture should exceed the half range somewhere";
-      EXPECT_GE(stats->clamped, over);
+      EXPECT_GE(written->stats.clamped, over);
     } else {
-      EXPECT_EQ(stats->clamped, 0u);
+      EXPECT_EQ(written->stats.clamped, 0u);
     }
-    const auto& valid = plane(img, "valid.Y");
-    for (std::size_t t = 0; t < valid.size(); ++t) ASSERT_EQ(valid[t], r.texel_valid[t] ? 1.0f : 0.0f);
-    const auto* bands = img.header.findTypedAttribute<Imf::IntAttribute>("lightlink.bands");
-    ASSERT_NE(bands, nullptr);
-    EXPECT_EQ(bands->value(), 3);
-    const auto* hash = img.header.findTypedAttribute<Imf::StringAttribute>("lightlink.scene_hash");
-    ASSERT_NE(hash, nullptr);
-    EXPECT_EQ(hash->value(), "abc123");
-    const auto* conv = img.header.findTypedAttribute<Imf::StringAttribute>("lightlink.sh_convention");
-    ASSERT_NE(conv, nullptr);
-    EXPECT_NE(conv->value().find("l*l+l+m"), std::string::npos);
-    EXPECT_NE(img.header.findTypedAttribute<Imf::StringAttribute>("lightlink.version"), nullptr);
-    EXPECT_NE(img.header.findTypedAttribute<Imf::StringAttribute>("lightlink.units"), nullptr);
+    const ExrImage valid = readExr((sub / "valid.exr").string());
+    ASSERT_EQ(valid.names, std::vector<std::string>{"Y"});
+    const auto& vy = plane(valid, "Y");
+    for (std::size_t t = 0; t < vy.size(); ++t) ASSERT_EQ(vy[t], r.texel_valid[t] ? 1.0f : 0.0f);
   }
 }
 
-TEST(Output, GridExrJsonAndRawAgree) {
+// Each encoding written, read back with OpenEXR (not lightlink's reader) and evaluated as an
+// engine would (docs/outputs.md), against the in-memory result: L0 is irradiance.exr, L1 the
+// 4-coefficient evaluation, L2 the 9-coefficient one, at every valid texel's cache normal.
+TEST(Output, EncodingsRoundTripAgainstTheInMemoryResult) {
+  const auto& l = lit();
+  ASSERT_TRUE(l.baked);
+  const auto& r = l.result;
+  const auto& caches = l.baked->p.lightmap;
+  const int nc = r.coeffCount();
+  testing::TempDir dir;
+  double l1_vs_l2 = 0.0, l2_sum = 0.0;
+  for (const Encoding e : {Encoding::kL0, Encoding::kL1, Encoding::kL2}) {
+    const std::filesystem::path sub = dir / std::string(encodingName(e));
+    std::filesystem::create_directories(sub);
+    auto written = writeLightmapExrs(r, caches, sub.string(), {.half = false, .encoding = e});
+    ASSERT_TRUE(written) << written.status().toString();
+    EXPECT_EQ(filesIn(sub).size(), written->files.size());
+    const int bands = lightmapBands(e, r.bands);
+    EXPECT_EQ(bands, e == Encoding::kL0 ? 0 : e == Encoding::kL1 ? 2 : 3);
+    EXPECT_EQ(std::filesystem::exists(sub / "lightmap_L00.exr"), bands > 0);
+    EXPECT_EQ(std::filesystem::exists(sub / "lightmap_L2m2.exr"), bands > 2);
+    // L0: irradiance.exr holds, per valid texel, the SH at the cache normal plus direct.
+    const ExrImage irr = readExr((sub / "irradiance.exr").string());
+    ASSERT_EQ(irr.names, (std::vector<std::string>{"B", "G", "R"}));
+    EXPECT_EQ(stringAttr(irr, "lightlink.kind"), "irradiance");
+    EXPECT_EQ(stringAttr(irr, "lightlink.encoding"), std::string(encodingName(e)));
+    // The SH files as read back: per coefficient one image of R, G, B planes.
+    std::vector<ExrImage> sh_files;
+    for (int i = 0; i < bands * bands; ++i) {
+      sh_files.push_back(readExr((sub / ("lightmap_" + shLayerName(i) + ".exr")).string()));
+      EXPECT_EQ(intAttr(sh_files.back(), "lightlink.bands"), bands);
+    }
+    const char* kCh[3] = {"R", "G", "B"};
+    std::vector<float> coeffs(static_cast<std::size_t>(nc));
+    std::size_t checked = 0, dilated = 0;
+    for (std::size_t t = 0; t < r.texel_valid.size(); ++t) {
+      const std::int32_t c = caches.cache_of_texel[t];
+      if (!r.texel_valid[t]) {
+        ASSERT_EQ(plane(irr, "R")[t], 0.0f) << "texel " << t << " holds no value";
+        continue;
+      }
+      if (c < 0) {  // a dilated texel: the mean of its evaluated neighbours, never black
+        EXPECT_GT(plane(irr, "R")[t] + plane(irr, "G")[t] + plane(irr, "B")[t], 0.0f) << "dilated texel " << t;
+        ++dilated;
+        continue;
+      }
+      const glm::vec3 n = caches.normal[c];
+      const float* sh = r.lightmap_sh.data() + t * 3 * nc;
+      for (int ch = 0; ch < 3; ++ch) {
+        const float full = sh::irradiance(r.bands, sh + ch * nc, n);
+        ASSERT_EQ(plane(irr, kCh[ch])[t], full + r.direct[t][ch]) << "texel " << t;
+        if (bands == 0) continue;
+        // The SH files evaluated as the engine does, against the same bands of the result.
+        for (int i = 0; i < bands * bands; ++i) coeffs[std::size_t(i)] = plane(sh_files[std::size_t(i)], kCh[ch])[t];
+        const float got = sh::irradiance(bands, coeffs.data(), n);
+        ASSERT_EQ(got, sh::irradiance(bands, sh + ch * nc, n)) << encodingName(e) << " texel " << t;
+        if (e == Encoding::kL1) {
+          l1_vs_l2 += std::abs(got - full);
+          l2_sum += full;
+        }
+      }
+      ++checked;
+    }
+    EXPECT_GT(checked, 100u);
+    EXPECT_GT(dilated, 0u) << "the fixture's lightmap has dilated gutter texels";
+  }
+  // L1 drops band 2: close to, but not the same as, L2 in this lit box.
+  EXPECT_GT(l1_vs_l2, 0.0);
+  EXPECT_LT(l1_vs_l2 / l2_sum, 0.2) << "mean |L1 - L2| / mean L2";
+}
+
+TEST(Output, GridExrsJsonAndRawAgreeForEachEncoding) {
   const auto& l = lit();
   ASSERT_TRUE(l.baked);
   const auto& r = l.result;
   const auto& grid = l.baked->p.grid;
   ASSERT_GT(grid.size(), 0u);
-  testing::TempDir dir;
-  const std::string exr = (dir / "grid.exr").string(), json = (dir / "grid.json").string(),
-                    raw = (dir / "grid.raw").string();
-  ASSERT_TRUE(writeGridExr(r, grid, exr, {.half = false}));
-  ASSERT_TRUE(writeGridJson(r, grid, json));
-  ASSERT_TRUE(writeGridRaw(r, grid, raw));
-  const ExrImage img = readExr(exr);
-  ASSERT_EQ(img.width, grid.dims.x * grid.dims.z);
-  ASSERT_EQ(img.height, grid.dims.y);
   const int nc = r.coeffCount();
-  const auto& l00 = plane(img, "L00.G");
-  for (int z = 0; z < grid.dims.z; ++z)
-    for (int y = 0; y < grid.dims.y; ++y)
-      for (int x = 0; x < grid.dims.x; ++x) {
-        const std::size_t e = (std::size_t(z) * grid.dims.y + y) * grid.dims.x + x;
-        ASSERT_EQ(l00[std::size_t(y) * img.width + z * grid.dims.x + x], r.grid_sh[e * 3 * nc + nc]);
-      }
-  std::ifstream in(raw, std::ios::binary);
-  char magic[8];
-  in.read(magic, 8);
-  EXPECT_EQ(std::string(magic, 8), "LLGRID01");
-  std::uint64_t version;
-  std::uint32_t bands, dims[3];
-  float origin[3], spacing;
-  in.read(reinterpret_cast<char*>(&version), 8);
-  in.read(reinterpret_cast<char*>(&bands), 4);
-  in.read(reinterpret_cast<char*>(dims), 12);
-  in.read(reinterpret_cast<char*>(origin), 12);
-  in.read(reinterpret_cast<char*>(&spacing), 4);
-  EXPECT_EQ(version, r.version);
-  EXPECT_EQ(bands, 3u);
-  EXPECT_EQ(int(dims[0]), grid.dims.x);
-  EXPECT_EQ(spacing, grid.spacing_m);
-  std::vector<float> data(r.grid_sh.size());
-  in.read(reinterpret_cast<char*>(data.data()), std::streamsize(data.size() * 4));
-  std::vector<std::uint8_t> valid(grid.size());
-  in.read(reinterpret_cast<char*>(valid.data()), std::streamsize(valid.size()));
-  ASSERT_TRUE(in);
-  EXPECT_EQ(data, r.grid_sh);
-  EXPECT_EQ(valid, grid.valid);
-  EXPECT_EQ(in.peek(), EOF);
-  auto meta = nlohmann::json::parse(std::ifstream(json));
-  EXPECT_EQ(meta["dims"][2].get<int>(), grid.dims.z);
-  EXPECT_EQ(meta["sh_layers"].size(), 9u);
-  EXPECT_EQ(meta["valid"].size(), grid.size());
+  for (const Encoding e : {Encoding::kL0, Encoding::kL1, Encoding::kL2}) {
+    testing::TempDir dir;
+    const std::string json = (dir / "grid.json").string(), raw = (dir / "grid.raw").string();
+    auto written = writeGridExrs(r, grid, dir.path().string(), {.half = false, .encoding = e});
+    ASSERT_TRUE(written) << written.status().toString();
+    ASSERT_TRUE(writeGridJson(r, grid, json, e));
+    ASSERT_TRUE(writeGridRaw(r, grid, raw, e));
+    const int bands = gridBands(e, r.bands);
+    EXPECT_EQ(bands, e == Encoding::kL0 ? 1 : e == Encoding::kL1 ? 2 : 3);
+    EXPECT_EQ(written->files.size(), std::size_t(bands * bands + 1));
+    const int gnc = bands * bands;
+    for (int i = 0; i < gnc; ++i) {
+      const ExrImage img = readExr((dir / ("grid_" + shLayerName(i) + ".exr")).string());
+      ASSERT_EQ(img.width, grid.dims.x * grid.dims.z);
+      ASSERT_EQ(img.height, grid.dims.y);
+      EXPECT_EQ(stringAttr(img, "lightlink.kind"), "grid_sh");
+      const auto& g = plane(img, "G");
+      for (int z = 0; z < grid.dims.z; ++z)
+        for (int y = 0; y < grid.dims.y; ++y)
+          for (int x = 0; x < grid.dims.x; ++x) {
+            const std::size_t c = (std::size_t(z) * grid.dims.y + y) * grid.dims.x + x;
+            ASSERT_EQ(g[std::size_t(y) * img.width + z * grid.dims.x + x], r.grid_sh[c * 3 * nc + nc + i]);
+          }
+    }
+    EXPECT_FALSE(std::filesystem::exists(dir / ("grid_" + shLayerName(gnc) + ".exr")));
+    const ExrImage valid = readExr((dir / "grid_valid.exr").string());
+    ASSERT_EQ(valid.names, std::vector<std::string>{"Y"});
+    std::ifstream in(raw, std::ios::binary);
+    char magic[8];
+    in.read(magic, 8);
+    EXPECT_EQ(std::string(magic, 8), "LLGRID01");
+    std::uint64_t version;
+    std::uint32_t raw_bands, dims[3];
+    float origin[3], spacing;
+    in.read(reinterpret_cast<char*>(&version), 8);
+    in.read(reinterpret_cast<char*>(&raw_bands), 4);
+    in.read(reinterpret_cast<char*>(dims), 12);
+    in.read(reinterpret_cast<char*>(origin), 12);
+    in.read(reinterpret_cast<char*>(&spacing), 4);
+    EXPECT_EQ(version, r.version);
+    EXPECT_EQ(raw_bands, std::uint32_t(bands));
+    EXPECT_EQ(int(dims[0]), grid.dims.x);
+    EXPECT_EQ(spacing, grid.spacing_m);
+    std::vector<float> data(grid.size() * 3 * std::size_t(gnc));
+    in.read(reinterpret_cast<char*>(data.data()), std::streamsize(data.size() * 4));
+    std::vector<std::uint8_t> valid_raw(grid.size());
+    in.read(reinterpret_cast<char*>(valid_raw.data()), std::streamsize(valid_raw.size()));
+    ASSERT_TRUE(in);
+    EXPECT_EQ(data, truncateSh(r.grid_sh, r.bands, bands));
+    EXPECT_EQ(valid_raw, grid.valid);
+    EXPECT_EQ(in.peek(), EOF);
+    auto meta = nlohmann::json::parse(std::ifstream(json));
+    EXPECT_EQ(meta["dims"][2].get<int>(), grid.dims.z);
+    EXPECT_EQ(meta["bands"].get<int>(), bands);
+    EXPECT_EQ(meta["sh_files"].size(), std::size_t(gnc));
+    EXPECT_EQ(meta["valid"].size(), grid.size());
+  }
+}
+
+TEST(Output, ParsesEncodingsAndRejectsOthersNamingTheChoices) {
+  EXPECT_EQ(*parseEncoding("l0"), Encoding::kL0);
+  EXPECT_EQ(*parseEncoding("l1"), Encoding::kL1);
+  EXPECT_EQ(*parseEncoding("l2"), Encoding::kL2);
+  const auto bad = parseEncoding("L2");
+  ASSERT_FALSE(bad);
+  EXPECT_NE(bad.status().message().find("l0"), std::string::npos) << bad.status().message();
+  // Truncation keeps each channel's first coefficients.
+  const std::vector<float> two_texels_l2 = [] {
+    std::vector<float> v(2 * 27);
+    for (std::size_t i = 0; i < v.size(); ++i) v[i] = float(i);
+    return v;
+  }();
+  const std::vector<float> l1 = truncateSh(two_texels_l2, 3, 2);
+  ASSERT_EQ(l1.size(), 2u * 12u);
+  EXPECT_EQ(l1[4], 9.0f);    // texel 0, G, L00
+  EXPECT_EQ(l1[12], 27.0f);  // texel 1, R, L00
+  EXPECT_EQ(l1[23], 48.0f);  // texel 1, B, L11
 }
 
 TEST(Output, PreviewPngIsWrittenAndNotBlank) {
@@ -244,8 +374,8 @@ TEST(Output, RejectsAResultWithoutGrid) {
   relight::RelightResult empty;
   caches::GridCaches grid;
   testing::TempDir dir;
-  EXPECT_FALSE(writeGridExr(empty, grid, (dir / "g.exr").string()));
-  EXPECT_FALSE(writeLightmapExr(empty, (dir / "l.exr").string()));
+  EXPECT_FALSE(writeGridExrs(empty, grid, dir.path().string()));
+  EXPECT_FALSE(writeLightmapExrs(empty, caches::LightmapCaches{}, dir.path().string()));
 }
 
 }  // namespace

@@ -7,6 +7,7 @@
 // smallest normal half are counted too (WriteStats::underflowed), so neither end is silent.
 #include <algorithm>
 #include <cmath>
+#include <filesystem>
 #include <limits>
 
 #include <OpenEXR/ImfChannelList.h>
@@ -130,10 +131,18 @@ TEST(StabilityIntensity, HalfExrClampsAndCountsOverflowAndCountsUnderflow) {
   ASSERT_TRUE(rm.baked);
   relight::Relighter r = rm.baked->relighter();
   testing::TempDir dir;
+  const precompute::Precomputation& p = rm.baked->p;
+  const caches::LightmapCaches* direct_texels = p.hasDirectLayer() ? &p.direct_texels : nullptr;
+  // The lightmap files of `res` (irradiance.exr, the SH maps, direct.exr, validity) in dir/sub.
+  const auto write = [&](const RelightResult& res, const char* sub, output::ExrOptions o = {}) {
+    std::filesystem::create_directories(dir / sub);
+    auto w = output::writeLightmapExrs(res, p.lightmap, (dir / sub).string(), o, direct_texels);
+    return w ? Expected<output::WriteStats>(w->stats) : Expected<output::WriteStats>(w.status());
+  };
 
   // 1 cd: nothing near either end of the half range.
   const RelightResult unit = relightAt(r, 1.0f);
-  auto s1 = output::writeLightmapExr(unit, (dir / "unit.exr").string());
+  auto s1 = write(unit, "unit");
   ASSERT_TRUE(s1) << s1.status().toString();
   EXPECT_EQ(s1->clamped, 0u);
   EXPECT_EQ(s1->underflowed, 0u);
@@ -146,12 +155,15 @@ TEST(StabilityIntensity, HalfExrClampsAndCountsOverflowAndCountsUnderflow) {
   for (const auto& d : bright.direct)
     for (int ch = 0; ch < 3; ++ch) beyond += d[ch] > kHalfMax;
   for (float v : bright.lightmap_sh) beyond += std::abs(v) > kHalfMax;
+  auto irradiance = output::evaluateIrradiance(bright, p.lightmap, true, direct_texels);
+  ASSERT_TRUE(irradiance) << irradiance.status().toString();
+  for (const auto& e : irradiance->irradiance)
+    for (int ch = 0; ch < 3; ++ch) beyond += e[ch] > kHalfMax;
   ASSERT_GT(beyond, 0u) << "the scene should push values beyond the half range";
-  const std::string bright_path = (dir / "bright.exr").string();
-  auto s2 = output::writeLightmapExr(bright, bright_path);
+  auto s2 = write(bright, "bright");
   ASSERT_TRUE(s2) << s2.status().toString();
   EXPECT_EQ(s2->clamped, beyond);
-  const auto direct_r = readHalfChannel(bright_path, "direct.R");
+  const auto direct_r = readHalfChannel((dir / "bright" / "direct.exr").string(), "R");
   float most = 0.0f;
   for (float v : direct_r) {
     ASSERT_TRUE(std::isfinite(v)) << "an infinity was written";
@@ -162,12 +174,12 @@ TEST(StabilityIntensity, HalfExrClampsAndCountsOverflowAndCountsUnderflow) {
   // 1e-6 cd: direct ~1e-6 lux, below the smallest normal half: counted as underflowed.
   r.invalidate();
   const RelightResult dim = relightAt(r, 1e-6f);
-  auto s3 = output::writeLightmapExr(dim, (dir / "dim.exr").string());
+  auto s3 = write(dim, "dim");
   ASSERT_TRUE(s3) << s3.status().toString();
   EXPECT_EQ(s3->clamped, 0u);
   EXPECT_GT(s3->underflowed, 0u) << "dim values lost half precision silently";
   // Float files keep the dim result exactly: nothing to count.
-  auto s4 = output::writeLightmapExr(dim, (dir / "dim_float.exr").string(), {.half = false});
+  auto s4 = write(dim, "dim_float", {.half = false});
   ASSERT_TRUE(s4);
   EXPECT_EQ(s4->clamped + s4->underflowed, 0u);
 }

@@ -9,6 +9,11 @@
 #include <numbers>
 #include <string>
 
+#include <OpenEXR/ImfChannelList.h>
+#include <OpenEXR/ImfFrameBuffer.h>
+#include <OpenEXR/ImfHeader.h>
+#include <OpenEXR/ImfIntAttribute.h>
+#include <OpenEXR/ImfOutputFile.h>
 #include <gtest/gtest.h>
 
 #include "core/output/output.h"
@@ -58,6 +63,7 @@ TEST(BakedLighting, InvalidTexelsCarryNoWeight) {
 TEST(BakedLighting, GridTrilinearSkipsInvalidPoints) {
   BakedLighting b;
   b.bands = 1;
+  b.grid_bands = 1;
   b.has_grid = true;
   b.dims = {2, 2, 2};
   b.origin = glm::vec3(0.0f);
@@ -79,7 +85,31 @@ TEST(BakedLighting, GridTrilinearSkipsInvalidPoints) {
 TEST(BakedLighting, MissingBakeIsAnErrorNamingTheFile) {
   auto b = loadBakedLighting("/no/such/bake");
   ASSERT_FALSE(b);
-  EXPECT_NE(b.status().message().find("lightmap.exr"), std::string::npos) << b.status().message();
+  EXPECT_NE(b.status().message().find("lightmap_L00.exr"), std::string::npos) << b.status().message();
+  EXPECT_NE(b.status().message().find("irradiance.exr"), std::string::npos) << b.status().message();
+}
+
+// Lightmap caches for a w x h result with one cache per texel, all facing +y: what
+// writeLightmapExrs needs to evaluate irradiance.exr.
+caches::LightmapCaches flatCaches(int w, int h) {
+  caches::LightmapCaches c;
+  c.width = w;
+  c.height = h;
+  for (int t = 0; t < w * h; ++t) {
+    c.cache_of_texel.push_back(t);
+    c.normal.push_back({0.0f, 1.0f, 0.0f});
+    c.position.push_back(glm::vec3(0.0f));
+    c.texel.push_back(std::uint32_t(t));
+    c.valid.push_back(1);
+  }
+  return c;
+}
+
+Status writeBake(const relight::RelightResult& r, const std::filesystem::path& dir, output::ExrOptions o = {}) {
+  const caches::LightmapCaches lm = flatCaches(r.width, r.height);
+  const caches::LightmapCaches fine = flatCaches(r.direct_width, r.direct_height);
+  auto w = output::writeLightmapExrs(r, lm, dir.string(), o, r.directIsFiner() ? &fine : nullptr);
+  return w ? Status{} : w.status();
 }
 
 // --- Crafted bake outputs (issue 44: `lightlink render` segfaulted on a crafted grid.raw) ---
@@ -110,7 +140,7 @@ struct RawGrid {
   }
 };
 
-// A bake directory with a valid 2x2 one-band lightmap.exr and the given grid.raw bytes.
+// A bake directory with a valid 2x2 one-band lightmap and the given grid.raw bytes.
 class CraftedBake {
  public:
   explicit CraftedBake(const std::string& grid_raw) {
@@ -120,8 +150,8 @@ class CraftedBake {
     r.lightmap_sh.assign(4 * 3, 1.0f);
     r.direct.assign(4, glm::vec3(0.1f));
     r.texel_valid.assign(4, 1);
-    auto written = output::writeLightmapExr(r, (dir_ / "lightmap.exr").string());
-    EXPECT_TRUE(written) << written.status().toString();
+    const Status written = writeBake(r, dir_.path());
+    EXPECT_TRUE(written) << written.toString();
     testing::writeFile(dir_ / "grid.raw", grid_raw);
   }
   std::string dir() const { return dir_.path().string(); }
@@ -228,23 +258,112 @@ TEST(BakedLightingFile, LightmapSizeAndValuesAreChecked) {
   r.texel_valid.assign(4, 1);
   output::ExrOptions float_exr;
   float_exr.half = false;
-  const std::string path = (dir / "lightmap.exr").string();
-  ASSERT_TRUE(output::writeLightmapExr(r, path, float_exr));
+  ASSERT_TRUE(writeBake(r, dir.path(), float_exr));
   BakedLighting ok;
-  ASSERT_TRUE(readLightmapExr(path, ok)) << "a valid 2x2 lightmap";
+  ASSERT_TRUE(readLightmapExrs(dir.path().string(), ok)) << "a valid 2x2 lightmap";
   BakedLighting small;
-  const Status too_big = readLightmapExr(path, small, 3);
+  const Status too_big = readLightmapExrs(dir.path().string(), small, 3);
   EXPECT_EQ(too_big.code(), Code::kInvalidInput);
   EXPECT_NE(too_big.message().find("data window 2x2 is out of range"), std::string::npos) << too_big.message();
-  r.lightmap_sh[7] = std::numeric_limits<float>::quiet_NaN();
-  ASSERT_TRUE(output::writeLightmapExr(r, path, float_exr));
+  r.lightmap_sh[1] = std::numeric_limits<float>::quiet_NaN();
+  ASSERT_TRUE(writeBake(r, dir.path(), float_exr));
   BakedLighting nan;
-  const Status s = readLightmapExr(path, nan);
+  const Status s = readLightmapExrs(dir.path().string(), nan);
   EXPECT_EQ(s.code(), Code::kInvalidInput);
   EXPECT_NE(s.message().find("is not finite"), std::string::npos) << s.message();
 }
 
-// A finer direct layer travels as direct.exr beside lightmap.exr (lightlink.direct_scale 2)
+// Layout 1 (one lightmap.exr of L00.R... layers) and an unknown layout are refused with a
+// message that says which and what to do.
+TEST(BakedLightingFile, OldAndUnknownLayoutsAreRejected) {
+  testing::TempDir dir;
+  relight::RelightResult r;
+  r.bands = 1;
+  r.width = r.height = 2;
+  r.lightmap_sh.assign(4 * 3, 1.0f);
+  r.direct.assign(4, glm::vec3(0.1f));
+  r.texel_valid.assign(4, 1);
+  ASSERT_TRUE(writeBake(r, dir.path()));
+  // A layout-1 file: the L00.R channel and lightlink.bands, no lightlink.layout.
+  const std::string old = (dir / "old.exr").string();
+  {
+    Imf::Header h(2, 2);
+    h.channels().insert("L00.R", Imf::Channel(Imf::FLOAT));
+    h.insert("lightlink.bands", Imf::IntAttribute(1));
+    std::vector<float> px(4, 1.0f);
+    Imf::FrameBuffer fb;
+    fb.insert("L00.R", Imf::Slice(Imf::FLOAT, reinterpret_cast<char*>(px.data()), 4, 8));
+    Imf::OutputFile f(old.c_str(), h);
+    f.setFrameBuffer(fb);
+    f.writePixels(2);
+  }
+  ExrImage img;
+  const Status s = readLightlinkExr(old, img);
+  EXPECT_EQ(s.code(), Code::kInvalidInput);
+  EXPECT_NE(s.message().find("layout 1"), std::string::npos) << s.message();
+  EXPECT_NE(s.message().find("bake again"), std::string::npos) << s.message();
+  // A whole layout-1 bake directory is refused by name.
+  std::filesystem::rename(old, dir / "lightmap.exr");
+  for (const char* f : {"lightmap_L00.exr", "irradiance.exr"}) std::filesystem::remove(dir / f);
+  auto b = loadBakedLighting(dir.path().string());
+  ASSERT_FALSE(b);
+  EXPECT_NE(b.status().message().find("layout 1"), std::string::npos) << b.status().message();
+  // A layout from a newer lightlink.
+  const std::string future = (dir / "future.exr").string();
+  {
+    Imf::Header h(2, 2);
+    h.channels().insert("Y", Imf::Channel(Imf::FLOAT));
+    h.insert("lightlink.layout", Imf::IntAttribute(output::kExrLayout + 1));
+    std::vector<float> px(4, 1.0f);
+    Imf::FrameBuffer fb;
+    fb.insert("Y", Imf::Slice(Imf::FLOAT, reinterpret_cast<char*>(px.data()), 4, 8));
+    Imf::OutputFile f(future.c_str(), h);
+    f.setFrameBuffer(fb);
+    f.writePixels(2);
+  }
+  const Status t = readLightlinkExr(future, img);
+  EXPECT_EQ(t.code(), Code::kInvalidInput);
+  EXPECT_NE(t.message().find("lightlink.layout " + std::to_string(output::kExrLayout + 1)), std::string::npos)
+      << t.message();
+}
+
+// Every encoding read back by the viewer samples what the in-memory result gives at texel
+// centres: L2 and L1 the SH of their bands plus direct, L0 the irradiance map.
+TEST(BakedLightingFile, EachEncodingReadsBackAsTheResultEvaluates) {
+  relight::RelightResult r;
+  r.bands = 3;
+  r.width = 4;
+  r.height = 2;
+  const std::size_t texels = 8;
+  r.lightmap_sh.resize(texels * 27);
+  for (std::size_t k = 0; k < r.lightmap_sh.size(); ++k) r.lightmap_sh[k] = 0.2f + 0.1f * std::sin(float(k));
+  for (std::size_t t = 0; t < texels; ++t) {
+    r.direct.push_back(glm::vec3(0.5f * float(t), 0.25f, 1.0f));
+    r.texel_valid.push_back(1);
+  }
+  const glm::vec3 up(0.0f, 1.0f, 0.0f);
+  for (const output::Encoding enc : {output::Encoding::kL0, output::Encoding::kL1, output::Encoding::kL2}) {
+    testing::TempDir dir;
+    ASSERT_TRUE(writeBake(r, dir.path(), {.half = false, .encoding = enc}));
+    auto b = loadBakedLighting(dir.path().string());
+    ASSERT_TRUE(b) << b.status().toString();
+    const int bands = output::lightmapBands(enc, r.bands);
+    EXPECT_EQ(b->bands, bands);
+    for (std::size_t t = 0; t < texels; ++t) {
+      const glm::vec2 uv((float(t % 4) + 0.5f) / 4.0f, (float(t / 4) + 0.5f) / 2.0f);
+      glm::vec3 e;
+      ASSERT_TRUE(b->sampleLightmap(uv, up, e));
+      const int eval_bands = bands == 0 ? r.bands : bands;  // L0 holds the full result's evaluation
+      for (int ch = 0; ch < 3; ++ch) {
+        const float want = sh::irradiance(eval_bands, r.lightmap_sh.data() + t * 27 + std::size_t(ch) * 9, up) +
+                           r.direct[t][ch];
+        EXPECT_NEAR(e[ch], want, 1e-5f * std::max(1.0f, want)) << output::encodingName(enc) << " texel " << t;
+      }
+    }
+  }
+}
+
+// A finer direct layer travels as direct.exr at its own size (lightlink.direct_scale 2)
 // and is sampled at its own resolution: a direct step inside one lightmap texel survives.
 TEST(BakedLightingFile, FinerDirectLayerLoadsFromItsOwnFile) {
   relight::RelightResult r;
@@ -257,8 +376,7 @@ TEST(BakedLightingFile, FinerDirectLayerLoadsFromItsOwnFile) {
   r.direct_valid.assign(16, 1);
   for (int y = 0; y < 4; ++y) r.direct[std::size_t(y) * 4 + 3] = glm::vec3(8.0f);  // the last column lit
   testing::TempDir dir;
-  ASSERT_TRUE(output::writeLightmapExr(r, (dir.path() / "lightmap.exr").string()));
-  ASSERT_TRUE(output::writeDirectExr(r, (dir.path() / "direct.exr").string()));
+  ASSERT_TRUE(writeBake(r, dir.path()));
   auto b = loadBakedLighting(dir.path().string());
   ASSERT_TRUE(b) << b.status().toString();
   EXPECT_EQ(b->direct_scale, 2);
