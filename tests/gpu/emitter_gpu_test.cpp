@@ -25,23 +25,13 @@
 #include "gpu/emitter_sampling.h"
 #include "gpu/gl_objects.h"
 #include "tests/common/testing.h"
+#include "tests/gpu/gpu_testing.h"
 
 namespace lightlink::gpu {
 namespace {
 
 using relight::detail::EmitterReceivers;
 using relight::detail::EmitterSampler;
-
-const bool kCacheDir = [] {
-  setenv("MESA_SHADER_CACHE_DIR", LIGHTLINK_BINARY_DIR "/mesa_shader_cache", 0);
-  return true;
-}();
-
-#define REQUIRE_GPU()                                                                        \
-  do {                                                                                       \
-    const GpuProbe& probe = probeGpu();                                                      \
-    if (!probe.available) GTEST_SKIP() << "no usable EGL display / GL 4.5: " << probe.error; \
-  } while (0)
 
 struct Cornell {
   scene::Scene scene;

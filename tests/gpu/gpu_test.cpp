@@ -21,28 +21,17 @@
 #include "gpu/gl_objects.h"
 #include "gpu/gpu_relight.h"
 #include "tests/common/testing.h"
+#include "tests/gpu/gpu_testing.h"
 
 namespace lightlink::gpu {
 namespace {
 
 const std::string kDemo = (testing::sourceDir() / "clients/demo/cornell_box.gltf").string();
 
-// Mesa's shader cache goes to the build tree, not the home directory.
-const bool kCacheDir = [] {
-  setenv("MESA_SHADER_CACHE_DIR", LIGHTLINK_BINARY_DIR "/mesa_shader_cache", 0);
-  return true;
-}();
-
 #define ASSERT_OK(expr)                                  \
   do {                                                   \
     const Status st_ = (expr);                           \
     ASSERT_TRUE(st_.isOk()) << #expr << ": " << st_.toString(); \
-  } while (0)
-
-#define REQUIRE_GPU()                                                                   \
-  do {                                                                                  \
-    const GpuProbe& probe = probeGpu();                                                 \
-    if (!probe.available) GTEST_SKIP() << "no usable EGL display / GL 4.5: " << probe.error; \
   } while (0)
 
 struct Fixture {
