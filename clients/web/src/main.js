@@ -26,6 +26,7 @@ async function gltfName(params) {
 
 async function start() {
   const params = readParams(location.search);
+  if (!params.ui) document.body.classList.add('plain');
   const gltfUrl = new URL(await gltfName(params), params.bakeUrl).href;
   say(`loading ${gltfUrl}`);
   const gltf = await new GLTFLoader().loadAsync(gltfUrl).catch((e) => { throw new Error(`cannot load ${gltfUrl}: ${e.message}`); });

@@ -40,5 +40,6 @@ export function readParams(search) {
     fov,
     exposure,
     size: width === null ? null : { width, height },
+    ui: params.get('ui') !== '0',  // ui=0: no status line over the picture (screenshots)
   };
 }
