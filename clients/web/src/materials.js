@@ -29,8 +29,15 @@ function lightUniforms(root) {
     lightCosInner: { value: pick('cosInner') } } };
 }
 
+// A node's extras land in its object's userData (the mesh, or the group of a multi-primitive
+// mesh's meshes), so the flag is looked up the ancestors too.
+function isDynamic(object) {
+  for (let o = object; o; o = o.parent) if (o.userData?.lightlink?.static === false) return true;
+  return false;
+}
+
 export function isLightmapped(mesh) {
-  return mesh.geometry.attributes.uv1 !== undefined && mesh.userData?.lightlink?.static !== false;
+  return mesh.geometry.attributes.uv1 !== undefined && !isDynamic(mesh);
 }
 
 // Returns how many meshes each lighting path got.
