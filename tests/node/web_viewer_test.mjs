@@ -1,5 +1,5 @@
 // The browser viewer (clients/web, docs/web.md) against `lightlink render`: bakes the demo
-// scene (draft preset, with its grid), renders two fixed cameras with `lightlink render`, opens
+// scene (draft preset, with its grid; L2, L1 and L0 encodings), renders fixed cameras with `lightlink render`, opens
 // the built page (argv[2]) on the same bake and cameras in headless Chromium (SwiftShader's
 // WebGL 2), screenshots it and compares the lit pixels (those either picture draws) of the two
 // 8-bit sRGB images: the per-pixel difference is the mean over R, G, B of |page - render|,
@@ -40,11 +40,15 @@ if (!viewerDir || !fs.existsSync(path.join(viewerDir, 'viewer.js')))
 const cli = process.env.LIGHTLINK_CLI, source = process.env.LIGHTLINK_SOURCE_DIR;
 if (!cli || !source) fail('LIGHTLINK_CLI and LIGHTLINK_SOURCE_DIR must be set (ctest sets them)');
 const work = fs.mkdtempSync(path.join(os.tmpdir(), 'lightlink-web-'));
-const bake = path.join(work, 'bake');
+// Each encoding's bake (docs/outputs.md), with the views compared on it: the page reads the
+// 9 SH files of L2, the 4 of L1, or the L0 irradiance.exr alone.
+const BAKES = { l2: ['room', 'probe'], l1: ['room'], l0: ['room'] };
 const run = (...args) => execFileSync(cli, args, { stdio: ['ignore', 'pipe', 'inherit'] }).toString();
-run('bake', path.join(source, 'clients/demo/cornell_box.gltf'), '-o', bake, '--preset', 'draft', '--grid', 'on', '--quiet');
+for (const encoding of Object.keys(BAKES))
+  run('bake', path.join(source, 'clients/demo/cornell_box.gltf'), '-o', path.join(work, encoding), '--preset', 'draft',
+      '--grid', 'on', '--encoding', encoding, '--quiet');
 const vec = (v) => v.join(',');
-const server = await serveFolders({ '/viewer/': viewerDir, '/bake/': bake });
+const server = await serveFolders({ '/viewer/': viewerDir, '/bake/': work });
 // A fresh profile (playwright's launch makes one), no network, WebGL through SwiftShader.
 const browser = await chromium.launch({
   executablePath: chromiumPath, headless: true,
@@ -53,12 +57,13 @@ const browser = await chromium.launch({
 });
 
 // One view: `lightlink render` and the page's screenshot, compared. Returns whether it passed.
-async function compareView(name, c) {
+async function compareView(encoding, view) {
+  const c = VIEWS[view], name = `${encoding}_${view}`, bake = path.join(work, encoding);
   const reference = path.join(work, `${name}_render.png`);
   process.stdout.write(run('render', path.join(bake, 'cornell_box_lm.gltf'), '--bake', bake, '-o', reference,
     '--eye', ...c.eye.map(String), '--target', ...c.target.map(String), '--fov', String(c.fov),
     '--width', String(c.width), '--height', String(c.height)));
-  const url = `http://127.0.0.1:${server.address().port}/viewer/index.html?bake=/bake/&ui=0` +
+  const url = `http://127.0.0.1:${server.address().port}/viewer/index.html?bake=/bake/${encoding}/&ui=0` +
     `&eye=${vec(c.eye)}&target=${vec(c.target)}&fov=${c.fov}&width=${c.width}&height=${c.height}`;
   const page = await browser.newPage({ viewport: { width: c.width, height: c.height }, deviceScaleFactor: 1 });
   page.on('console', (m) => { if (m.type() === 'error') console.log(`page error: ${m.text()}`); });
@@ -71,7 +76,7 @@ async function compareView(name, c) {
   await page.close();
   const pagePng = path.join(work, `${name}_page.png`);
   fs.writeFileSync(pagePng, shot);
-  console.log(`${name}: page ${info.counts.lightmapped} meshes lightmapped (L${info.bands - 1}), ${info.counts.gridLit} grid-lit, ` +
+  console.log(`${name}: page ${info.counts.lightmapped} meshes lightmapped (${info.bands ? `L${info.bands - 1} SH` : 'L0 irradiance'}), ${info.counts.gridLit} grid-lit, ` +
               `exposure ${info.exposure.toPrecision(4)}, frame ${info.frameMs.toFixed(1)} ms (SwiftShader)`);
 
   const a = PNG.sync.read(fs.readFileSync(reference)), b = PNG.sync.read(shot);
@@ -103,7 +108,8 @@ async function compareView(name, c) {
 
 let passed = true;
 try {
-  for (const [name, camera] of Object.entries(VIEWS)) passed = (await compareView(name, camera)) && passed;
+  for (const [encoding, views] of Object.entries(BAKES))
+    for (const view of views) passed = (await compareView(encoding, view)) && passed;
 } finally {
   await browser.close();
   server.close();
