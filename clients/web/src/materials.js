@@ -40,11 +40,26 @@ export function isLightmapped(mesh) {
   return mesh.geometry.attributes.uv1 !== undefined && !isDynamic(mesh);
 }
 
+// A material texture on the uv set it names (GLTFLoader's `channel`: 0 = uv, 1 = uv1), with
+// the shader's defines for it; null (with a warning) when the mesh lacks that uv set.
+function textureOn(mesh, texture, name, defines) {
+  if (!texture) return null;
+  const set = texture.channel === 1 ? 1 : 0;
+  if (!mesh.geometry.attributes[set === 1 ? 'uv1' : 'uv']) {
+    console.warn(`mesh '${mesh.name}': its ${name.toLowerCase()} texture is on uv set ${set}, which it lacks; drawn without it`);
+    return null;
+  }
+  defines[`${name}_MAP`] = 1;
+  defines[`${name}_UV`] = `vUv${set}`;
+  defines[`USES_UV${set}`] = 1;
+  return texture;
+}
+
 // Returns how many meshes each lighting path got.
 export function applyLightlinkMaterials(root, lighting) {
   const lights = lightUniforms(root);
   const grid = lighting.grid;
-  const counts = { lightmapped: 0, gridLit: 0 };
+  const counts = { lightmapped: 0, gridLit: 0, textured: 0 };
   const shared = {
     shMap: { value: lighting.sh }, validMap: { value: lighting.valid }, lightmapSize: { value: new THREE.Vector2(...lighting.size) },
     directMap: { value: lighting.direct ?? null }, directValidMap: { value: lighting.directValid ?? null },
@@ -60,15 +75,19 @@ export function applyLightlinkMaterials(root, lighting) {
     const defines = { LIGHT_COUNT: lights.count, LIGHTMAP_BANDS: lighting.bands, GRID_BANDS: grid ? Math.min(grid.bands, 3) : 0 };
     if (lightmapped) defines.LIGHTMAPPED = 1;
     if (lighting.directValid) defines.DIRECT_FINER = 1;
+    if (lightmapped) defines.USES_UV1 = 1;
+    const map = textureOn(o, source.map, 'ALBEDO', defines);
+    const emissiveMap = textureOn(o, source.emissiveMap, 'EMISSIVE', defines);
     const albedo = source.color ? new THREE.Vector3(source.color.r, source.color.g, source.color.b) : new THREE.Vector3(1, 1, 1);
     const emission = source.emissive
       ? new THREE.Vector3(source.emissive.r, source.emissive.g, source.emissive.b).multiplyScalar(source.emissiveIntensity ?? 1)
       : new THREE.Vector3();
     o.material = new THREE.RawShaderMaterial({
       glslVersion: THREE.GLSL3, vertexShader, fragmentShader, defines, side: THREE.DoubleSide,
-      uniforms: { ...shared, albedo: { value: albedo }, emission: { value: emission } },
+      uniforms: { ...shared, albedo: { value: albedo }, emission: { value: emission }, albedoMap: { value: map }, emissiveMap: { value: emissiveMap } },
     });
     ++counts[lightmapped ? 'lightmapped' : 'gridLit'];
+    if (map || emissiveMap) ++counts.textured;
   });
   return counts;
 }

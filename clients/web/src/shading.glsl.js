@@ -4,12 +4,20 @@
 // the lightmap at uv1, each weighted by its validity, the SH evaluated at the shading
 // normal, plus baked direct; other meshes, and lightmapped ones where no tap is valid: the
 // grid's eight trilinear taps weighted by validity, plus the direct light of every light
-// (unshadowed here: render traces a shadow ray). Then albedo / pi * E + emission.
+// (unshadowed here: render traces a shadow ray). Then albedo / pi * E + emission, the albedo
+// and emission being glTF's factors times their textures (baseColorTexture, emissiveTexture).
 
+// Defines: LIGHTMAPPED, LIGHTMAP_BANDS, DIRECT_FINER, GRID_BANDS, LIGHT_COUNT (materials.js);
+// ALBEDO_MAP / EMISSIVE_MAP with ALBEDO_UV / EMISSIVE_UV = vUv0 or vUv1 (the texCoord glTF names),
+// and USES_UV0 / USES_UV1 for the uv sets the mesh's shader reads.
 export const vertexShader = /* glsl */ `
 in vec3 position;
 in vec3 normal;
-#ifdef LIGHTMAPPED
+#ifdef USES_UV0
+in vec2 uv;
+out vec2 vUv0;
+#endif
+#ifdef USES_UV1
 in vec2 uv1;
 out vec2 vUv1;
 #endif
@@ -19,7 +27,10 @@ void main() {
   vec4 world = modelMatrix * vec4(position, 1.0);
   vWorldPosition = world.xyz;
   vWorldNormal = transpose(inverse(mat3(modelMatrix))) * normal;  // normals under any scale
-#ifdef LIGHTMAPPED
+#ifdef USES_UV0
+  vUv0 = uv;
+#endif
+#ifdef USES_UV1
   vUv1 = uv1;
 #endif
   gl_Position = projectionMatrix * viewMatrix * world;
@@ -34,9 +45,14 @@ precision highp sampler2DArray;
 precision highp sampler3D;
 
 in vec3 vWorldPosition, vWorldNormal;
-#ifdef LIGHTMAPPED
+#ifdef USES_UV0
+in vec2 vUv0;
+#endif
+#ifdef USES_UV1
 in vec2 vUv1;
 #endif
+// glTF's baseColorTexture and emissiveTexture, sRGB textures: sampling returns linear values.
+uniform sampler2D albedoMap, emissiveMap;
 out vec4 fragColor;
 
 uniform vec3 cameraPosition;
@@ -210,6 +226,13 @@ void main() {
     sampleGrid(vWorldPosition, n, e);
     e += directLights(vWorldPosition, n);  // every light is baked: lightmaps hold their direct
   }
-  fragColor = vec4(albedo / 3.14159265 * e + emission, 1.0);
+  vec3 base = albedo, glow = emission;
+#ifdef ALBEDO_MAP
+  base *= texture(albedoMap, ALBEDO_UV).rgb;
+#endif
+#ifdef EMISSIVE_MAP
+  glow *= texture(emissiveMap, EMISSIVE_UV).rgb;
+#endif
+  fragColor = vec4(base / 3.14159265 * e + glow, 1.0);
 }
 `;
