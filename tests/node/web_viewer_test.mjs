@@ -4,7 +4,8 @@
 // WebGL 2), screenshots it and compares the lit pixels (those either picture draws) of the two
 // 8-bit sRGB images: the per-pixel difference is the mean over R, G, B of |page - render|,
 // its mean and 95th percentile must stay within the tolerances below. On failure the two
-// pictures and the difference are kept (paths printed).
+// pictures and the difference are kept (paths printed). Then bad URLs: the page must say what
+// is wrong.
 // Exit 77 (skip) only when no Chromium binary exists.
 import fs from 'node:fs';
 import os from 'node:os';
@@ -106,10 +107,24 @@ async function compareView(encoding, view) {
   return false;
 }
 
+// Bad input: the page names what is wrong instead of drawing nothing.
+async function expectError(query, wanted) {
+  const page = await browser.newPage();
+  await page.goto(`http://127.0.0.1:${server.address().port}/viewer/index.html${query}`);
+  await page.waitForFunction(() => document.body.dataset.state !== 'loading', null, { timeout: 60000 });
+  const error = await page.evaluate(() => document.body.dataset.error ?? '');
+  await page.close();
+  if (!error.includes(wanted)) fail(`page${query}: error '${error}', expected one saying '${wanted}'`);
+  console.log(`ok   page${query}: ${error}`);
+}
+
 let passed = true;
 try {
   for (const [encoding, views] of Object.entries(BAKES))
     for (const view of views) passed = (await compareView(encoding, view)) && passed;
+  await expectError('', 'no bake folder');
+  await expectError('?bake=/bake/l2/&eye=1,2', 'URL parameter eye=1,2');
+  await expectError('?bake=/bake/missing/', '/bake/missing/report.json: HTTP 404');
 } finally {
   await browser.close();
   server.close();
