@@ -76,8 +76,9 @@ struct Flattener {
       std::sort(ids.begin(), ids.end());
       out.nodes[index].a = std::uint32_t(out.triangles.size());
       out.nodes[index].b = kBvhLeaf | leaf->count;
-      for (const auto& [m, t] : ids) {
+      for (const auto& [m, tri] : ids) {
         const auto& mesh = scene.meshes[m];
+        const std::uint32_t t = tri;  // clang 14 cannot capture a structured binding
         const auto p = [&](int k) { return glm::vec4(mesh.positions[mesh.indices[3 * t + k]], 0.0f); };
         out.triangles.push_back({p(0), p(1), p(2)});
       }
