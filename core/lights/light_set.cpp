@@ -9,6 +9,12 @@
 
 namespace lightlink::lights {
 namespace {
+// In double: a float's square overflows beyond ~1.8e19 (a direction of 1e25 would have an
+// infinite length and normalise to zero) and underflows below ~1e-19.
+double directionLength(glm::vec3 d) { return glm::length(glm::dvec3(d)); }
+}  // namespace
+
+namespace {
 
 using json = nlohmann::json;
 constexpr float kPi = std::numbers::pi_v<float>;
@@ -222,7 +228,7 @@ Status LightSet::validate(const LightEntry& e, std::string_view path) {
   if (Status s = checkScalar(l.range, fmt::format("{}.range", path)); !s) return s;
   if (Status s = checkFinite(l.position, fmt::format("{}.position", path)); !s) return s;
   if (Status s = checkFinite(l.direction, fmt::format("{}.direction", path)); !s) return s;
-  if (l.kind != Light::Kind::kPoint && !(glm::length(l.direction) > 1e-6f))
+  if (l.kind != Light::Kind::kPoint && !(directionLength(l.direction) > 1e-6))
     return invalidInput("{}.direction: must be a non-zero vector", path);
   if (l.kind == Light::Kind::kSpot) {
     if (!std::isfinite(l.outer_cone_angle) || l.outer_cone_angle <= 0.0f || l.outer_cone_angle > 0.5f * kPi + 1e-6f)
@@ -266,8 +272,8 @@ Status LightSet::validate(const Sky& sky, std::string_view path) {
 namespace {
 // The direction stored is unit length, whatever length the caller gave.
 void normalizeDirection(LightEntry& e) {
-  const float len = glm::length(e.light.direction);
-  if (len > 0.0f) e.light.direction /= len;
+  const double len = directionLength(e.light.direction);
+  if (len > 0.0) e.light.direction = glm::vec3(glm::dvec3(e.light.direction) / len);
 }
 }  // namespace
 
@@ -298,7 +304,7 @@ Status LightPatch::validateFields(std::string_view path) const {
   if (direction) {
     if (Status s = checkFinite(*direction, fmt::format("{}.direction", path)); !s) return s;
     // Zero is no direction for any kind: a later "type" change would make it one.
-    if (!(glm::length(*direction) > 1e-6f)) return invalidInput("{}.direction: must be a non-zero vector", path);
+    if (!(directionLength(*direction) > 1e-6)) return invalidInput("{}.direction: must be a non-zero vector", path);
   }
   for (auto [key, angle] : {std::pair{"inner_cone_angle", inner_cone_angle}, std::pair{"outer_cone_angle", outer_cone_angle}})
     if (angle && !(*angle >= 0.0f && *angle <= 0.5f * kPi + 1e-6f))

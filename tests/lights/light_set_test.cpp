@@ -187,3 +187,27 @@ TEST(LightSet, BadJsonIsRejectedNamingTheField) {
 
 }  // namespace
 }  // namespace lightlink::lights
+
+namespace lightlink::lights {
+namespace {
+
+// Found by fuzz_requests (regressions/requests/spot_direction_1e25.bin): a direction of 1e25
+// had a float length of infinity and normalised to zero, so an accepted update failed in the
+// relight. Lengths are taken in double: huge and tiny non-zero directions become unit vectors.
+TEST(LightSet, HugeAndTinyDirectionsNormaliseToUnitVectors) {
+  for (const float scale : {1.7e25f, 1e30f, 1e-3f}) {
+    LightSet set;
+    LightEntry e;
+    e.id = "spot";
+    e.light.kind = Light::Kind::kSpot;
+    e.light.intensity = 1.0f;
+    e.light.outer_cone_angle = 0.5f;
+    e.light.direction = glm::vec3(0.0f, scale, 0.0f);
+    ASSERT_TRUE(set.add(e)) << scale;
+    EXPECT_EQ(set.lights()[0].light.direction, glm::vec3(0.0f, 1.0f, 0.0f)) << scale;
+    EXPECT_TRUE(LightSet::validate(set.lights()[0], "lights[0]")) << scale;
+  }
+}
+
+}  // namespace
+}  // namespace lightlink::lights
