@@ -186,6 +186,12 @@ void shadowedLight(const rt::Accel& accel, const scene::Light& light, std::span<
         const glm::vec3 pos = position[k], nrm = normal[k];
         const float radius = kFootprintRadius * std::sqrt(std::max(footprint.area[k], 0.0f) / 3.14159265f);
         footprintOrigins(pos, nrm, radius, m, k, origin.data());
+        // A damaged artifact's absurd surfel area can put the footprint at infinity: such a
+        // point keeps its centre ray's answer (Embree must never see a non-finite ray).
+        bool finite = std::isfinite(radius);
+        for (int j = 0; j < m && finite; ++j)
+          finite = std::isfinite(origin[j].x) && std::isfinite(origin[j].y) && std::isfinite(origin[j].z);
+        if (!finite) continue;
         for (int j = 0; j < m; ++j) ray_buf.push_back(shadowRay(accel, light, origin[j], nrm));
         who.push_back(k);
         e_of.push_back(scene::irradianceFrom(light, pos, nrm));

@@ -98,6 +98,21 @@ TEST(FuzzReplay, ArtifactRegressionsAreRejectedAtOpen) {
   }
 }
 
+// Artifacts the open accepts (their values are in range) whose relight once crashed: each
+// must open and relight cleanly. footprint_beyond_float_range.llk: a surfel's shadow-ray
+// footprint (from its area) left the float range, and Embree asserted on the ray.
+TEST(FuzzReplay, ArtifactRelightRegressions) {
+  const auto files = inputs("regressions", "artifact_relit");
+  ASSERT_FALSE(files.empty());
+  for (const fs::path& f : files) {
+    const ArtifactVerdict v = openArtifactBytes(readBytes(f));
+    expectClear(v.raw, f, "open");
+    if (v.fixed) expectClear(v.after_fix, f, "open after fixChecksums");
+    EXPECT_TRUE(v.relit) << f << " no longer opens: it tests nothing here";
+    if (v.relit) EXPECT_TRUE(v.relight) << f << ": " << v.relight.toString();
+  }
+}
+
 fs::path seedPath() { return fs::path(LIGHTLINK_FUZZ_DIR) / "corpus" / "artifact" / "tiny.llk"; }
 
 // A stale seed (format version bumped, a section renamed) would leave the artifact fuzzer
