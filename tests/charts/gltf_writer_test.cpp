@@ -10,6 +10,7 @@
 #include <sstream>
 
 #include <ImfRgbaFile.h>
+#include <fmt/format.h>
 #include <nlohmann/json.hpp>
 
 #include "core/charts/gltf_lighting.h"
@@ -50,16 +51,21 @@ void expectSameGeometry(const scene::Scene& a, const scene::Scene& b) {
   }
 }
 
+// The shared scene's path, or empty when it is not there (the test then skips, naming it).
 fs::path scenePath(const char* folder, const char* file) {
   const fs::path dir = lightlink::testing::sharedScenesDir();
-  return dir.empty() ? fs::path() : dir / folder / file;
+  return dir.empty() || !fs::exists(dir / folder / file) ? fs::path() : dir / folder / file;
+}
+
+std::string missingScene(const char* folder, const char* file) {
+  return fmt::format("../shared/scenes/{}/{} not found: this test needs the shared scenes", folder, file);
 }
 
 class WriterRoundTrip : public ::testing::TestWithParam<std::pair<const char*, const char*>> {};
 
 TEST_P(WriterRoundTrip, ReloadGivesTheUnwrappedSceneBitExactly) {
   const fs::path in = scenePath(GetParam().first, GetParam().second);
-  if (in.empty() || !fs::exists(in)) GTEST_SKIP() << "shared scenes not found";
+  if (in.empty()) GTEST_SKIP() << missingScene(GetParam().first, GetParam().second);
   Expected<scene::Scene> scene = scene::loadGltf(in.string(), {.load_textures = false});
   ASSERT_TRUE(scene) << scene.status().toString();
   Expected<UnwrapResult> result = unwrap(*scene, {});
@@ -84,7 +90,7 @@ INSTANTIATE_TEST_SUITE_P(
 
 TEST(GltfWriter, ExistingLightmapUvSurvivesBitExactly) {
   const fs::path in = scenePath("khronos_MultiUVTest", "MultiUVTest.gltf");
-  if (in.empty() || !fs::exists(in)) GTEST_SKIP() << "shared scenes not found";
+  if (in.empty()) GTEST_SKIP() << missingScene("khronos_MultiUVTest", "MultiUVTest.gltf");
   Expected<scene::Scene> original = scene::loadGltf(in.string(), {.load_textures = false});
   ASSERT_TRUE(original);
   scene::Scene scene = *original;
@@ -104,7 +110,7 @@ TEST(GltfWriter, ExistingLightmapUvSurvivesBitExactly) {
 
 TEST(GltfWriter, OutputIsDeterministicAndNeverOverwritesTheInput) {
   const fs::path in = scenePath("cornell_box_vinc3r_lightmapuv", "cornellBox-2.80-Eevee-gltf.gltf");
-  if (in.empty() || !fs::exists(in)) GTEST_SKIP() << "shared scenes not found";
+  if (in.empty()) GTEST_SKIP() << missingScene("cornell_box_vinc3r_lightmapuv", "cornellBox-2.80-Eevee-gltf.gltf");
   lightlink::testing::TempDir tmp;
   for (const char* name : {"a", "b"}) {
     UnwrapCommand cmd;
@@ -428,7 +434,7 @@ TEST(GltfLighting, BindsTheIrradianceMapOnlyWhenWritten) {
         std::tuple{"cornell_box_mcguire_obj", "CornellBox-Sphere.obj", "cornell_obj"},
         std::tuple{"cornell_box_vinc3r_lightmapuv", "cornellBox-2.80-Eevee-gltf.gltf", "vinc3r"}}) {
     const fs::path in = scenePath(folder, file);
-    if (in.empty() || !fs::exists(in)) GTEST_SKIP() << "shared scenes not found";
+    if (in.empty()) GTEST_SKIP() << missingScene(folder, file);
     SCOPED_TRACE(folder);
     lighting::writeBoundAndUnbound(in, dir, stem);
   }
@@ -439,7 +445,7 @@ TEST(GltfLighting, BindsTheIrradianceMapOnlyWhenWritten) {
 // the new bake wrote.
 TEST(GltfLighting, ABakedGltfBakedAgainKeepsOneIrradianceTextureAndTheNewMap) {
   const fs::path in = scenePath("cornell_box_original_gltf", "CornellBox-Original.gltf");
-  if (in.empty() || !fs::exists(in)) GTEST_SKIP() << "shared scenes not found";
+  if (in.empty()) GTEST_SKIP() << missingScene("cornell_box_original_gltf", "CornellBox-Original.gltf");
   lightlink::testing::TempDir tmp;
   fs::create_directories(tmp / "first");
   fs::create_directories(tmp / "second");

@@ -65,7 +65,6 @@ TEST(ScenariosCli, EachScenarioIsRelitIntoItsOwnFolderFromOnePrecompute) {
   ASSERT_EQ(report["scenarios"].size(), 2u);
   EXPECT_GT(report["scenarios"][0]["relight_ms"].get<double>(), 0.0);
   EXPECT_EQ(report["scenarios"][1]["lighting"]["no_light"], false);
-  EXPECT_EQ(report["precompute"]["options"], readJson(out / "report.json")["precompute"]["options"]);
   // One precompute: the artifact cache holds one artifact.
   int artifacts = 0;
   for (const auto& e : fs::directory_iterator(out / "cache")) artifacts += e.path().extension() == ".llk";
