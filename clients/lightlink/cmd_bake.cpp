@@ -115,9 +115,26 @@ Status writeScenarioManifest(const nlohmann::ordered_json& reports, const fs::pa
                "grid point (docs/outputs.md \"Lighting scenarios\")";
   nlohmann::ordered_json list = nlohmann::ordered_json::array();
   for (const auto& r : reports)
-    list.push_back({{"name", r["name"]}, {"folder", r["folder"]}, {"lights", r["lights"]}, {"outputs", r["outputs"]}});
+    list.push_back({{"name", r["name"]}, {"folder", r["folder"]}, {"lights", r["lights"]}, {"light_set", r["light_set"]},
+                    {"outputs", r["outputs"]}});
   m["scenarios"] = std::move(list);
   return output::writeReportJson(m, path.string());
+}
+
+// What reopens this bake's precompute (and so its lightmap atlas) elsewhere: the scene's
+// absolute path and the bake options as given (OpenScene takes the same names), the light
+// set, and which glTF node holds each light id (for viewers that move lights).
+nlohmann::ordered_json sourceJson(const BakeArgs& args, const relight::LightSet& lights) {
+  std::error_code ec;
+  fs::path scene = fs::absolute(args.scene_path, ec);
+  if (ec) scene = args.scene_path;
+  nlohmann::ordered_json options = nlohmann::ordered_json::object();
+  for (const auto& [name, value] : args.options) options[name] = value;
+  nlohmann::ordered_json nodes = nlohmann::ordered_json::object();
+  for (const auto& e : lights.lights())
+    if (e.light.gltf_node >= 0) nodes[e.id] = e.light.gltf_node;
+  return {{"scene", scene.lexically_normal().string()}, {"options", std::move(options)}, {"light_set", "lights.json"},
+          {"light_nodes", std::move(nodes)}};
 }
 
 }  // namespace
@@ -204,11 +221,16 @@ int runBake(const BakeArgs& args) {
     if (Status s = makeDirectory(dir); !s) return reportError(kCmd, s);
     auto sf = writeLightingFiles(sr, p, dir, exr);
     if (!sf) return reportError(kCmd, sf.status());
+    // The scenario's whole light set, so a daemon can take the scenario over (the gateway's
+    // live mode, docs/web.md) without the file the bake was given.
+    if (Status s = file.lights.save((dir / "lights.json").string()); !s) return reportError(kCmd, s);
+    sf->outputs.push_back("lights.json");
     addWriterWarnings(*sf, "scenario " + name + ": ", findings.warnings);
     const BakeFindings sfind = collectFindings(scene, resident->precomputeReport(), sr);
     for (const std::string& w : sfind.warnings) findings.warnings.push_back("scenario " + name + ": " + w);
     scenario_reports.push_back({{"name", name},
                                 {"lights", file.path},
+                                {"light_set", "scenarios/" + name + "/lights.json"},
                                 {"folder", "scenarios/" + name},
                                 {"relight_ms", sr.totalSeconds() * 1e3},
                                 {"lighting", {{"no_light", sfind.no_light}, {"all_black", sfind.all_black}}},
@@ -222,6 +244,9 @@ int runBake(const BakeArgs& args) {
   printWarnings(findings, stderr);
 
   std::vector<std::string> outputs = written->outputs;
+  // The light set this bake relit with, whole (the scene's lights with --lights applied).
+  if (Status s = lights.save((out / "lights.json").string()); !s) return reportError(kCmd, s);
+  outputs.push_back("lights.json");
   outputs.push_back("report.json");
   // The lightmapped scene, always (a kept TEXCOORD_1 too), pointing at the files above:
   // MOZ_lightmap binds the plain irradiance map only where this bake wrote one.
@@ -248,6 +273,7 @@ int runBake(const BakeArgs& args) {
   report["load"] = resident->loadReport();
   report["artifact"] = artifact_note;
   report["cache_key"] = key_hex;
+  report["source"] = sourceJson(args, lights);
   report["backend"] = {{"requested", args.backend}, {"used", result->backend}, {"note", backend_note}};
   report["isa"] = {{"cpu", isaName(cpuIsa())}, {"used", isaName(activeIsa())}};
   report["precompute"] = resident->precomputeReport();

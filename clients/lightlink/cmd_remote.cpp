@@ -12,12 +12,11 @@
 #include <nlohmann/json.hpp>
 
 #include "clients/client/client.h"
-#include "clients/client/core_bridge.h"
+#include "clients/client/result_files.h"
 #include "clients/client/session.h"
 #include "clients/lightlink/commands.h"
 #include "clients/lightlink/exit_codes.h"
 #include "core/bake/bake_options.h"
-#include "core/output/grid_threejs.h"
 #include "core/output/output.h"
 
 namespace lightlink::cli {
@@ -331,43 +330,19 @@ int runPull(const PullArgs& args) {
   auto tex = remote->client.relight(remote->session.scene, args.version, spec);
   if (!tex) return reportError(kCmd, tex.status());
   const double fetch_ms = msSince(t0);
-  auto result = client::toRelightResult(*tex);
-  if (!result) return reportError(kCmd, result.status());
-
   const fs::path out(args.output_dir);
   std::error_code ec;
   fs::create_directories(out, ec);
   if (ec) return reportError(kCmd, ioError("cannot create directory {}: {}", out.string(), ec.message()));
   auto encoding = output::parseEncoding(args.encoding);
   if (!encoding) return reportError(kCmd, encoding.status());
-  output::ExrOptions exr;
-  exr.half = !args.float_exr;
-  exr.scene_hash = remote->session.scene.info.cache_key();
-  exr.encoding = *encoding;
-  // The wire carries no surface normals: irradiance.exr and the preview evaluate the SH at
-  // the texel's dominant light direction (client::previewCachesOf), an approximation.
-  const caches::LightmapCaches preview = client::previewCachesOf(*tex);
-  auto lm = output::writeLightmapExrs(*result, preview, out.string(), exr);
-  if (!lm) return reportError(kCmd, lm.status());
-  if (Status s = output::writeIrradiancePng(*result, preview, (out / "lightmap.png").string()); !s)
-    return reportError(kCmd, s);
-  std::vector<std::string> written = lm->files;
-  written.push_back("lightmap.png");
-  if (tex->info.has_grid && tex->has(client::Payload::kGridSh)) {
-    auto grid = client::gridCachesOf(*tex);
-    if (!grid) return reportError(kCmd, grid.status());
-    auto g = output::writeGridExrs(*result, *grid, out.string(), exr);
-    if (!g) return reportError(kCmd, g.status());
-    if (Status s = output::writeGridJson(*result, *grid, (out / "grid.json").string(), *encoding); !s)
-      return reportError(kCmd, s);
-    if (Status s = output::writeGridRaw(*result, *grid, (out / "grid.raw").string(), *encoding); !s)
-      return reportError(kCmd, s);
-    if (Status s = output::writeThreeJsGrid(*result, *grid, (out / "grid_threejs.json").string(), "grid_threejs.bin");
-        !s)
-      return reportError(kCmd, s);
-    written.insert(written.end(), g->files.begin(), g->files.end());
-    written.insert(written.end(), {"grid.json", "grid.raw", "grid_threejs.json", "grid_threejs.bin"});
-  }
+  client::ResultFileOptions file_options;
+  file_options.encoding = *encoding;
+  file_options.half = !args.float_exr;
+  file_options.scene_hash = remote->session.scene.info.cache_key();
+  auto files = client::writeResultFiles(*tex, out.string(), file_options);
+  if (!files) return reportError(kCmd, files.status());
+  const std::vector<std::string>& written = files->files;
   nlohmann::ordered_json info;
   info["scene_id"] = remote->session.scene.id;
   info["version"] = tex->info.version;
