@@ -75,7 +75,7 @@ int fail(const std::string& event, const std::string& message) {
 
 }  // namespace
 
-int runDaemon(int argc, char** argv) {
+int runDaemon(int argc, char** argv, const DaemonHooks& hooks) {
   // Before any thread exists (gRPC, TBB, scene workers): every thread inherits the mask,
   // so SIGTERM/SIGINT reach only the sigwait below. SIGPIPE is ignored: a client closing
   // its socket must not kill the daemon.
@@ -147,9 +147,19 @@ int runDaemon(int argc, char** argv) {
             {"shared_memory", config.shared_memory_dir.empty() ? "off" : config.shared_memory_dir},
             {"scenes", registry.size()}});
 
+  if (hooks.on_listening) {
+    if (Status s = hooks.on_listening(config, port); !s) {
+      server->Shutdown(std::chrono::system_clock::now());
+      server->Wait();
+      (void)registry.shutdown();
+      return fail("start_failed", s.message());
+    }
+  }
+
   int sig = 0;
   while (sigwait(&signals, &sig) != 0) {
   }
+  if (hooks.on_draining) hooks.on_draining();
   logEvent(LogLevel::kInfo, "draining", {{"signal", sig == SIGTERM ? "SIGTERM" : "SIGINT"},
                                          {"streams", service.activeStreams()}});
   service.beginDrain();

@@ -11,6 +11,7 @@ import { loadBakeLighting } from './bake_lighting.js';
 import { applyLightlinkMaterials } from './materials.js';
 import { makeCamera } from './camera.js';
 import { autoExposure, makeTonemapPass } from './tonemap.js';
+import { startLive } from './live.js';
 
 const status = document.getElementById('status');
 const say = (text) => { status.textContent = text; };
@@ -31,7 +32,8 @@ async function start() {
   say(`loading ${gltfUrl}`);
   const gltf = await new GLTFLoader().loadAsync(gltfUrl).catch((e) => { throw new Error(`cannot load ${gltfUrl}: ${e.message}`); });
   const lighting = await loadBakeLighting(gltf.parser.json.extensions?.LIGHTLINK_lighting, gltfUrl);
-  const counts = applyLightlinkMaterials(gltf.scene, lighting);
+  const materials = applyLightlinkMaterials(gltf.scene, lighting);
+  const { counts } = materials;
 
   const canvas = document.getElementById('view');
   // No multisampling and one device pixel per pixel when a size is given: render samples each
@@ -87,6 +89,10 @@ async function start() {
   say(`${counts.lightmapped} meshes from the lightmap (${encoding}), ${counts.gridLit} from the ` +
       `${lighting.grid ? 'grid' : '(absent) grid'}; exposure ${exposure.toPrecision(4)}; frame ${frameMs.toFixed(1)} ms`);
   window.lightlinkViewer = { counts, exposure, frameMs, bands: lighting.bands };
+  if (params.live) {
+    say('live: opening the bake on the daemon');
+    window.lightlinkViewer.live = await startLive({ params, gltf, scene, camera, canvas, orbit: controls, materials, draw, say });
+  }
   document.body.dataset.state = 'ready';
 }
 

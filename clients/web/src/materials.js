@@ -55,24 +55,36 @@ function textureOn(mesh, texture, name, defines) {
   return texture;
 }
 
-// Returns how many meshes each lighting path got.
-export function applyLightlinkMaterials(root, lighting) {
-  const lights = lightUniforms(root);
+// The uniforms every material shares for the bake's lighting (loadBakeLighting's result).
+function lightingUniforms(lighting) {
   const grid = lighting.grid;
-  const counts = { lightmapped: 0, gridLit: 0, textured: 0 };
-  const shared = {
+  return {
     shMap: { value: lighting.sh }, validMap: { value: lighting.valid }, lightmapSize: { value: new THREE.Vector2(...lighting.size) },
     directMap: { value: lighting.direct ?? null }, directValidMap: { value: lighting.directValid ?? null },
     directSize: { value: new THREE.Vector2(...(lighting.directSize ?? lighting.size)) },
     gridMap: { value: grid?.texture ?? null }, gridDims: { value: new THREE.Vector3(...(grid?.dims ?? [1, 1, 1])) },
     gridOrigin: { value: new THREE.Vector3(...(grid?.origin ?? [0, 0, 0])) }, gridSpacing: { value: grid?.spacing ?? 1 },
-    ...(lights.count > 0 ? lights.uniforms : {}),
   };
+}
+
+function lightingDefines(lighting) {
+  return { LIGHTMAP_BANDS: lighting.bands, GRID_BANDS: lighting.grid ? Math.min(lighting.grid.bands, 3) : 0,
+           DIRECT_FINER: lighting.directValid ? 1 : undefined };
+}
+
+// Returns how many meshes each lighting path got, and `setLighting` / `refreshLights` for
+// live mode (new lighting from the daemon, lights moved in the page).
+export function applyLightlinkMaterials(root, lighting) {
+  const lights = lightUniforms(root);
+  const counts = { lightmapped: 0, gridLit: 0, textured: 0 };
+  const shared = { ...lightingUniforms(lighting), ...(lights.count > 0 ? lights.uniforms : {}) };
+  const materials = [];
+  let current = lighting;
   root.traverse((o) => {
     if (!o.isMesh) return;
     const source = o.material;
     const lightmapped = isLightmapped(o);
-    const defines = { LIGHT_COUNT: lights.count, LIGHTMAP_BANDS: lighting.bands, GRID_BANDS: grid ? Math.min(grid.bands, 3) : 0 };
+    const defines = { LIGHT_COUNT: lights.count, LIGHTMAP_BANDS: lighting.bands, GRID_BANDS: lighting.grid ? Math.min(lighting.grid.bands, 3) : 0 };
     if (lightmapped) defines.LIGHTMAPPED = 1;
     if (lighting.directValid) defines.DIRECT_FINER = 1;
     if (lightmapped) defines.USES_UV1 = 1;
@@ -86,8 +98,36 @@ export function applyLightlinkMaterials(root, lighting) {
       glslVersion: THREE.GLSL3, vertexShader, fragmentShader, defines, side: THREE.DoubleSide,
       uniforms: { ...shared, albedo: { value: albedo }, emission: { value: emission }, albedoMap: { value: map }, emissiveMap: { value: emissiveMap } },
     });
+    materials.push(o.material);
     ++counts[lightmapped ? 'lightmapped' : 'gridLit'];
     if (map || emissiveMap) ++counts.textured;
   });
-  return counts;
+
+  // New lighting (same scene and atlas): textures swapped in place, shaders recompiled only
+  // when the encoding or the direct layer's form changed; the old textures are freed.
+  const setLighting = (next) => {
+    const fresh = lightingUniforms(next);
+    for (const [k, u] of Object.entries(fresh)) shared[k].value = u.value;
+    const defines = lightingDefines(next);
+    for (const m of materials) {
+      let changed = false;
+      for (const [k, v] of Object.entries(defines)) {
+        if (m.defines[k] === v) continue;
+        if (v === undefined) delete m.defines[k]; else m.defines[k] = v;
+        changed = true;
+      }
+      if (changed) m.needsUpdate = true;
+    }
+    for (const t of [current.sh, current.valid, current.direct, current.directValid, current.grid?.texture])
+      if (t && !Object.values(shared).some((u) => u.value === t)) t.dispose();
+    current = next;
+  };
+  // Lights moved in the scene graph: the same lights, new positions and directions.
+  const refreshLights = () => {
+    if (lights.count === 0) return;
+    const now = lightUniforms(root).uniforms;
+    for (const k of ['lightPosition', 'lightDirection', 'lightIntensity'])
+      now[k].value.forEach((v, i) => shared[k].value[i].copy(v));
+  };
+  return { counts, setLighting, refreshLights };
 }

@@ -41,5 +41,6 @@ export function readParams(search) {
     exposure,
     size: width === null ? null : { width, height },
     ui: params.get('ui') !== '0',  // ui=0: no status line over the picture (screenshots)
+    live: params.get('live') === '1',  // live=1: relight through the gateway that serves the page
   };
 }
