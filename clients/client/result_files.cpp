@@ -19,6 +19,7 @@ Expected<ResultFiles> writeResultFiles(const Textures& tex, const std::string& d
   exr.half = options.half;
   exr.scene_hash = options.scene_hash;
   exr.encoding = options.encoding;
+  exr.compress = options.compress;
   const caches::LightmapCaches preview = previewCachesOf(tex);
   auto lm = output::writeLightmapExrs(*result, preview, out.string(), exr);
   if (!lm) return lm.status();
@@ -33,14 +34,18 @@ Expected<ResultFiles> writeResultFiles(const Textures& tex, const std::string& d
     auto g = gridCachesOf(tex);
     if (!g) return g.status();
     grid = std::move(g).value();
-    auto files = output::writeGridExrs(*result, *grid, out.string(), exr);
-    if (!files) return files.status();
-    if (Status s = output::writeGridJson(*result, *grid, (out / "grid.json").string(), options.encoding); !s) return s;
     if (Status s = output::writeGridRaw(*result, *grid, (out / "grid.raw").string(), options.encoding); !s) return s;
-    if (Status s = output::writeThreeJsGrid(*result, *grid, (out / "grid_threejs.json").string(), "grid_threejs.bin"); !s)
-      return s;
-    written.files.insert(written.files.end(), files->files.begin(), files->files.end());
-    written.files.insert(written.files.end(), {"grid.json", "grid.raw", "grid_threejs.json", "grid_threejs.bin"});
+    if (options.all_grid_files) {
+      auto files = output::writeGridExrs(*result, *grid, out.string(), exr);
+      if (!files) return files.status();
+      if (Status s = output::writeGridJson(*result, *grid, (out / "grid.json").string(), options.encoding); !s) return s;
+      if (Status s = output::writeThreeJsGrid(*result, *grid, (out / "grid_threejs.json").string(), "grid_threejs.bin");
+          !s)
+        return s;
+      written.files.insert(written.files.end(), files->files.begin(), files->files.end());
+      written.files.insert(written.files.end(), {"grid.json", "grid_threejs.json", "grid_threejs.bin"});
+    }
+    written.files.push_back("grid.raw");
   }
   const output::LightingFiles names =
       output::LightingFiles::fromWritten(written.files, std::string(output::encodingName(options.encoding)));

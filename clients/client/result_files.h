@@ -20,6 +20,10 @@ struct ResultFileOptions {
   bool half = true;          // false: float EXRs
   bool png_preview = true;   // lightmap.png
   std::string scene_hash;    // the scene's cache key (hex), into every file's header
+  bool compress = true;      // false: uncompressed EXRs (output::ExrOptions::compress)
+  // false: of the grid only grid.raw (what the web viewer reads), not its EXRs, grid.json
+  // and the three.js files.
+  bool all_grid_files = true;
 };
 
 struct ResultFiles {

@@ -137,6 +137,8 @@ void LiveScene::close() {
 void LiveScene::follow() {
   client::ResultFileOptions options;
   options.png_preview = false;
+  options.compress = false;        // written and read at once on this machine
+  options.all_grid_files = false;  // the page reads grid.raw
   options.scene_hash = handle_.info.cache_key();
   while (!closed_) {
     auto next = subscription_->next();
@@ -150,6 +152,7 @@ void LiveScene::follow() {
     const std::uint64_t version = tex.info.version;
     const fs::path dir = work_dir_ / fmt::format("v{}", version);
     const fs::path staging = work_dir_ / fmt::format("v{}.partial", version);
+    const auto t0 = std::chrono::steady_clock::now();
     std::error_code ec;
     fs::remove_all(staging, ec);
     fs::create_directories(staging, ec);
@@ -165,7 +168,8 @@ void LiveScene::follow() {
       spdlog::warn("gateway: {}: {}", dir.string(), ec.message());
       continue;
     }
-    LiveVersion v{version, dir, files->files, files->lighting, tex.info.relight_ms, 0};
+    const double write_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+    LiveVersion v{version, dir, files->files, files->lighting, tex.info.relight_ms, write_ms, 0};
     std::vector<fs::path> dropped;
     {
       std::lock_guard lock(mutex_);

@@ -38,6 +38,7 @@ struct LiveVersion {
   std::vector<std::string> files;
   nlohmann::json lighting;   // LIGHTLINK_lighting description of `files`
   double relight_ms = 0.0;
+  double write_ms = 0.0;     // the gateway writing the files
   std::uint64_t lights_version = 0;  // newest update through the gateway this result includes
 };
 

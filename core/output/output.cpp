@@ -67,7 +67,7 @@ Expected<WriteStats> writeExr(Planes& planes, const std::string& path, const rel
                               const ExrOptions& options, const FileTags& tags) {
   try {
     Imf::Header header(planes.width, planes.height);
-    header.compression() = Imf::ZIP_COMPRESSION;
+    header.compression() = options.compress ? Imf::ZIP_COMPRESSION : Imf::NO_COMPRESSION;
     const Imf::PixelType type = planes.half ? Imf::HALF : Imf::FLOAT;
     Imf::FrameBuffer fb;
     const std::size_t elem = planes.half ? sizeof(half_bits) : sizeof(float);

@@ -45,6 +45,9 @@ struct ExrOptions {
   Encoding encoding = Encoding::kL2;
   std::string scene_hash;      // e.g. the artifact cache key in hex
   std::string units = "incident radiance SH and irradiance in the units of docs/units.md (lights in cd/lux)";
+  // false: uncompressed, for files read back at once on the same machine (the web gateway's
+  // live versions), where ZIP's time to write and to inflate in a browser costs more than bytes.
+  bool compress = true;
 };
 
 struct WriteStats {

@@ -39,7 +39,9 @@ export async function startLive({ params, gltf, scene, camera, canvas, orbit, ma
   const info = await postJson('/api/live', { bake: bakePath });
   const live = {
     sceneId: info.scene_id, sceneToken: info.scene_token, lightIds: info.light_ids, scenarios: info.scenarios,
+    lights: info.lights,
     version: 0, shownAt: 0, latencies: [], frameMs: 0, events: 0, error: null,
+    stages: [],  // per version shown: relight_ms, write_ms (gateway), load_ms (fetch + decode), draw_ms
   };
   const sent = [];  // { version, t0 } of light changes not yet on screen
 
@@ -63,13 +65,18 @@ export async function startLive({ params, gltf, scene, camera, canvas, orbit, ma
 
   // Moves light `id` to world position [x, y, z]: in the page at once (its handle, the direct
   // light of grid-lit objects), on the daemon through the gateway.
+  // A light the bake added (a light-set file, no glTF node) moves on the daemon only: the page
+  // draws its light through the lightmap and grid, not as a direct light of grid-lit objects.
+  const known = new Set([...(info.light_ids ?? []), ...(info.lights?.lights ?? []).map((l) => l.id)]);
   live.moveLight = (id, position) => {
     const node = nodes.get(id);
-    if (!node) throw new Error(`no light ${id} in this scene (lights: ${[...nodes.keys()].join(', ')})`);
-    placeNode(node, new THREE.Vector3(...position));
-    live.onLightMoved?.(id, position);
-    materials.refreshLights();
-    draw(false);
+    if (!node && !known.has(id)) throw new Error(`no light ${id} in this scene (lights: ${[...known].join(', ')})`);
+    if (node) {
+      placeNode(node, new THREE.Vector3(...position));
+      live.onLightMoved?.(id, position);
+      materials.refreshLights();
+      draw(false);
+    }
     sendLight({ id, position: [...position] });
   };
 
@@ -87,7 +94,9 @@ export async function startLive({ params, gltf, scene, camera, canvas, orbit, ma
     loading = true;
     const ev = newest;
     try {
+      const tLoad = performance.now();
       const lighting = await loadBakeLighting(ev.lighting, new URL(ev.url, location.href).href);
+      const loadMs = performance.now() - tLoad;
       materials.setLighting(lighting);
       // Lights moved through the gateway by another page (or this one): follow them.
       for (const l of ev.lights?.lights ?? []) {
@@ -102,6 +111,7 @@ export async function startLive({ params, gltf, scene, camera, canvas, orbit, ma
       await new Promise((resolve) => requestAnimationFrame(resolve));
       const now = performance.now();
       live.frameMs = now - t;
+      live.stages.push({ version: ev.version, relight_ms: ev.relight_ms, write_ms: ev.write_ms, load_ms: loadMs, draw_ms: now - t });
       live.version = ev.version;
       live.shownAt = now;
       for (let i = sent.length - 1; i >= 0; --i)

@@ -88,7 +88,19 @@ async function start() {
   const encoding = lighting.bands === 0 ? 'L0 irradiance.exr' : `L${lighting.bands - 1} SH (${lighting.bands * lighting.bands} coefficients)`;
   say(`${counts.lightmapped} meshes from the lightmap (${encoding}), ${counts.gridLit} from the ` +
       `${lighting.grid ? 'grid' : '(absent) grid'}; exposure ${exposure.toPrecision(4)}; frame ${frameMs.toFixed(1)} ms`);
-  window.lightlinkViewer = { counts, exposure, frameMs, bands: lighting.bands };
+  // Frame time for benchmarks (bench/web): n redraws, each waited for by a one-pixel read.
+  const measureFrames = (n) => {
+    const one = new Float32Array(4);
+    const t0 = performance.now();
+    for (let i = 0; i < n; ++i) {
+      draw(false);
+      renderer.setRenderTarget(target);
+      renderer.readRenderTargetPixels(target, 0, 0, 1, 1, one);
+      renderer.setRenderTarget(null);
+    }
+    return (performance.now() - t0) / n;
+  };
+  window.lightlinkViewer = { counts, exposure, frameMs, bands: lighting.bands, measureFrames };
   if (params.live) {
     say('live: opening the bake on the daemon');
     window.lightlinkViewer.live = await startLive({ params, gltf, scene, camera, canvas, orbit: controls, materials, draw, say });
