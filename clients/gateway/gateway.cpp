@@ -92,7 +92,9 @@ struct Gateway::Impl {
   std::thread listener;
   int port = 0;
   std::string host;
-  std::mutex lives_mutex;  // also serialises opens: one live scene per bake folder
+  std::mutex open_mutex;   // serialises opens: one live scene per bake folder
+  int opened_count = 0;    // under open_mutex: names each live scene's work folder
+  std::mutex lives_mutex;  // the maps below and `stopped`
   std::map<std::string, std::shared_ptr<LiveScene>> lives_by_id;
   std::map<fs::path, std::shared_ptr<LiveScene>> lives_by_bake;
   bool stopped = false;
@@ -152,25 +154,41 @@ struct Gateway::Impl {
       if (!dir) return sendError(res, 404, fmt::format("bake \"{}\": {}", url, dir.status().message()));
       if (!fs::is_directory(*dir) || !fs::exists(*dir / "report.json"))
         return sendError(res, 404, fmt::format("bake \"{}\" is not a bake folder (no report.json)", url));
-      std::lock_guard lock(lives_mutex);
-      if (stopped) return sendError(res, 503, "the gateway is stopping");
-      auto it = lives_by_bake.find(*dir);
-      if (it != lives_by_bake.end() && it->second->closed()) {
-        lives_by_id.erase(it->second->handle().id);
-        lives_by_bake.erase(it);
-        it = lives_by_bake.end();
+      // One open at a time (a second page of the same bake waits and shares it); the maps stay
+      // readable meanwhile, so the pages of other bakes go on.
+      std::lock_guard opening(open_mutex);
+      std::shared_ptr<LiveScene> live, stale;
+      {
+        std::lock_guard lock(lives_mutex);
+        if (stopped) return sendError(res, 503, "the gateway is stopping");
+        auto it = lives_by_bake.find(*dir);
+        if (it != lives_by_bake.end()) {
+          if (it->second->usable()) {
+            live = it->second;
+          } else {  // its stream ended: open the bake again
+            stale = it->second;
+            lives_by_id.erase(stale->handle().id);
+            lives_by_bake.erase(it);
+          }
+        }
       }
-      if (it == lives_by_bake.end()) {
-        const fs::path work = work_dir / fmt::format("live{}", lives_by_id.size() + 1);
+      if (stale) stale->close();
+      if (!live) {
+        const fs::path work = work_dir / fmt::format("live{}", ++opened_count);
         auto opened = LiveScene::open(*client, *dir, work, options.keep_versions);
         if (!opened) return sendError(res, httpStatusOf(opened.status()), opened.status().message());
-        std::shared_ptr<LiveScene> live = std::move(opened).value();
+        live = std::move(opened).value();
         spdlog::info("gateway: {} is live as scene {}", dir->string(), live->handle().id);
+        std::lock_guard lock(lives_mutex);
+        if (stopped) {
+          live->close();
+          return sendError(res, 503, "the gateway is stopping");
+        }
         lives_by_id[live->handle().id] = live;
-        it = lives_by_bake.emplace(*dir, live).first;
+        lives_by_bake.emplace(*dir, live);
       }
-      nlohmann::json j = it->second->describe();
-      j["events"] = fmt::format("/api/live/{}/events", it->second->handle().id);
+      nlohmann::json j = live->describe();
+      j["events"] = fmt::format("/api/live/{}/events", live->handle().id);
       sendJson(res, 200, j);
     });
 
@@ -181,17 +199,17 @@ struct Gateway::Impl {
       if (!live) return sendError(res, 404, fmt::format("no live scene {}", std::string(req.matches[1])));
       res.set_header("Cache-Control", "no-store");
       auto last = std::make_shared<std::uint64_t>(0);
+      // Ends with an `ended` event when the scene stops being live (gateway stopping, the
+      // daemon's stream gone): the page then opens the bake again.
       res.set_chunked_content_provider("text/event-stream", [live, last](std::size_t, httplib::DataSink& sink) {
-        if (live->closed()) {
-          sink.done();
-          return true;
-        }
-        auto v = live->waitNewer(*last, kHeartbeat);
+        auto v = live->usable() ? live->waitNewer(*last, kHeartbeat) : std::nullopt;
         std::string text = ": waiting\n\n";
         if (v) {
           *last = v->version;
           text = eventText(*live, *v);
-        } else if (live->closed()) {
+        } else if (!live->usable()) {
+          text = "event: ended\ndata: {}\n\n";
+          sink.write(text.data(), text.size());
           sink.done();
           return true;
         }

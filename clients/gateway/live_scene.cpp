@@ -143,8 +143,7 @@ void LiveScene::follow() {
   while (!closed_) {
     auto next = subscription_->next();
     if (!next || *next == nullptr) {
-      std::lock_guard lock(mutex_);
-      if (!next) stream_error_ = next.status().message();
+      if (!closed_) spdlog::warn("gateway: the stream of scene {} ended{}", handle_.id, next ? "" : ": " + next.status().message());
       break;
     }
     const client::Textures& tex = **next;
@@ -183,10 +182,12 @@ void LiveScene::follow() {
     changed_.notify_all();
     for (const auto& d : dropped) fs::remove_all(d, ec);
   }
+  ended_ = true;
   changed_.notify_all();
 }
 
 nlohmann::json LiveScene::describe() const {
+  std::lock_guard update(update_mutex_);  // updates change the handle's light ids
   std::lock_guard lock(mutex_);
   nlohmann::json j;
   j["live"] = handle_.id;
@@ -241,7 +242,7 @@ Expected<std::uint64_t> LiveScene::useScenarios(const std::vector<lights::Scenar
 
 std::optional<LiveVersion> LiveScene::waitNewer(std::uint64_t after, std::chrono::milliseconds timeout) {
   std::unique_lock lock(mutex_);
-  changed_.wait_for(lock, timeout, [&] { return closed_ || (!versions_.empty() && versions_.back().version > after); });
+  changed_.wait_for(lock, timeout, [&] { return !usable() || (!versions_.empty() && versions_.back().version > after); });
   if (closed_ || versions_.empty() || versions_.back().version <= after) return std::nullopt;
   return versions_.back();
 }

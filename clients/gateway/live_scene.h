@@ -69,6 +69,9 @@ class LiveScene {
   // Ends the stream and wakes every waiter; the daemon scene is closed too.
   void close();
   bool closed() const { return closed_; }
+  // False once closed or once the daemon ended the stream (a restart, the scene closed by
+  // another client): the gateway then opens the bake again.
+  bool usable() const { return !closed_ && !ended_; }
 
  private:
   LiveScene(client::Client& client, std::filesystem::path bake_dir, std::filesystem::path work_dir, int keep);
@@ -87,11 +90,11 @@ class LiveScene {
   std::deque<LiveVersion> versions_;
   nlohmann::json light_set_;            // newest light set sent through the gateway
   std::uint64_t light_set_version_ = 0;
-  std::mutex update_mutex_;             // one update at a time (the handle's light ids)
+  mutable std::mutex update_mutex_;     // one update at a time (the handle's light ids)
   std::unique_ptr<client::Subscription> subscription_;
   std::thread follower_;
   std::atomic<bool> closed_{false};
-  std::string stream_error_;
+  std::atomic<bool> ended_{false};
 };
 
 }  // namespace lightlink::gateway

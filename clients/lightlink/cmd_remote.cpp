@@ -318,6 +318,15 @@ int runWatch(const WatchArgs& args) {
   return kExitOk;
 }
 
+int runClose(const RemoteArgs& args) {
+  constexpr const char* kCmd = "close";
+  auto remote = connect(args, true);
+  if (!remote) return reportError(kCmd, remote.status());
+  if (Status s = remote->client.closeScene(remote->session.scene); !s) return reportError(kCmd, s);
+  print(fmt::format("closed       {}\n", remote->session.scene.id));
+  return kExitOk;
+}
+
 int runPull(const PullArgs& args) {
   constexpr const char* kCmd = "pull";
   if (args.bands < 0 || args.bands > 4) return reportError(kCmd, invalidInput("--bands {} is out of range (0..4)", args.bands));

@@ -160,6 +160,9 @@ struct WatchArgs {
 };
 int runWatch(const WatchArgs& args);
 
+// `lightlink close`: closes the scene on the daemon (its session forgotten, memory freed).
+int runClose(const RemoteArgs& args);
+
 struct PullArgs {
   RemoteArgs remote;
   std::string output_dir;

@@ -204,6 +204,10 @@ int main(int argc, char** argv) {
   scen_cmd->add_option("--wait-ms", scen.wait_ms, "Longest wait for the relight")->capture_default_str();
 
   WatchArgs watch;
+  lightlink::cli::RemoteArgs close_args;
+  auto* close_cmd = app.add_subcommand("close", "Close a scene on the daemon (it leaves memory and sessions.json)");
+  addRemoteOptions(close_cmd, close_args);
+
   auto* watch_cmd = app.add_subcommand("watch", "Subscribe to a scene and print one line per new version");
   addRemoteOptions(watch_cmd, watch.remote);
   watch_cmd->add_option("--count", watch.count, "Stop after N results (0 = until the stream ends)");
@@ -240,6 +244,7 @@ int main(int argc, char** argv) {
   if (*setl_cmd) return runSetLight(setl);
   if (*scen_cmd) return runScenario(scen);
   if (*watch_cmd) return runWatch(watch);
+  if (*close_cmd) return runClose(close_args);
   if (*pull_cmd) return runPull(pull);
 #endif
   return kExitUsage;

@@ -8,7 +8,9 @@
 //  2. moves it with `lightlink set-light` on the same scene: the page follows;
 //  3. blends the bake's scenarios from the page: the picture dims as the dim scenario takes over;
 //  4. hostile requests are refused (another Host, another Origin, a non-JSON POST, a path
-//     out of the served folder, a bad light set), and SIGTERM stops the whole process.
+//     out of the served folder, a bad light set);
+//  5. the scene closed by another client: the page opens the bake again; SIGTERM stops the
+//     whole process.
 // Prints the light-change-to-pixels latencies it saw (figures come from bench/web).
 // Exit 77 (skip) only when no Chromium binary exists.
 import fs from 'node:fs';
@@ -204,6 +206,16 @@ try {
   });
   if (rebinding !== 403) fail(`a request with another Host got ${rebinding}, expected 403`);
   console.log('ok   a request with another Host header: 403');
+
+  // 5. The scene closed under the page (another client, a daemon restart): the page opens the
+  //    bake again and goes on live under a new scene id.
+  run('close', '--target', `127.0.0.1:${daemonPort}`, '--scene', info.sceneId, '--scene-token', info.token);
+  await page.waitForFunction((old) => {
+    const live = window.lightlinkViewer.live;
+    return live.error || (live.sceneId !== old && live.version > 0);
+  }, info.sceneId, { timeout: 120000 });
+  const reopened = await page.evaluate(() => window.lightlinkViewer.live.sceneId);
+  console.log(`ok   scene ${info.sceneId} closed by another client: the page is live again as ${reopened}`);
 
   const lat = await page.evaluate(() => window.lightlinkViewer.live.latencies);
   console.log(`light change to pixels (SwiftShader, 2 cores): ${lat.map((x) => x.toFixed(0)).join(', ')} ms`);

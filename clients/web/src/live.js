@@ -127,14 +127,30 @@ export async function startLive({ params, gltf, scene, camera, canvas, orbit, ma
     loading = false;
     show();
   };
-  const events = new EventSource(info.events);
-  events.addEventListener('version', (m) => {
-    ++live.events;
-    newest = JSON.parse(m.data);
-    show();
-  });
-  events.onerror = () => { document.body.dataset.live = 'reconnecting'; };
-  events.onopen = () => { document.body.dataset.live = 'connected'; };
+  // The event stream; when the gateway ends it (the daemon restarted, the scene was closed),
+  // the bake is made live again, under a new scene id, and versions count from there.
+  const listen = (url) => {
+    const events = new EventSource(url);
+    events.addEventListener('version', (m) => {
+      ++live.events;
+      newest = JSON.parse(m.data);
+      show();
+    });
+    events.addEventListener('ended', () => {
+      events.close();
+      document.body.dataset.live = 'reconnecting';
+      say('live: the daemon ended the scene\'s stream; opening the bake again');
+      const retry = (delay) => setTimeout(() => postJson('/api/live', { bake: bakePath }).then((again) => {
+        Object.assign(live, { sceneId: again.scene_id, sceneToken: again.scene_token, version: 0 });
+        newest = null;
+        listen(again.events);
+      }).catch((e) => { say(`live: ${e.message}; retrying`); retry(Math.min(2 * delay, 10000)); }), delay);
+      retry(1000);
+    });
+    events.onerror = () => { document.body.dataset.live = 'reconnecting'; };
+    events.onopen = () => { document.body.dataset.live = 'connected'; };
+  };
+  listen(info.events);
 
   if (params.ui) addControls({ live, nodes, scene, camera, canvas, orbit, draw, worldPosition, info });
   return live;
