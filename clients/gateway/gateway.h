@@ -26,7 +26,9 @@ struct GatewayOptions {
   std::string port_file;    // written (atomically) with the bound port
   client::ConnectOptions daemon;  // how the gateway reaches the daemon
   std::string work_dir;     // where live versions' files go; empty: a fresh folder under $TMPDIR
-  int keep_versions = 4;    // newest versions kept per live scene (older folders removed)
+  // Newest versions kept per live scene (older folders removed): the one a page may still be
+  // reading and the one just written. Each is the whole lightmap and grid.
+  int keep_versions = 2;
 };
 
 class Gateway {
