@@ -27,8 +27,8 @@ struct GatewayOptions {
   client::ConnectOptions daemon;  // how the gateway reaches the daemon
   std::string work_dir;     // where live versions' files go; empty: a fresh folder under $TMPDIR
   // Newest versions kept per live scene (older folders removed): the one a page may still be
-  // reading and the one just written. Each is the whole lightmap and grid.
-  int keep_versions = 2;
+  // reading, one more, and the one just written. Each is the whole lightmap and grid.
+  int keep_versions = 3;
 };
 
 class Gateway {

@@ -120,9 +120,13 @@ export async function startLive({ params, gltf, scene, camera, canvas, orbit, ma
       say(`live: scene ${live.sceneId} version ${ev.version} (relight ${ev.relight_ms.toFixed(1)} ms)` +
           (last !== undefined ? `; last change to pixels ${last.toFixed(0)} ms` : ''));
     } catch (e) {
-      live.error = e.message;
-      say(`live: ${e.message}`);
-      console.error(e);
+      // A version replaced while it loaded is gone from the gateway (it keeps the newest few):
+      // the newer one follows. Only a failure of the newest is an error.
+      if (!(newest.version > ev.version)) {
+        live.error = e.message;
+        say(`live: ${e.message}`);
+        console.error(e);
+      }
     }
     loading = false;
     show();
