@@ -114,6 +114,7 @@ export async function startLive({ params, gltf, scene, camera, canvas, orbit, ma
       live.stages.push({ version: ev.version, relight_ms: ev.relight_ms, write_ms: ev.write_ms, load_ms: loadMs, draw_ms: now - t });
       live.version = ev.version;
       live.shownAt = now;
+      live.error = null;
       for (let i = sent.length - 1; i >= 0; --i)
         if (sent[i].version <= ev.version) { live.latencies.push(now - sent[i].t0); sent.splice(i, 1); }
       const last = live.latencies.at(-1);
