@@ -65,7 +65,12 @@ int runPrecompute(const PrecomputeArgs& args) {
   // No preset unless one is given: precompute's defaults are PrecomputeOptions'.
   auto bake_options = bake::buildBakeOptions(args.options, "");
   if (!bake_options) return reportError("precompute", bake_options.status());
-  const precompute::PrecomputeOptions& options = bake_options->precompute;
+  precompute::PrecomputeOptions& options = bake_options->precompute;
+  if (!args.shard.empty()) {
+    auto shard = precompute::parseShard(args.shard);
+    if (!shard) return reportError("precompute", shard.status());
+    options.shard = *shard;
+  }
   if (args.subdivide < 0 || args.subdivide > 4)
     return reportError("precompute", invalidInput("--subdivide {} is out of range (0..4)", args.subdivide));
   scene::LoadOptions load;
@@ -85,12 +90,20 @@ int runPrecompute(const PrecomputeArgs& args) {
   ProgressBar bar(!args.quiet);
   auto p = precompute::run(*scene, options, &bar);
   if (!p) return reportError("precompute", p.status());
-  if (Status s = precompute::save(*p, args.output_path, *key); !s) return reportError("precompute", s);
+  if (Status s = options.shard ? precompute::savePart(*p, args.output_path, *key, args.scene_path)
+                               : precompute::save(*p, args.output_path, *key);
+      !s)
+    return reportError("precompute", s);
   auto report = p->report();
   report["artifact"] = args.output_path;
   report["cache_key"] = artifact::cacheKeyHex(*key);
   report["scene"] = args.scene_path;
   report["triangles"] = scene->triangleCount();
+  if (options.shard)
+    report["shard"] = {{"shard", options.shard->index},
+                       {"shards", options.shard->count},
+                       {"lightmap_caches", {p->lightmap_linked.begin, p->lightmap_linked.end}},
+                       {"grid_caches", {p->grid_linked.begin, p->grid_linked.end}}};
   report["warnings"] = scene->warnings;
   report["load"] = {{"seconds", load_seconds},
                     {"rss_before_bytes", rss_before_load},
@@ -104,7 +117,12 @@ int runPrecompute(const PrecomputeArgs& args) {
     if (!out) return reportError("precompute", ioError("cannot write report {}", args.report_json));
   }
   if (!args.quiet) {
-    const std::string text = formatReport(report) + fmt::format("wrote        {}\n", args.output_path);
+    std::string text = formatReport(report);
+    if (options.shard)
+      text += fmt::format("shard        {}/{}: linked lightmap caches [{}, {}), grid caches [{}, {})\n",
+                          options.shard->index, options.shard->count, p->lightmap_linked.begin,
+                          p->lightmap_linked.end, p->grid_linked.begin, p->grid_linked.end);
+    text += fmt::format("wrote        {}{}\n", args.output_path, options.shard ? " (shard part: lightlink merge)" : "");
     std::fwrite(text.data(), 1, text.size(), stdout);
   }
   return kExitOk;

@@ -43,10 +43,20 @@ struct PrecomputeArgs {
   std::string report_json;
   BakeSettings options;           // over PrecomputeOptions' defaults (no preset unless given)
   int subdivide = 0;              // split every triangle into 4^N first (scale tests)
+  std::string shard;              // "I/N": write shard I's part of the run (docs/farm.md)
   bool quiet = false;
   bool allow_outside_scene = false;  // read files the scene names outside its folder
 };
 int runPrecompute(const PrecomputeArgs& args);
+
+// `merge PART... -o ARTIFACT`: the parts of a sharded precompute into its artifact.
+struct MergeArgs {
+  std::vector<std::string> part_paths;
+  std::string output_path;
+  std::string report_json;
+  bool quiet = false;
+};
+int runMerge(const MergeArgs& args);
 
 struct BakeArgs {
   std::string scene_path;

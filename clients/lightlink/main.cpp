@@ -100,8 +100,17 @@ int main(int argc, char** argv) {
   pre_cmd->add_option("--report", pre.report_json, "Write the report (counts, times, memory) as JSON");
   addBakeOptions(pre_cmd, pre.options);
   pre_cmd->add_option("--subdivide", pre.subdivide, "Split every triangle into 4^N first (0..4)");
+  pre_cmd->add_option("--shard", pre.shard,
+                      "I/N: link only shard I of N (from 0) and write a part for `lightlink merge` (docs/farm.md)");
   pre_cmd->add_flag("-q,--quiet", pre.quiet, "No progress bar, no summary");
   pre_cmd->add_flag("--allow-outside-scene", pre.allow_outside_scene, "Read files the scene names outside its own folder (only for scenes you trust)");
+
+  MergeArgs merge;
+  auto* merge_cmd = app.add_subcommand("merge", "Assemble the parts of a sharded precompute into its artifact (.llk)");
+  merge_cmd->add_option("parts", merge.part_paths, "Shard parts written by `precompute --shard I/N`, all N")->required();
+  merge_cmd->add_option("-o,--output", merge.output_path, "Artifact to write (.llk)")->required();
+  merge_cmd->add_option("--report", merge.report_json, "Write what was merged (parts, key, bytes, seconds) as JSON");
+  merge_cmd->add_flag("-q,--quiet", merge.quiet, "No summary");
 
   BakeArgs bake;
   auto* bake_cmd = app.add_subcommand("bake", "Unwrap, precompute (or reuse), relight and write lightmaps, grid, report");
@@ -235,6 +244,7 @@ int main(int argc, char** argv) {
   if (*inspect_cmd) return runGuarded("inspect", [&] { return runInspect(inspect); });
   if (*unwrap_cmd) return runGuarded("unwrap", [&] { return runUnwrap(unwrap); });
   if (*pre_cmd) return runGuarded("precompute", [&] { return runPrecompute(pre); });
+  if (*merge_cmd) return runGuarded("merge", [&] { return runMerge(merge); });
   if (*bake_cmd) return runGuarded("bake", [&] { return runBake(bake); });
   if (*render_cmd) return runGuarded("render", [&] { return runRender(render); });
   if (*cmp_cmd) return runGuarded("compare", [&] { return runCompare(cmp); });

@@ -108,7 +108,7 @@ Status Writer::write(const std::string& path) const {
   }
   FileHeader h;
   std::memset(&h, 0, sizeof(h));
-  std::memcpy(h.magic, kMagic, sizeof(kMagic));
+  std::memcpy(h.magic, kind_ == FileKind::kArtifact ? kMagic : kPartMagic, sizeof(kMagic));
   h.format_version = kFormatVersion;
   h.endian_check = kEndianCheck;
   h.file_bytes = offset;
@@ -183,8 +183,17 @@ Expected<Artifact> Artifact::open(const std::string& path, const OpenOptions& op
   a.base_ = static_cast<const std::byte*>(map);
   a.size_ = size;
   const FileHeader& h = a.header();
-  if (std::memcmp(h.magic, kMagic, sizeof(kMagic)) != 0)
-    return invalidInput("{} is not a lightlink artifact (bad magic)", path);
+  const bool whole = std::memcmp(h.magic, kMagic, sizeof(kMagic)) == 0;
+  const bool part = std::memcmp(h.magic, kPartMagic, sizeof(kPartMagic)) == 0;
+  if (options.kind == FileKind::kArtifact && part)
+    return invalidInput("{} is one shard's part of a precomputation, not an artifact: assemble the parts with "
+                        "`lightlink merge`", path);
+  if (options.kind == FileKind::kShardPart && whole)
+    return invalidInput("{} is a whole artifact, not a shard part (`lightlink precompute --shard I/N` writes parts)",
+                        path);
+  if (!(options.kind == FileKind::kArtifact ? whole : part))
+    return invalidInput("{} is not a lightlink {} (bad magic)", path,
+                        options.kind == FileKind::kArtifact ? "artifact" : "shard part");
   if (h.endian_check != kEndianCheck)
     return unsupported("artifact {} was written with another byte order", path);
   if (h.format_version != kFormatVersion)

@@ -26,6 +26,11 @@
 namespace lightlink::artifact {
 
 inline constexpr char kMagic[8] = {'L', 'L', 'N', 'K', 'A', 'R', 'T', '\0'};
+// A shard's part of a precomputation (`precompute --shard i/N`, assembled by `lightlink
+// merge`; docs/farm.md) is the same container under its own magic, so that a part is never
+// opened as an artifact (it lacks most links) nor an artifact merged as a part.
+inline constexpr char kPartMagic[8] = {'L', 'L', 'N', 'K', 'P', 'R', 'T', '\0'};
+enum class FileKind { kArtifact, kShardPart };
 // Bump whenever the layout of any section changes; readers reject other versions.
 inline constexpr std::uint32_t kFormatVersion = 3;  // 2: surfel.seen. 3: the direct layer's texels (dt.*)
 inline constexpr std::size_t kSectionAlignment = 64;
@@ -64,7 +69,7 @@ std::string cacheKeyHex(std::uint64_t key);
 
 class Writer {
  public:
-  explicit Writer(std::uint64_t cache_key) : cache_key_(cache_key) {}
+  explicit Writer(std::uint64_t cache_key, FileKind kind = FileKind::kArtifact) : cache_key_(cache_key), kind_(kind) {}
 
   // Copies nothing: the span must stay alive until write() returns.
   Status addSection(std::string_view name, std::span<const std::byte> payload,
@@ -88,11 +93,13 @@ class Writer {
     std::uint32_t element_bytes;
   };
   std::uint64_t cache_key_;
+  FileKind kind_;
   std::vector<Pending> sections_;
 };
 
 struct OpenOptions {
   bool verify_payloads = true;  // false: check header + table only (payloads on demand)
+  FileKind kind = FileKind::kArtifact;  // the other kind is refused, naming what the file is
 };
 
 // A read-only mapping of an artifact. Movable, not copyable; unmaps on destruction.

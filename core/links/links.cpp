@@ -844,7 +844,8 @@ Expected<Links> generateLinks(const scene::Scene& scene, const rt::Accel& accel,
                 out.direction.reserve(most);
                 out.solid_angle.reserve(most);
                 for (std::size_t c = chunk * kChunk; c < end; ++c)
-                  link_cache(c, caches.position[c], caches.normal[c], double_sided.data(), accel, cut_tree, locator,
+                  link_cache(options.first_cache + c, caches.position[c], caches.normal[c], double_sided.data(),
+                             accel, cut_tree, locator,
                              options, pattern, surfel_bits, scratch, seen, out);
                 counter.add(end - chunk * kChunk);
                 return slot;

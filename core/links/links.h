@@ -54,6 +54,9 @@ struct LinkOptions {
   int max_links = 128;   // nL: most sender nodes per cache
   int bands = 3;         // SH bands of the projected form, 1..4
   std::uint64_t seed = 0x5eed;
+  // The global index of the first cache given: a shard of the caches (precompute --shard)
+  // traces the rays of caches first_cache.. so its links are those slices of the whole run's.
+  std::size_t first_cache = 0;
   const char* progress_label = "links";  // stage name shown by a Progress
   // Which hit-credit kernel runs: the best this CPU has, or the scalar one (both give the
   // same bits; precompute_bench --hit-credit scalar times the difference).

@@ -160,7 +160,39 @@ Status PrecomputeOptions::validate() const {
     return invalidInput("validity rays {} is out of range (1..65536)", validity_rays);
   if (direct_scale < 1 || direct_scale > kMaxDirectScale)
     return invalidInput("--direct-scale {} is out of range (1..{})", direct_scale, kMaxDirectScale);
+  if (shard && (shard->count < 1 || shard->count > kMaxShards || shard->index < 0 || shard->index >= shard->count))
+    return invalidInput("--shard {}/{} is out of range (I/N with 0 <= I < N <= {})", shard->index, shard->count,
+                        kMaxShards);
   return {};
+}
+
+Expected<ShardSpec> parseShard(std::string_view text) {
+  // Digits only, no sign or blank: a job script's typo must not quietly pick another shard.
+  auto number = [](std::string_view digits, int& out) {
+    if (digits.empty() || digits.size() > 9) return false;
+    out = 0;
+    for (const char c : digits) {
+      if (c < '0' || c > '9') return false;
+      out = out * 10 + (c - '0');
+    }
+    return true;
+  };
+  const auto slash = text.find('/');
+  ShardSpec s;
+  if (slash == std::string_view::npos || !number(text.substr(0, slash), s.index) ||
+      !number(text.substr(slash + 1), s.count))
+    return invalidInput("--shard '{}' must be I/N (shard I of N, counted from 0), e.g. 0/4", text);
+  if (s.count < 1 || s.count > kMaxShards || s.index >= s.count)
+    return invalidInput("--shard '{}': I must be below N and N at most {} (shards are counted from 0)", text,
+                        kMaxShards);
+  return s;
+}
+
+CacheRange shardRange(std::size_t total, const ShardSpec& s) {
+  // floor(total * i / count) without the product overflowing: total = q * count + r.
+  const std::size_t count = static_cast<std::size_t>(s.count), q = total / count, r = total % count;
+  const auto at = [&](int i) { return q * std::size_t(i) + r * std::size_t(i) / count; };
+  return {at(s.index), at(s.index + 1)};
 }
 
 Expected<PrecomputeOptions> preset(std::string_view name) {
@@ -408,28 +440,48 @@ Expected<Precomputation> run(scene::Scene& scene, const PrecomputeOptions& optio
   });
   if (!s) return s;
 
+  // A shard links its range of the caches (lightmap caches first, then grid caches, as one
+  // sequence); everything above is the same on every shard.
+  const std::size_t lm_total = p.lightmap.size(), grid_total = p.has_grid ? p.grid.size() : 0;
+  p.lightmap_linked = {0, lm_total};
+  p.grid_linked = {0, grid_total};
+  if (options.shard) {
+    const CacheRange all = shardRange(lm_total + grid_total, *options.shard);
+    p.lightmap_linked = {std::min(all.begin, lm_total), std::min(all.end, lm_total)};
+    p.grid_linked = {std::max(all.begin, lm_total) - lm_total, std::max(all.end, lm_total) - lm_total};
+  }
+  const std::size_t lm_count = p.lightmap_linked.end - p.lightmap_linked.begin;
+  const std::size_t grid_count = p.grid_linked.end - p.grid_linked.begin;
+
   // Links are the bulk of the memory: caches x links x bytes, checked before any is made.
-  const std::uint64_t link_bytes =
-      linkBytesEstimate(p.lightmap.size() + (p.has_grid ? p.grid.size() : 0), options.links, options.bands);
+  const std::uint64_t link_bytes = linkBytesEstimate(lm_count + grid_count, options.links, options.bands);
   if (const std::uint64_t budget = effectiveLinkBudget(options.limits); link_bytes > budget)
     return resourceExhausted("links: {} caches x {} links x {} bands need up to {:.1f} MiB, above the limit of {:.1f} "
                              "MiB (max_link_bytes); lower the links, bands or lightmap resolution",
-                             p.lightmap.size() + (p.has_grid ? p.grid.size() : 0), options.links, options.bands,
+                             lm_count + grid_count, options.links, options.bands,
                              double(link_bytes) / double(1 << 20), double(budget) / double(1 << 20));
 
   const links::LinkOptions link_options = options.linkOptions();
   s = stage("links", [&]() -> Status {
     links::LinkOptions lm_options = link_options;
     lm_options.progress_label = "links lightmap";
-    auto lm = links::generateLinks(scene, *accel, *owners, p.tree, {p.lightmap.position, p.lightmap.normal},
-                                   lm_options, &sink);
+    lm_options.first_cache = p.lightmap_linked.begin;
+    const std::span<const glm::vec3> lm_position(p.lightmap.position), lm_normal(p.lightmap.normal);
+    auto lm = links::generateLinks(
+        scene, *accel, *owners, p.tree,
+        {lm_position.subspan(p.lightmap_linked.begin, lm_count), lm_normal.subspan(p.lightmap_linked.begin, lm_count)},
+        lm_options, &sink);
     if (!lm) return lm.status();
     p.lightmap_links = std::move(lm).value();
     if (p.has_grid) {
-      const std::vector<glm::vec3> sphere(p.grid.size(), glm::vec3(0.0f));
+      const std::vector<glm::vec3> sphere(grid_count, glm::vec3(0.0f));
       links::LinkOptions grid_options = link_options;
       grid_options.progress_label = "links grid";
-      auto g = links::generateLinks(scene, *accel, *owners, p.tree, {p.grid.position, sphere}, grid_options, &sink);
+      grid_options.first_cache = p.grid_linked.begin;
+      const std::span<const glm::vec3> grid_position(p.grid.position);
+      auto g = links::generateLinks(scene, *accel, *owners, p.tree,
+                                    {grid_position.subspan(p.grid_linked.begin, grid_count), sphere}, grid_options,
+                                    &sink);
       if (!g) return g.status();
       p.grid_links = std::move(g).value();
     }
@@ -509,8 +561,12 @@ nlohmann::ordered_json Precomputation::report() const {
   return j;
 }
 
-Status save(const Precomputation& p, const std::string& path, std::uint64_t cache_key) {
-  artifact::Writer w(cache_key);
+namespace {
+
+// Every section of an artifact, in its order; `meta_text` holds the metadata's text until
+// the writer has written it. save() and savePart() share it, so a part's sections are the
+// artifact's in the same order and merge can assemble the artifact byte for byte.
+Status addArtifactSections(const Precomputation& p, artifact::Writer& w, std::string& meta_text) {
   Status status;
   auto add = [&](const std::string& name, const auto& vec) {
     using T = typename std::decay_t<decltype(vec)>::value_type;
@@ -535,9 +591,43 @@ Status save(const Precomputation& p, const std::string& path, std::uint64_t cach
   meta["notes"] = p.notes;
   meta["warnings"] = p.warnings;
   meta["probe_lit"] = p.probe_lit_names;
-  const std::string meta_text = meta.dump();
+  meta_text = meta.dump();
   if (status) status = w.addString("meta", meta_text);
-  if (!status) return status;
+  return status;
+}
+
+}  // namespace
+
+Status save(const Precomputation& p, const std::string& path, std::uint64_t cache_key) {
+  artifact::Writer w(cache_key);
+  std::string meta_text;
+  if (Status s = addArtifactSections(p, w, meta_text); !s) return s;
+  return w.write(path);
+}
+
+Status savePart(const Precomputation& p, const std::string& path, std::uint64_t cache_key,
+                std::string_view scene_label) {
+  if (!p.options.shard) return internalError("savePart: the precomputation was not run as a shard");
+  artifact::Writer w(cache_key, artifact::FileKind::kShardPart);
+  std::string meta_text;
+  if (Status s = addArtifactSections(p, w, meta_text); !s) return s;
+  // No times or host names: a rerun of the shard gives the same bytes.
+  nlohmann::ordered_json part;
+  part["format"] = kShardFormat;
+  part["version"] = kShardFormatVersion;
+  part["shard"] = p.options.shard->index;
+  part["shards"] = p.options.shard->count;
+  part["cache_key"] = artifact::cacheKeyHex(cache_key);
+  part["scene"] = scene_label;
+  part["options"] = p.options.canonical();
+  part["lightmap_caches"] = {{"total", p.lightmap.size()},
+                             {"begin", p.lightmap_linked.begin},
+                             {"end", p.lightmap_linked.end}};
+  part["grid_caches"] = {{"total", p.has_grid ? p.grid.size() : 0},
+                         {"begin", p.grid_linked.begin},
+                         {"end", p.grid_linked.end}};
+  const std::string part_text = part.dump();
+  if (Status s = w.addString(kShardSection, part_text); !s) return s;
   return w.write(path);
 }
 

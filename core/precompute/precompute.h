@@ -58,6 +58,24 @@ std::uint64_t effectiveLinkBudget(const PrecomputeLimits& limits);
 // The finest direct layer: direct_scale texels per lightmap texel along each axis.
 inline constexpr int kMaxDirectScale = 8;
 
+// One share of a sharded precompute (docs/farm.md): shard `index` of `count` links the
+// caches of its contiguous range of all caches (lightmap caches, then grid caches); every
+// other stage runs whole on every shard, since each is deterministic and needed to link.
+struct ShardSpec {
+  int index = 0;
+  int count = 1;
+};
+
+// "I/N" with 0 <= I < N <= kMaxShards; the message names the text otherwise.
+inline constexpr int kMaxShards = 4096;
+Expected<ShardSpec> parseShard(std::string_view text);
+
+// Caches [begin, end) of `total` that shard `s` links: a contiguous, deterministic split.
+struct CacheRange {
+  std::size_t begin = 0, end = 0;
+};
+CacheRange shardRange(std::size_t total, const ShardSpec& s);
+
 struct PrecomputeOptions {
   std::uint32_t surfels = 32768;   // nS
   int links = 128;                 // nL, most links per cache
@@ -87,6 +105,9 @@ struct PrecomputeOptions {
   // loaded scene by whoever loads it for a precompute (scene::applySurfaceRules).
   scene::SurfaceRules surfaces;
   PrecomputeLimits limits;         // not in canonical(): budgets, not parameters of the result
+  // Set: link only this shard's caches (a part for `lightlink merge`, savePart()). Not in
+  // canonical(): every shard and the merged artifact carry the whole run's key.
+  std::optional<ShardSpec> shard;
 
   Status validate() const;
   // Every option that changes the result, in a fixed order, and kGeneratorRevision: part of
@@ -144,6 +165,9 @@ struct Precomputation {
   std::vector<std::string> notes;  // decisions taken (what was skipped and why)
   std::vector<std::string> warnings;  // findings a user should act on (the unwrap's: uv1 replaced, charts scaled down)
   std::vector<std::string> probe_lit_names;  // static meshes lit from the grid, not the lightmap
+  // With options.shard: the caches this shard linked (lightmap_links and grid_links hold
+  // those alone, surfel_seen the surfels they saw).
+  CacheRange lightmap_linked, grid_linked;
 
   // Report: counts, time per stage, memory per structure, rays and rays/s.
   nlohmann::ordered_json report() const;
@@ -163,6 +187,18 @@ Expected<Precomputation> run(scene::Scene& scene, const PrecomputeOptions& optio
 
 // Writes the precomputation atomically as one artifact keyed by `cache_key`.
 Status save(const Precomputation& p, const std::string& path, std::uint64_t cache_key);
+
+// The part's own section and its JSON's format name and version (bumped when its fields change).
+inline constexpr const char* kShardSection = "shard";
+inline constexpr const char* kShardFormat = "lightlink.shard";
+inline constexpr int kShardFormatVersion = 1;
+
+// Writes a shard's precomputation (run with options.shard) as a part (artifact::FileKind::
+// kShardPart): the artifact's sections in the same order, the link sections holding only its
+// caches, then a "shard" section (JSON: shard, shards, cache ranges, key) that merge checks.
+// `scene_label` is recorded for messages only.
+Status savePart(const Precomputation& p, const std::string& path, std::uint64_t cache_key,
+                std::string_view scene_label);
 
 // The artifact mapped back. The link arrays (the bulk of the file) stay in the mapping and
 // are read through spans; the small structures (surfels, tree, caches, plans) are copied
