@@ -59,11 +59,14 @@ struct MergeArgs {
 int runMerge(const MergeArgs& args);
 
 struct BakeArgs {
-  std::string scene_path;
+  // One scene: its outputs in output_dir. Several (or batch): a batch bake, each scene's
+  // outputs in output_dir/<stem>/, summary.json and summary.xml in output_dir.
+  std::vector<std::string> scene_paths;
+  bool batch = false;
   std::string output_dir;
   BakeSettings options;            // over the medium preset
   std::string lights_path;         // light-set JSON adding to / overriding the scene's lights
-  std::string cache_dir;           // artifacts by cache key; empty = <output_dir>/cache
+  std::string cache_dir;           // artifacts by cache key, shared by a batch; empty = <output_dir>/cache
   std::string backend = "cpu";     // cpu | gpu | auto (gpu/backend_factory.h)
   bool float_exr = false;
   std::string encoding = "l2";     // l0 | l1 | l2 (core/output/encoding.h)

@@ -114,11 +114,14 @@ int main(int argc, char** argv) {
 
   BakeArgs bake;
   auto* bake_cmd = app.add_subcommand("bake", "Unwrap, precompute (or reuse), relight and write lightmaps, grid, report");
-  bake_cmd->add_option("scene", bake.scene_path, "Scene file (.gltf, .glb, .obj or .fbx)")->required();
+  bake_cmd->add_option("scenes", bake.scene_paths,
+                       "Scene files (.gltf, .glb, .obj or .fbx); several: a batch, one folder each under OUTPUT")
+      ->required();
+  bake_cmd->add_flag("--batch", bake.batch, "Batch layout and summary (OUTPUT/<stem>/, summary.json, summary.xml) for one scene too");
   bake_cmd->add_option("-o,--output", bake.output_dir, "Output directory")->required();
   addBakeOptions(bake_cmd, bake.options);
   bake_cmd->add_option("--lights", bake.lights_path, "Light-set JSON adding to or overriding the scene's lights");
-  bake_cmd->add_option("--cache-dir", bake.cache_dir, "Artifact cache directory (default OUTPUT/cache)");
+  bake_cmd->add_option("--cache-dir", bake.cache_dir, "Artifact cache directory, shared by every scene of a batch (default OUTPUT/cache)");
   bake_cmd->add_option("--backend", bake.backend, "Relight backend: cpu, gpu, or auto (GPU when a headless EGL context works)")
       ->capture_default_str();
   bake_cmd->add_flag("--float", bake.float_exr, "32-bit float EXR instead of half");
