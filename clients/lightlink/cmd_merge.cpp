@@ -2,6 +2,7 @@
 // artifact one machine would have written, byte for byte (core/precompute/merge.h).
 #include <chrono>
 #include <cstdio>
+#include <filesystem>
 #include <fstream>
 
 #include <fmt/format.h>
@@ -16,12 +17,26 @@ namespace lightlink::cli {
 
 int runMerge(const MergeArgs& args) {
   const auto start = std::chrono::steady_clock::now();
-  auto merged = precompute::mergeParts(args.part_paths, args.output_path);
+  if (args.output_path.empty() == args.cache_dir.empty())
+    return reportError("merge", invalidInput("give the artifact to write as -o FILE or --cache-dir DIR (one of them)"));
+  std::string output = args.output_path;
+  if (output.empty()) {
+    // The key from the first part's header (checked against every part by the merge).
+    if (args.part_paths.empty()) return reportError("merge", invalidInput("no shard parts given"));
+    auto first = artifact::Artifact::open(args.part_paths[0],
+                                          {.verify_payloads = false, .kind = artifact::FileKind::kShardPart});
+    if (!first) return reportError("merge", first.status());
+    std::error_code ec;
+    std::filesystem::create_directories(args.cache_dir, ec);
+    if (ec) return reportError("merge", ioError("cannot create directory {}: {}", args.cache_dir, ec.message()));
+    output = (std::filesystem::path(args.cache_dir) / (artifact::cacheKeyHex(first->cacheKey()) + ".llk")).string();
+  }
+  auto merged = precompute::mergeParts(args.part_paths, output);
   if (!merged) return reportError("merge", merged.status());
   const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   if (!args.report_json.empty()) {
     nlohmann::ordered_json r;
-    r["artifact"] = args.output_path;
+    r["artifact"] = output;
     r["cache_key"] = artifact::cacheKeyHex(merged->cache_key);
     r["shards"] = merged->shards;
     r["parts"] = args.part_paths;
@@ -34,7 +49,7 @@ int runMerge(const MergeArgs& args) {
   if (!args.quiet)
     std::fputs(fmt::format("merged       {} shards, cache key {}, {} bytes in {:.3f} s\nwrote        {}\n",
                            merged->shards, artifact::cacheKeyHex(merged->cache_key), merged->bytes, seconds,
-                           args.output_path)
+                           output)
                    .c_str(),
                stdout);
   return kExitOk;

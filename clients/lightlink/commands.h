@@ -53,6 +53,7 @@ int runPrecompute(const PrecomputeArgs& args);
 struct MergeArgs {
   std::vector<std::string> part_paths;
   std::string output_path;
+  std::string cache_dir;  // instead of output_path: CACHE_DIR/<key>.llk, where bake --cache-dir looks
   std::string report_json;
   bool quiet = false;
 };

@@ -108,7 +108,10 @@ int main(int argc, char** argv) {
   MergeArgs merge;
   auto* merge_cmd = app.add_subcommand("merge", "Assemble the parts of a sharded precompute into its artifact (.llk)");
   merge_cmd->add_option("parts", merge.part_paths, "Shard parts written by `precompute --shard I/N`, all N")->required();
-  merge_cmd->add_option("-o,--output", merge.output_path, "Artifact to write (.llk)")->required();
+  auto* merge_out = merge_cmd->add_option("-o,--output", merge.output_path, "Artifact to write (.llk)");
+  merge_cmd->add_option("--cache-dir", merge.cache_dir,
+                        "Write CACHE_DIR/<cache key>.llk instead, where `bake --cache-dir` finds and reuses it")
+      ->excludes(merge_out);
   merge_cmd->add_option("--report", merge.report_json, "Write what was merged (parts, key, bytes, seconds) as JSON");
   merge_cmd->add_flag("-q,--quiet", merge.quiet, "No summary");
 
