@@ -108,10 +108,14 @@ start=$(date +%s.%N)
 "$lightlink" precompute "$scene" -o "$tmp/single.llk" -q "${options[@]}" 2>/dev/null
 echo "single-machine precompute: $(python3 -c "print(f'{$(date +%s.%N) - $start:.1f}')") s"
 
-# The farm: 4 shards, merge, bake.
-"$source_dir/scripts/slurm-bake" "$scene" -o "$tmp/out" --shards 4 --lightlink "$lightlink" -- "${options[@]}"
-source "$tmp/out/farm/jobs.env"
+# The farm: 4 shards, merge, bake; slurm-bake --wait returns when the bake job is done.
+"$source_dir/scripts/slurm-bake" "$scene" -o "$tmp/out" --shards 4 --lightlink "$lightlink" --wait \
+  -- "${options[@]}" >"$tmp/slurm-bake.out" 2>&1 &
+submitter=$!
 work="$tmp/out/farm"
+for _ in $(seq 300); do [ -f "$work/jobs.env" ] && break; sleep 0.1; done
+[ -f "$work/jobs.env" ] || { echo "FAIL: slurm-bake submitted nothing"; cat "$tmp/slurm-bake.out"; exit 1; }
+source "$work/jobs.env"
 
 # Kill shard 1's lightlink as soon as it runs (SIGKILL, as the OOM killer or a lost node would).
 killed=0
@@ -136,6 +140,8 @@ while [ -n "$(squeue -h -j "$BAKE_JOB" -o %i 2>/dev/null)" ]; do
   sleep 0.5
 done
 
+wait "$submitter" || { echo "FAIL: slurm-bake --wait exited $?"; cat "$tmp/slurm-bake.out"; exit 1; }
+grep -q "last job $BAKE_JOB: COMPLETED" "$tmp/slurm-bake.out" || { echo "FAIL: slurm-bake --wait did not report the bake"; cat "$tmp/slurm-bake.out"; exit 1; }
 state() { scontrol show job "$1" | sed -n 's/.*JobState=\([A-Z_]*\).*/\1/p' | head -n 1; }
 for j in "${PRECOMPUTE_JOB}_0" "${PRECOMPUTE_JOB}_1" "${PRECOMPUTE_JOB}_2" "${PRECOMPUTE_JOB}_3" "$MERGE_JOB" "$BAKE_JOB"; do
   s=$(state "$j")
