@@ -35,6 +35,11 @@ stop_daemons() {
   done
 }
 cleanup() {
+  # Jobs still running (a failed check) first: their slurmstepd would outlive slurmd.
+  if [ -n "${SLURM_CONF:-}" ] && [ -n "$(squeue -h -o %A 2>/dev/null)" ]; then
+    scancel -u "$(id -un)" 2>/dev/null || true
+    for _ in $(seq 50); do [ -z "$(squeue -h -o %A 2>/dev/null)" ] && break; sleep 0.1; done
+  fi
   stop_daemons
   if [ "$ok" != 1 ]; then
     for f in "$tmp"/log/*.log "$tmp"/out/farm/logs/*.log; do
