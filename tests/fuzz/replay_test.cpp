@@ -109,7 +109,9 @@ TEST(FuzzReplay, ArtifactRelightRegressions) {
     expectClear(v.raw, f, "open");
     if (v.fixed) expectClear(v.after_fix, f, "open after fixChecksums");
     EXPECT_TRUE(v.relit) << f << " no longer opens: it tests nothing here";
-    if (v.relit) EXPECT_TRUE(v.relight) << f << ": " << v.relight.toString();
+    if (v.relit) {
+      EXPECT_TRUE(v.relight) << f << ": " << v.relight.toString();
+    }
   }
 }
 
