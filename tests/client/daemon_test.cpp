@@ -5,6 +5,7 @@
 
 #include <atomic>
 #include <fstream>
+#include <iterator>
 #include <nlohmann/json.hpp>
 #include <thread>
 
@@ -548,6 +549,61 @@ TEST_F(ClientDaemon, GameClientRendersAFrame) {
                           std::chrono::seconds(120));
   EXPECT_EQ(wrong.exit_code, 2) << wrong.out << wrong.err;
   EXPECT_NE(wrong.err.find("--preset"), std::string::npos) << wrong.err;
+}
+
+// ---- reading a scene back: the library and the CLI
+
+TEST_F(ClientDaemon, LightsAndLightmapUvsReadBackThroughTheLibraryAndTheCli) {
+  SceneHandle scene = open();
+  ASSERT_FALSE(scene.id.empty());
+  const std::string light = scene.info.light_ids(0);
+  LightUpdate u;
+  ASSERT_TRUE(u.modify(moveTo(light, 0.2f, 0.4f, 0.25f)));
+  auto r = client_->updateLights(scene, u);
+  ASSERT_TRUE(r) << r.status().toString();
+  auto lights = client_->getLights(scene);
+  ASSERT_TRUE(lights) << lights.status().toString();
+  EXPECT_EQ(lights->version, r->version);
+  ASSERT_EQ(lights->lights.size(), 1u);
+  EXPECT_EQ(lights->lights[0].id(), light);
+  EXPECT_FLOAT_EQ(lights->lights[0].position().z(), 0.25f);
+  // The document converts back into an update through the one light-set reader.
+  auto again = LightUpdate::fromLightSetText(lights->json, &scene.light_ids);
+  ASSERT_TRUE(again) << again.status().toString() << "\n" << lights->json;
+
+  auto uvs = client_->getLightmapUvs(scene, true);
+  ASSERT_TRUE(uvs) << uvs.status().toString();
+  EXPECT_EQ(uvs->width, scene.info.lightmap().width());
+  EXPECT_TRUE(uvs->generated);
+  std::size_t lit = 0;
+  for (const MeshUvs& m : uvs->meshes) {
+    if (!m.lightmapped) continue;
+    ++lit;
+    EXPECT_EQ(m.source_vertex.size() * 2, m.uv.size()) << m.name;
+    EXPECT_EQ(m.indices.size() % 3, 0u);
+  }
+  EXPECT_GT(lit, 0u);
+  EXPECT_EQ(uvs->glb.substr(0, 4), "glTF");
+
+  // The CLI prints the same document and writes the same .glb.
+  TempDir tmp;
+  const std::string session = (tmp / "s.json").string();
+  ASSERT_TRUE(saveSession(session, Session{daemon_->target(), scene}));
+  auto printed = runCommand({LIGHTLINK_CLI_PATH, "lights", "--session", session}, std::chrono::seconds(60));
+  ASSERT_EQ(printed.exit_code, 0) << printed.out << printed.err;
+  EXPECT_EQ(nlohmann::json::parse(printed.out), nlohmann::json::parse(lights->json));
+  const std::string glb = (tmp / "lm.glb").string(), json = (tmp / "uvs.json").string();
+  auto wrote = runCommand({LIGHTLINK_CLI_PATH, "uvs", "--session", session, "--gltf", glb, "--json", json},
+                          std::chrono::seconds(60));
+  ASSERT_EQ(wrote.exit_code, 0) << wrote.out << wrote.err;
+  std::ifstream glb_in(glb, std::ios::binary);
+  const std::string glb_bytes((std::istreambuf_iterator<char>(glb_in)), std::istreambuf_iterator<char>());
+  EXPECT_EQ(glb_bytes, uvs->glb);
+  std::ifstream json_in(json);
+  const auto doc = nlohmann::json::parse(json_in, nullptr, false);
+  ASSERT_FALSE(doc.is_discarded());
+  ASSERT_EQ(doc["meshes"].size(), uvs->meshes.size());
+  EXPECT_EQ(doc["meshes"][0]["uv"].get<std::vector<float>>(), uvs->meshes[0].uv);
 }
 
 // ---- the Python example (Debian's python3-grpcio + generated stubs)
