@@ -4,6 +4,7 @@
 #include <gtest/gtest.h>
 
 #include <atomic>
+#include <cstring>
 #include <fstream>
 #include <iterator>
 #include <nlohmann/json.hpp>
@@ -606,21 +607,21 @@ TEST_F(ClientDaemon, LightsAndLightmapUvsReadBackThroughTheLibraryAndTheCli) {
   EXPECT_EQ(doc["meshes"][0]["uv"].get<std::vector<float>>(), uvs->meshes[0].uv);
 }
 
-// ---- the Python example (Debian's python3-grpcio + generated stubs)
+// ---- the Python example on the `lightlink` package (Debian's python3-grpcio, -protobuf, -numpy)
 
 TEST_F(ClientDaemon, PythonExampleMovesALightAndSavesTheLightmap) {
-  if (std::string(LIGHTLINK_PYTHON_STUBS).empty())
-    GTEST_SKIP() << "no Python stubs: grpc_python_plugin (protobuf-compiler-grpc) was not found at configure time";
   const std::string python = "/usr/bin/python3";
-  auto probe = runCommand({python, "-c", "import grpc, google.protobuf"}, std::chrono::seconds(30));
+  auto probe = runCommand({python, "-c", "import grpc, google.protobuf, numpy"}, std::chrono::seconds(30));
   if (probe.exit_code != 0)
-    GTEST_SKIP() << "Debian's python3-grpcio / python3-protobuf are not installed (scripts/packages.txt): "
+    GTEST_SKIP() << "Debian's python3-grpcio / python3-protobuf / python3-numpy are not installed "
+                    "(scripts/packages.txt): "
                  << probe.err;
   TempDir tmp;
+  const std::string session = (tmp / "session.json").string();
   auto r = runCommand({python, (lightlink::testing::sourceDir() / "clients/python/move_light.py").string(),
                        "--target", daemon_->target(), "--scene", kCornell, "--preset", kPreset, "--out",
-                       tmp.path().string(), "--timeout", "200"},
-                      std::chrono::seconds(240), {"PYTHONPATH=" LIGHTLINK_PYTHON_STUBS});
+                       tmp.path().string(), "--timeout", "200", "--session", session},
+                      std::chrono::seconds(240), {"PYTHONPATH=" LIGHTLINK_PYTHON_PACKAGE});
   ASSERT_EQ(r.exit_code, 0) << r.out << r.err << daemon_->log();
   std::ifstream meta_in(tmp / "lightmap.json");
   const auto meta = nlohmann::json::parse(meta_in, nullptr, false);
@@ -634,6 +635,36 @@ TEST_F(ClientDaemon, PythonExampleMovesALightAndSavesTheLightmap) {
   EXPECT_EQ(std::string(sig + 1, 3), "PNG");
   EXPECT_EQ(meta["position"][0].get<double>(), 0.15);  // the example's default move
   EXPECT_NE(r.out.find("light change to texture"), std::string::npos) << r.out;
+
+  // numpy's decode is the C++ client's: the same version fetched through the session file the
+  // script wrote (the handle `lightlink pull --session` reads) gives the same floats, bit for bit.
+  auto loaded = loadSession(session);
+  ASSERT_TRUE(loaded) << loaded.status().toString();
+  EXPECT_EQ(loaded->scene.id, meta["scene_id"].get<std::string>());
+  ResultSpec spec;
+  spec.grid = false;
+  auto tex = client_->relight(loaded->scene, meta["version"].get<std::uint64_t>(), spec);
+  ASSERT_TRUE(tex) << tex.status().toString();
+  ASSERT_EQ(tex->info.version, meta["version"].get<std::uint64_t>());
+  const auto readFloats = [&](const char* name) {
+    std::ifstream in(tmp / name, std::ios::binary);
+    std::vector<float> v(fs::file_size(tmp / name) / 4);
+    in.read(reinterpret_cast<char*>(v.data()), std::streamsize(v.size() * 4));
+    return v;
+  };
+  const std::vector<float> sh = readFloats("lightmap_sh.f32"), cpp_sh = tex->floats(Payload::kLightmapSh);
+  ASSERT_EQ(sh.size(), cpp_sh.size());
+  EXPECT_EQ(std::memcmp(sh.data(), cpp_sh.data(), sh.size() * 4), 0) << "numpy's half decode differs from C++'s";
+  if (tex->has(Payload::kLightmapDirect)) {
+    const std::vector<float> direct = readFloats("direct.f32"), cpp_direct = tex->floats(Payload::kLightmapDirect);
+    ASSERT_EQ(direct.size(), cpp_direct.size());
+    EXPECT_EQ(std::memcmp(direct.data(), cpp_direct.data(), direct.size() * 4), 0);
+  }
+  std::ifstream valid_in(tmp / "valid.u8", std::ios::binary);
+  const std::string valid((std::istreambuf_iterator<char>(valid_in)), std::istreambuf_iterator<char>());
+  const auto cpp_valid = tex->bytes(Payload::kLightmapValid);
+  ASSERT_EQ(valid.size(), cpp_valid.size());
+  EXPECT_EQ(std::memcmp(valid.data(), cpp_valid.data(), valid.size()), 0);
 }
 
 }  // namespace
