@@ -216,6 +216,18 @@ class ClientTest(unittest.TestCase):
             self.client.open(os.path.join(ARGS.source_dir, "README.md"))
         self.assertEqual(missing.exception.code, grpc.StatusCode.PERMISSION_DENIED)  # outside the scene root
 
+    def test_a_cancelled_open_raises_cancelled_and_leaves_no_scene(self):
+        import threading
+
+        ll = self.ll
+        cancel = threading.Event()
+        cancel.set()
+        before = {x.scene_id for x in self.client.list_scenes()}
+        with self.assertRaises(ll.LightlinkError) as cancelled:
+            self.client.open(cornell(), options={"preset": "draft", "texel-size": "0.013"}, cancel=cancel, timeout=240)
+        self.assertEqual(cancelled.exception.code, grpc.StatusCode.CANCELLED)
+        self.assertEqual({x.scene_id for x in self.client.list_scenes()}, before)
+
     def test_context_managers_close_the_scene_and_the_channel(self):
         ll = self.ll
         with ll.Client(DAEMON.target) as c:

@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import json
 import os
+import threading
 from dataclasses import dataclass, field
 from typing import Any, Callable, Dict, Iterator, List, Mapping, Optional, Sequence, Union
 
@@ -251,7 +252,7 @@ class Client:
              options: Optional[Mapping[str, Any]] = None, lights: Optional[Union[str, Mapping[str, Any]]] = None,
              name: str = "", backend: str = "auto", preview: Optional[bool] = None,
              progress: Optional[Callable[[pb.OpenSceneProgress], None]] = None,
-             timeout: Optional[float] = None) -> "Scene":
+             timeout: Optional[float] = None, cancel: Optional[threading.Event] = None) -> "Scene":
         """Opens (or precomputes) a scene and returns once it is resident.
 
         `path`: a glTF/GLB on the daemon's machine (under its --scene-root), or `upload`: the
@@ -259,7 +260,8 @@ class Client:
         options keyed by `lightlink bake` flag name ("preset", "texel-size", "bounces", ...).
         `lights`: a light-set document (dict or JSON text) applied over the scene's lights.
         `progress` is called with every OpenSceneProgress; `timeout` (default none) bounds the
-        whole open, precompute included."""
+        whole open, precompute included; setting `cancel` (from any thread) cancels the call
+        (LightlinkError CANCELLED) and the daemon abandons the precompute."""
         if (path is None) == (upload is None):
             raise ValueError("open: give exactly one of path and upload")
         if backend not in _BACKENDS:
@@ -279,14 +281,27 @@ class Client:
         if preview is not None:
             req.preview = bool(preview)
         opened = None
+        call = self._stream("OpenScene", req, timeout)
+        done = threading.Event()
+        if cancel is not None:
+            def watch() -> None:
+                while not done.is_set():
+                    if cancel.wait(0.05):
+                        call.cancel()
+                        return
+            threading.Thread(target=watch, name="lightlink-open-cancel", daemon=True).start()
         try:
-            for p in self._stream("OpenScene", req, timeout):
+            for p in call:
                 if progress is not None:
                     progress(p)
                 if p.HasField("opened"):
                     opened = p.opened
         except grpc.RpcError as e:
+            if cancel is not None and cancel.is_set():
+                raise LightlinkError("OpenScene", grpc.StatusCode.CANCELLED, "cancelled by the client") from None
             raise LightlinkError.from_rpc_error("OpenScene", e) from None
+        finally:
+            done.set()
         if opened is None:
             raise ProtocolError("OpenScene: the stream ended without `opened`")
         return Scene(self, opened.scene_id, opened.scene_token, opened)
