@@ -1,0 +1,413 @@
+"""The live link between a Blender scene and a lightlink daemon (docs/blender.md).
+
+LiveLink does the work behind the panel, with no UI of its own so tests drive it directly:
+
+  bake_live()   exports the scene with Blender's glTF exporter (lights on, +Y up, standard
+                lighting units), uploads it with OpenScene on a worker thread (progress and
+                cancel), then maps the daemon's light ids onto Blender's light objects and its
+                lightmap UVs (GetLightmapUvs) onto a "LightlinkLM" UV layer of each mesh, creates
+                the lightmap image and wires it into the materials, and subscribes to results.
+  light_changed()  called by the depsgraph handler for a light object or light data: marks
+                the light dirty.
+  tick()        the bpy.app.timers body, on Blender's main thread: sends the dirty lights as one
+                UpdateLights on a worker thread (coalesced: at most one in flight, the latest
+                state wins), and applies the newest received result to the image.
+
+No network call runs on Blender's main thread after bake_live() returns; tick() only hands
+work to threads and copies pixels. Errors land in `status` / `error` for the panel.
+"""
+from __future__ import annotations
+
+import json
+import math
+import os
+import queue
+import struct
+import tempfile
+import threading
+import time
+from typing import Any, Dict, List, Optional, Tuple
+
+import bpy
+import numpy as np
+from mathutils import Vector, kdtree
+
+from . import convert
+
+try:  # the copy shipped in the add-on zip
+    from . import lightlink as ll  # type: ignore
+except ImportError:  # running from the source tree: clients/python on sys.path
+    import lightlink as ll  # type: ignore
+
+UV_LAYER = "LightlinkLM"
+IMAGE_NAME = "lightlink_lightmap"
+GROUP_NAME = "Lightlink Lightmap"
+OUTPUT_NAME = "Lightlink Output"
+
+
+def read_glb(data: bytes) -> Tuple[dict, bytes]:
+    """A .glb's JSON and binary chunk."""
+    magic, version, length = struct.unpack_from("<4sII", data, 0)
+    if magic != b"glTF" or version != 2:
+        raise ValueError("not a glTF 2 binary")
+    off, doc, binary = 12, None, b""
+    while off < length:
+        size, kind = struct.unpack_from("<II", data, off)
+        chunk = data[off + 8:off + 8 + size]
+        if kind == 0x4E4F534A:
+            doc = json.loads(chunk)
+        elif kind == 0x004E4942:
+            binary = chunk
+        off += 8 + size
+    return doc, binary
+
+
+def write_glb(doc: dict, binary: bytes) -> bytes:
+    """A .glb from its JSON and binary chunk (each padded to 4 bytes)."""
+    text = json.dumps(doc, separators=(",", ":")).encode()
+    text += b" " * (-len(text) % 4)
+    binary = binary + b"\0" * (-len(binary) % 4)
+    out = struct.pack("<II", len(text), 0x4E4F534A) + text
+    if binary:
+        out += struct.pack("<II", len(binary), 0x004E4942) + binary
+    return struct.pack("<4sII", b"glTF", 2, 12 + len(out)) + out
+
+
+# The lightlink flags of node and material extras (docs/scene-format.md) that are booleans.
+# Blender 3.4 keeps custom properties true/false as integers 1/0 and exports them so; lightlink
+# reads only true/false, so the add-on turns these back into booleans.
+BOOLEAN_FLAGS = ("static", "lightmap", "cast_shadows", "contribute_gi")
+
+
+def booleanize_flags(doc: dict) -> int:
+    """Integer 0/1 lightlink flags in node and material extras -> false/true; returns how many."""
+    n = 0
+    for item in doc.get("nodes", []) + doc.get("materials", []):
+        flags = item.get("extras", {}).get("lightlink")
+        if not isinstance(flags, dict):
+            continue
+        for key in BOOLEAN_FLAGS:
+            if isinstance(flags.get(key), int) and not isinstance(flags.get(key), bool) and flags[key] in (0, 1):
+                flags[key] = bool(flags[key])
+                n += 1
+    return n
+
+
+def accessor_array(doc: dict, binary: bytes, index: int) -> np.ndarray:
+    """A float VEC3/VEC2 or integer SCALAR accessor of a .glb as a numpy array."""
+    acc = doc["accessors"][index]
+    view = doc["bufferViews"][acc["bufferView"]]
+    ncomp = {"SCALAR": 1, "VEC2": 2, "VEC3": 3, "VEC4": 4}[acc["type"]]
+    dtype = {5126: "<f4", 5125: "<u4", 5123: "<u2", 5121: "u1"}[acc["componentType"]]
+    item = np.dtype(dtype).itemsize * ncomp
+    stride = view.get("byteStride", item)
+    start = view.get("byteOffset", 0) + acc.get("byteOffset", 0)
+    raw = np.frombuffer(binary, dtype=np.uint8, count=stride * (acc["count"] - 1) + item, offset=start)
+    rows = np.lib.stride_tricks.as_strided(raw, shape=(acc["count"], item), strides=(stride, 1))
+    return np.ascontiguousarray(rows).view(dtype).reshape(acc["count"], ncomp)
+
+
+class LiveLink:
+    def __init__(self, target: str, token: Optional[str] = None, options: Optional[Dict[str, str]] = None) -> None:
+        self.target = target
+        self.token = token or None
+        self.options = dict(options or {})
+        self.client: Optional[Any] = None
+        self.scene: Optional[Any] = None
+        self.status = "not connected"
+        self.error = ""
+        self.progress = 0.0
+        self.light_ids: Dict[str, str] = {}        # Blender object name -> lightlink light id
+        self.image: Optional[bpy.types.Image] = None
+        self.applied_version = 0                  # version shown in the image
+        self.applied_at = 0.0                     # time.monotonic() of the last apply
+        self.sent_version = 0                     # version of the newest acknowledged update
+        self.timings: Dict[str, float] = {}
+        self._dirty: set = set()
+        self._in_flight = False
+        self._results: "queue.Queue[Any]" = queue.Queue()
+        self._subscription: Optional[Any] = None
+        self._cancel = threading.Event()
+        self._lock = threading.Lock()
+
+    # ------------------------------------------------------------------ connect
+    def connect(self) -> None:
+        self.client = ll.Client(self.target, token=self.token, timeout=30.0)
+        h = self.client.health()
+        self.status = f"connected: daemon {h.daemon_version}, protocol {h.protocol_version}"
+
+    # ------------------------------------------------------------------ bake live
+    def export_glb(self, path: str) -> bytes:
+        """The scene through Blender's glTF exporter, with what lightlink needs."""
+        bpy.ops.export_scene.gltf(filepath=path, export_format="GLB", export_lights=True, export_yup=True,
+                                  export_apply=False, export_cameras=False, export_extras=True,
+                                  convert_lighting_mode="SPEC", use_selection=False)
+        with open(path, "rb") as f:
+            data = f.read()
+        doc, binary = read_glb(data)
+        return write_glb(doc, binary) if booleanize_flags(doc) else data
+
+    def bake_live(self) -> None:
+        """Export, open, map lights and UVs, wire the image, subscribe, blocking. The panel's
+        operator runs the same three steps with the open on a worker thread."""
+        t0 = time.monotonic()
+        if self.client is None:
+            self.connect()
+        with tempfile.TemporaryDirectory() as tmp:
+            self.glb = self.export_glb(os.path.join(tmp, "scene.glb"))
+        self.timings["export_s"] = time.monotonic() - t0
+        self.open_exported()
+        self.finish_open()
+        self.timings["bake_live_s"] = time.monotonic() - t0
+
+    def open_exported(self) -> None:
+        """OpenScene with the exported .glb (network and precompute: any thread, no bpy)."""
+        t0 = time.monotonic()
+
+        def on_progress(p):
+            self.progress = p.fraction
+            self.status = f"{p.stage} {p.fraction * 100:.0f}%"
+
+        self._cancel.clear()
+        self.status = "opening on the daemon"
+        self.scene = self.client.open(upload=self.glb, options=self.options, name="blender",
+                                      progress=on_progress, cancel=self._cancel)
+        self.timings["open_s"] = time.monotonic() - t0
+
+    def finish_open(self) -> None:
+        """On Blender's main thread: lights and UVs mapped, image wired, results subscribed."""
+        t0 = time.monotonic()
+        self.map_lights()
+        self.apply_uvs()
+        self.timings["map_s"] = time.monotonic() - t0
+        self._start_subscription()
+        self.status = f"live: scene {self.scene.id}"
+
+    def cancel(self) -> None:
+        self._cancel.set()
+
+    def map_lights(self) -> None:
+        """Blender light objects -> the daemon's light ids: by light data name (the exporter
+        names each glTF light after it; the daemon uses unique names as ids), else by position."""
+        state = self.scene.lights()
+        by_id = {l.id: l for l in state.lights}
+        objects = [o for o in bpy.context.scene.objects if o.type == "LIGHT" and o.data.type != "AREA"]
+        self.light_ids = {}
+        unmatched = []
+        for o in objects:
+            if o.data.name in by_id and o.data.name not in self.light_ids.values():
+                self.light_ids[o.name] = o.data.name
+            else:
+                unmatched.append(o)
+        free = [l for l in state.lights if l.id not in self.light_ids.values()]
+        for o in unmatched:
+            p = Vector(convert.to_gltf(o.matrix_world.translation))
+            best = min(free, key=lambda l: (Vector((l.position.x, l.position.y, l.position.z)) - p).length, default=None)
+            if best is not None:
+                self.light_ids[o.name] = best.id
+                free.remove(best)
+
+    def apply_uvs(self) -> None:
+        """The daemon's lightmap UVs onto a UV layer of each lightmapped mesh object: each Blender
+        triangle finds its lightmap triangle by centroid (mesh-local, Y up), each corner its
+        lightmap vertex by position; v flips (Blender's v points up, glTF's down)."""
+        uvs = self.scene.lightmap_uvs()
+        self.atlas = (uvs.width, uvs.height)
+        doc, binary = read_glb(self.glb)
+        by_object: Dict[str, List[Any]] = {}
+        for m in uvs.meshes:
+            if m.lightmapped:
+                by_object.setdefault(doc["nodes"][m.node].get("name", ""), []).append(m)
+        self.lightmapped_objects = []
+        for name, parts in by_object.items():
+            obj = bpy.data.objects.get(name)
+            if obj is None or obj.type != "MESH":
+                continue
+            corners, uv_list = [], []
+            for m in parts:
+                prim = doc["meshes"][m.mesh]["primitives"][m.primitive]
+                pos = accessor_array(doc, binary, prim["attributes"]["POSITION"])
+                src = m.source_vertex if m.source_vertex is not None else np.arange(len(m.uv))
+                corners.append(pos[src][m.indices])      # (t, 3 corners, 3)
+                uv_list.append(m.uv[m.indices])          # (t, 3 corners, 2)
+            tri_pos = np.concatenate(corners)
+            tri_uv = np.concatenate(uv_list)
+            tree = kdtree.KDTree(len(tri_pos))
+            for i, c in enumerate(tri_pos.mean(axis=1)):
+                tree.insert(c, i)
+            tree.balance()
+            mesh = obj.data
+            layer = mesh.uv_layers.get(UV_LAYER) or mesh.uv_layers.new(name=UV_LAYER)
+            mesh.calc_loop_triangles()
+            co = np.array([convert.to_gltf(v.co) for v in mesh.vertices], dtype=np.float32)
+            loop_uv = np.zeros((len(mesh.loops), 2), dtype=np.float32)
+            for lt in mesh.loop_triangles:
+                vs = co[list(lt.vertices)]
+                _, t, _ = tree.find(vs.mean(axis=0))
+                for corner, loop in zip(vs, lt.loops):
+                    k = int(np.argmin(np.linalg.norm(tri_pos[t] - corner, axis=1)))
+                    u, v = tri_uv[t][k]
+                    loop_uv[loop] = (u, 1.0 - v)
+            layer.data.foreach_set("uv", loop_uv.ravel())
+            self.lightmapped_objects.append(obj.name)
+        self._ensure_image()
+        for name in self.lightmapped_objects:
+            self._wire_materials(bpy.data.objects[name])
+
+    # ------------------------------------------------------------------ viewport
+    def _ensure_image(self) -> None:
+        w, h = self.atlas
+        img = bpy.data.images.get(IMAGE_NAME)
+        if img is None or tuple(img.size) != (w, h):
+            if img is not None:
+                bpy.data.images.remove(img)
+            img = bpy.data.images.new(IMAGE_NAME, w, h, alpha=True, float_buffer=True)
+            img.colorspace_settings.name = "Non-Color"
+        self.image = img
+
+    def _node_group(self) -> bpy.types.NodeTree:
+        """Emission = albedo * E / pi from the lightmap image on the LightlinkLM UVs: the
+        radiance a diffuse surface of that albedo sends under the baked irradiance E."""
+        g = bpy.data.node_groups.get(GROUP_NAME)
+        if g is not None:
+            return g
+        g = bpy.data.node_groups.new(GROUP_NAME, "ShaderNodeTree")
+        g.inputs.new("NodeSocketColor", "Albedo").default_value = (0.8, 0.8, 0.8, 1.0)
+        g.outputs.new("NodeSocketShader", "Shader")
+        n = g.nodes
+        gin, gout = n.new("NodeGroupInput"), n.new("NodeGroupOutput")
+        uv = n.new("ShaderNodeUVMap")
+        uv.uv_map = UV_LAYER
+        tex = n.new("ShaderNodeTexImage")
+        tex.name = "Lightmap"
+        tex.image = self.image
+        tex.interpolation = "Linear"
+        mul = n.new("ShaderNodeMixRGB")
+        mul.blend_type = "MULTIPLY"
+        mul.inputs["Fac"].default_value = 1.0
+        emit = n.new("ShaderNodeEmission")
+        emit.inputs["Strength"].default_value = 1.0 / math.pi
+        g.links.new(uv.outputs["UV"], tex.inputs["Vector"])
+        g.links.new(gin.outputs["Albedo"], mul.inputs["Color1"])
+        g.links.new(tex.outputs["Color"], mul.inputs["Color2"])
+        g.links.new(mul.outputs["Color"], emit.inputs["Color"])
+        g.links.new(emit.outputs["Emission"], gout.inputs["Shader"])
+        return g
+
+    def _wire_materials(self, obj: bpy.types.Object) -> None:
+        group = self._node_group()
+        for slot in obj.material_slots:
+            mat = slot.material
+            if mat is None or not mat.use_nodes or mat.node_tree.nodes.get(OUTPUT_NAME):
+                continue
+            nodes, links = mat.node_tree.nodes, mat.node_tree.links
+            gnode = nodes.new("ShaderNodeGroup")
+            gnode.node_tree = group
+            gnode.name = GROUP_NAME
+            bsdf = next((x for x in nodes if x.type == "BSDF_PRINCIPLED"), None)
+            if bsdf is not None:
+                src = bsdf.inputs["Base Color"]
+                if src.is_linked:
+                    links.new(src.links[0].from_socket, gnode.inputs["Albedo"])
+                else:
+                    gnode.inputs["Albedo"].default_value = src.default_value
+            out = nodes.new("ShaderNodeOutputMaterial")
+            out.name = OUTPUT_NAME
+            links.new(gnode.outputs["Shader"], out.inputs["Surface"])
+            out.is_active_output = True
+
+    def _start_subscription(self) -> None:
+        self._subscription = self.scene.subscribe(grid=False)
+        sub = self._subscription
+
+        def run():
+            try:
+                for t in sub:
+                    self._results.put(t)
+            except Exception as e:  # shown in the panel; the editor goes on
+                self.error = str(e)
+
+        threading.Thread(target=run, name="lightlink-subscribe", daemon=True).start()
+
+    def apply_result(self, tex: Any) -> None:
+        """The result's irradiance (SH at each texel's dominant direction + baked direct) into
+        the image, rows flipped into Blender's bottom-up order."""
+        e = tex.irradiance()
+        rgba = np.ones((tex.height, tex.width, 4), dtype=np.float32)
+        rgba[..., :3] = e
+        self.image.pixels.foreach_set(np.flipud(rgba).ravel())
+        self.image.update()
+        self.applied_version = tex.version
+        self.applied_at = time.monotonic()
+
+    def image_irradiance(self) -> np.ndarray:
+        """(height, width, 3) of the image, in the lightmap's top-down order."""
+        w, h = self.image.size
+        px = np.empty(w * h * 4, dtype=np.float32)
+        self.image.pixels.foreach_get(px)
+        return np.flipud(px.reshape(h, w, 4))[..., :3]
+
+    # ------------------------------------------------------------------ live updates
+    def light_changed(self, obj_name: str) -> None:
+        if obj_name in self.light_ids:
+            with self._lock:
+                self._dirty.add(obj_name)
+
+    def fields_of(self, obj: bpy.types.Object) -> Dict[str, Any]:
+        d = obj.data
+        forward = obj.matrix_world.to_3x3() @ Vector((0.0, 0.0, -1.0))
+        f = convert.light_fields(d.type, d.energy, d.color, obj.matrix_world.translation, forward.normalized(),
+                                 spot_size=getattr(d, "spot_size", 0.0), spot_blend=getattr(d, "spot_blend", 0.0),
+                                 cutoff_distance=d.cutoff_distance if d.use_custom_distance else None)
+        f.pop("type")
+        return f
+
+    def tick(self) -> Optional[float]:
+        """The timer body: send dirty lights (one update in flight), apply the newest result.
+        Returns the timer's next interval."""
+        newest = None
+        while True:
+            try:
+                newest = self._results.get_nowait()
+            except queue.Empty:
+                break
+        if newest is not None and newest.version > self.applied_version:
+            self.apply_result(newest)
+        with self._lock:
+            send = bool(self._dirty) and not self._in_flight and self.scene is not None
+            names = list(self._dirty) if send else []
+            if send:
+                self._dirty.clear()
+                self._in_flight = True
+        if send:
+            changes = []
+            for n in names:
+                obj = bpy.data.objects.get(n)
+                if obj is not None:
+                    changes.append(dict(self.fields_of(obj), id=self.light_ids[n]))
+
+            def run():
+                try:
+                    ack = self.scene.update_lights(modify=changes)
+                    self.sent_version = ack.version
+                except Exception as e:
+                    self.error = str(e)
+                finally:
+                    with self._lock:
+                        self._in_flight = False
+
+            threading.Thread(target=run, name="lightlink-update", daemon=True).start()
+        return 0.02
+
+    def stop(self, close_scene: bool = True) -> None:
+        if self._subscription is not None:
+            self._subscription.cancel()
+        if close_scene and self.scene is not None:
+            try:
+                self.scene.close()
+            except Exception:
+                pass
+        if self.client is not None:
+            self.client.close()
+        self.scene = self.client = None
+        self.status = "stopped"
