@@ -219,6 +219,8 @@ class LiveLink:
             if m.lightmapped:
                 by_object.setdefault(doc["nodes"][m.node].get("name", ""), []).append(m)
         self.lightmapped_objects = []
+        self.uv_match_error = 0.0     # largest centroid distance of a matched pair over the triangle's size
+        self.unmatched_triangles = 0  # Blender triangles with no lightmap triangle (no lightmap: black)
         for name, parts in by_object.items():
             obj = bpy.data.objects.get(name)
             if obj is None or obj.type != "MESH":
@@ -239,15 +241,34 @@ class LiveLink:
             mesh = obj.data
             layer = mesh.uv_layers.get(UV_LAYER) or mesh.uv_layers.new(name=UV_LAYER)
             mesh.calc_loop_triangles()
-            co = np.array([convert.to_gltf(v.co) for v in mesh.vertices], dtype=np.float32)
+            n = len(mesh.loop_triangles)
+            tri_verts = np.empty(n * 3, dtype=np.int32)
+            tri_loops = np.empty(n * 3, dtype=np.int32)
+            mesh.loop_triangles.foreach_get("vertices", tri_verts)
+            mesh.loop_triangles.foreach_get("loops", tri_loops)
+            co = np.empty(len(mesh.vertices) * 3, dtype=np.float32)
+            mesh.vertices.foreach_get("co", co)
+            co = co.reshape(-1, 3)
+            co = np.stack([co[:, 0], co[:, 2], -co[:, 1]], axis=-1)  # Blender local -> glTF (Y up)
+            corners_bl = co[tri_verts.reshape(-1, 3)]                 # (n, 3 corners, 3)
+            match = np.fromiter((tree.find(c)[1] for c in corners_bl.mean(axis=1)), dtype=np.int64, count=n)
+            corners_lm = tri_pos[match]
+            # A Blender triangle without a lightmap triangle at its place (a primitive lit from the
+            # volume, a degenerate triangle the daemon dropped) gets no lightmap: UVs outside the
+            # image, which the texture node clips to black.
+            gap = np.linalg.norm(corners_lm.mean(axis=1) - corners_bl.mean(axis=1), axis=-1)
+            size = np.linalg.norm(corners_bl - corners_bl[:, [1, 2, 0]], axis=-1).max(axis=1)
+            found = gap <= 1e-3 * size + 1e-6
+            self.unmatched_triangles += int((~found).sum())
+            if found.any():
+                self.uv_match_error = max(self.uv_match_error, float((gap[found] / np.maximum(size[found], 1e-12)).max()))
+            # Each Blender corner takes the UV of the nearest corner of its lightmap triangle.
+            k = np.linalg.norm(corners_bl[:, :, None, :] - corners_lm[:, None, :, :], axis=-1).argmin(axis=-1)
+            uv = tri_uv[match[:, None], k]                            # (n, 3, 2)
+            uv = np.stack([uv[..., 0], 1.0 - uv[..., 1]], axis=-1)   # glTF v down -> Blender v up
             loop_uv = np.zeros((len(mesh.loops), 2), dtype=np.float32)
-            for lt in mesh.loop_triangles:
-                vs = co[list(lt.vertices)]
-                _, t, _ = tree.find(vs.mean(axis=0))
-                for corner, loop in zip(vs, lt.loops):
-                    k = int(np.argmin(np.linalg.norm(tri_pos[t] - corner, axis=1)))
-                    u, v = tri_uv[t][k]
-                    loop_uv[loop] = (u, 1.0 - v)
+            uv[~found] = -1.0
+            loop_uv[tri_loops.reshape(-1, 3)] = uv
             layer.data.foreach_set("uv", loop_uv.ravel())
             self.lightmapped_objects.append(obj.name)
         self._ensure_image()
@@ -282,6 +303,7 @@ class LiveLink:
         tex.name = "Lightmap"
         tex.image = self.image
         tex.interpolation = "Linear"
+        tex.extension = "CLIP"  # triangles without a lightmap have UVs outside: black
         mul = n.new("ShaderNodeMixRGB")
         mul.blend_type = "MULTIPLY"
         mul.inputs["Fac"].default_value = 1.0
