@@ -95,14 +95,12 @@ def dominant_direction(coeffs: np.ndarray) -> np.ndarray:
     linear band is zero or absent.
     """
     c = np.asarray(coeffs, dtype=np.float32)
-    out = np.zeros(c.shape[:-2] + (3,), dtype=np.float32)
     if c.shape[-1] < 4:
+        out = np.zeros(c.shape[:-2] + (3,), dtype=np.float32)
         out[..., 2] = 1.0
         return out
     s = c[..., :, 1:4].sum(axis=-2)  # (y, z, x)
-    v = np.stack([s[..., 2], s[..., 0], s[..., 1]], axis=-1)
-    n = np.linalg.norm(v, axis=-1, keepdims=True)
-    safe = n[..., 0] > 0
-    out[safe] = v[safe] / n[safe]
-    out[~safe] = (0.0, 0.0, 1.0)
-    return out
+    v = s[..., [2, 0, 1]]
+    n = np.sqrt((v * v).sum(axis=-1, keepdims=True))
+    ok = n > 0
+    return np.where(ok, v / np.where(ok, n, 1.0), np.array([0.0, 0.0, 1.0], dtype=np.float32)).astype(np.float32)
