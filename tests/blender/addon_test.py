@@ -261,6 +261,32 @@ def main():
               f"the mesh the light moved towards ({target_obj}) gained most: "
               + ", ".join(f"{n} x{g:.2f}" for n, g in sorted(gain.items())))
 
+        # Emission: the ceiling light's material switched off through the depsgraph handler.
+        def radiance(m):
+            e = lk.emission_of(bpy.data.materials[m])
+            return max(e[0]) * e[1] if e else 0.0
+
+        emissive = [m for m in lk.materials if radiance(m) > 0]
+        check(bool(emissive), f"an emissive material was exported ({emissive})")
+        mat = bpy.data.materials[emissive[0]]
+        bsdf = next(n for n in mat.node_tree.nodes if n.type == "BSDF_PRINCIPLED")
+        mean_before = float(lk.image_irradiance().mean())
+        bsdf.inputs["Emission Strength"].default_value = 0.0
+        bpy.context.view_layer.update()
+        check(mat.name in lk._dirty_materials, f"the depsgraph handler saw {mat.name}'s emission change")
+        lk.tick()
+        while lk._in_flight:
+            time.sleep(0.005)
+        check(wait_applied(lk, lk.sent_version), "the emission change reached the image")
+        doc = lk.scene.lights().document
+        override = [e for e in doc["emissive"] if e["material"] == lk.materials[mat.name][0]]
+        check(override and override[0].get("radiance") == [0.0, 0.0, 0.0], f"the daemon holds radiance 0 for {mat.name}")
+        want = daemon_irradiance(lk.applied_version)
+        got = lk.image_irradiance()
+        check(float(np.abs(got - want).max()) <= 1e-6 * max(1.0, float(want.max())),
+              f"image == daemon result of version {lk.applied_version}")
+        check(float(got.mean()) < mean_before, f"the room got darker ({mean_before:.4g} -> {float(got.mean()):.4g})")
+
         # Drag: a move every frame-ish, measuring move -> updated image.
         lat = []
         for i in range(a.moves):

@@ -3,7 +3,7 @@
 Sidebar (View3D > N panel > Lightlink): daemon address and token, bake options, Connect,
 Bake live (exports the scene with Blender's glTF exporter and opens it on the daemon, with a
 progress bar and Cancel), Stop. While live, moving, recolouring or changing the power of a
-point, spot or sun light sends the change (coalesced, from a timer; no network on Blender's
+point, spot or sun light, or the emission of a material, sends the change (coalesced, from a timer; no network on Blender's
 main thread) and the relit lightmap appears on the meshes through a "LightlinkLM" UV layer
 and a node group in their materials.
 """
@@ -212,6 +212,12 @@ def _depsgraph_changed(scene, depsgraph):
             for o in bpy.data.objects:
                 if o.data == idb:
                     lk.light_changed(o.name)
+        elif isinstance(idb, bpy.types.Material):
+            lk.material_changed(idb.name)
+        elif isinstance(idb, bpy.types.ShaderNodeTree):
+            for m in bpy.data.materials:
+                if m.node_tree == idb:
+                    lk.material_changed(m.name)
 
 
 def _timer():

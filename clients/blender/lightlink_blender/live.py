@@ -124,6 +124,8 @@ class LiveLink:
         self.sent_version = 0                     # version of the newest acknowledged update
         self.timings: Dict[str, float] = {}
         self._dirty: set = set()
+        self._dirty_materials: set = set()
+        self.materials: Dict[str, Tuple[int, float]] = {}  # Blender material -> (glTF index, strength at export)
         self._in_flight = False
         self._results: "queue.Queue[Any]" = queue.Queue()
         self._subscription: Optional[Any] = None
@@ -145,6 +147,12 @@ class LiveLink:
         with open(path, "rb") as f:
             data = f.read()
         doc, binary = read_glb(data)
+        self.materials = {}
+        for i, m in enumerate(doc.get("materials", [])):
+            mat = bpy.data.materials.get(m.get("name", ""))
+            if mat is not None:
+                e = self.emission_of(mat)
+                self.materials[mat.name] = (i, e[1] if e else 0.0)
         return write_glb(doc, binary) if booleanize_flags(doc) else data
 
     def bake_live(self) -> None:
@@ -375,6 +383,44 @@ class LiveLink:
             with self._lock:
                 self._dirty.add(obj_name)
 
+    def material_changed(self, name: str) -> None:
+        if name in self.materials:
+            with self._lock:
+                self._dirty_materials.add(name)
+
+    @staticmethod
+    def emission_of(mat: bpy.types.Material) -> Optional[Tuple[Tuple[float, float, float], float, bool]]:
+        """(emission colour, strength, colour comes from a texture) of a material's Principled
+        BSDF or Emission node, as the glTF exporter reads them; None without either."""
+        if not mat.use_nodes or mat.node_tree is None:
+            return None
+        for node in mat.node_tree.nodes:
+            if node.type == "BSDF_PRINCIPLED":
+                c, k = node.inputs["Emission"], node.inputs["Emission Strength"]
+            elif node.type == "EMISSION":
+                c, k = node.inputs["Color"], node.inputs["Strength"]
+            else:
+                continue
+            return tuple(c.default_value[:3]), float(k.default_value), c.is_linked
+        return None
+
+    def override_of(self, mat: bpy.types.Material) -> Optional[Any]:
+        """The material's emission as an EmissiveOverride: radiance = colour x strength (docs/units.md:
+        emissiveFactor x emissive_strength), or, for a textured emission, the strength's ratio to
+        the exported one as a scale."""
+        e = self.emission_of(mat)
+        index, exported_strength = self.materials[mat.name]
+        if e is None:
+            return None
+        color, strength, textured = e
+        o = ll.pb.EmissiveOverride(material=index)
+        if textured:
+            k = strength / exported_strength if exported_strength > 0 else 0.0
+            o.scale.CopyFrom(ll.pb.Vec3(x=k, y=k, z=k))
+        else:
+            o.radiance.CopyFrom(ll.pb.Vec3(x=color[0] * strength, y=color[1] * strength, z=color[2] * strength))
+        return o
+
     def fields_of(self, obj: bpy.types.Object) -> Dict[str, Any]:
         d = obj.data
         forward = obj.matrix_world.to_3x3() @ Vector((0.0, 0.0, -1.0))
@@ -396,21 +442,28 @@ class LiveLink:
         if newest is not None and newest.version > self.applied_version:
             self.apply_result(newest)
         with self._lock:
-            send = bool(self._dirty) and not self._in_flight and self.scene is not None
+            send = bool(self._dirty or self._dirty_materials) and not self._in_flight and self.scene is not None
             names = list(self._dirty) if send else []
+            mats = list(self._dirty_materials) if send else []
             if send:
                 self._dirty.clear()
+                self._dirty_materials.clear()
                 self._in_flight = True
         if send:
-            changes = []
+            changes, overrides = [], []
             for n in names:
                 obj = bpy.data.objects.get(n)
                 if obj is not None:
                     changes.append(dict(self.fields_of(obj), id=self.light_ids[n]))
+            for n in mats:
+                mat = bpy.data.materials.get(n)
+                o = self.override_of(mat) if mat is not None else None
+                if o is not None:
+                    overrides.append(o)
 
             def run():
                 try:
-                    ack = self.scene.update_lights(modify=changes)
+                    ack = self.scene.update_lights(modify=changes, emissive=overrides)
                     self.sent_version = ack.version
                 except Exception as e:
                     self.error = str(e)
