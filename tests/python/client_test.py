@@ -240,6 +240,23 @@ class ClientTest(unittest.TestCase):
             self.assertEqual(gone.exception.code, grpc.StatusCode.NOT_FOUND)
 
 
+class ErrorTest(unittest.TestCase):
+    def test_a_call_the_daemon_does_not_know_says_the_daemon_is_older(self):
+        import lightlink
+
+        class Old(grpc.RpcError):
+            def code(self):
+                return grpc.StatusCode.UNIMPLEMENTED
+
+            def details(self):
+                return "Method not found!"
+
+        e = lightlink.LightlinkError.from_rpc_error("GetLights", Old())
+        self.assertEqual(e.code, grpc.StatusCode.UNIMPLEMENTED)
+        self.assertIn("older than this client", str(e))
+        self.assertTrue(str(e).startswith("GetLights: UNIMPLEMENTED: Method not found!"))
+
+
 class ShTest(unittest.TestCase):
     def test_basis_matches_the_formulas_and_a_furnace_gives_pi_l(self):
         from lightlink import sh

@@ -27,8 +27,10 @@ class LightlinkError(Exception):
     @classmethod
     def from_rpc_error(cls, rpc: str, error: grpc.RpcError) -> "LightlinkError":
         code = error.code() if hasattr(error, "code") else None
-        details = error.details() if hasattr(error, "details") else str(error)
-        return cls(rpc, code, details or "")
+        details = (error.details() if hasattr(error, "details") else str(error)) or ""
+        if code == grpc.StatusCode.UNIMPLEMENTED:
+            details += f" (the daemon does not know {rpc}: it is older than this client; update lightlinkd)"
+        return cls(rpc, code, details)
 
 
 class ProtocolError(LightlinkError):
