@@ -188,6 +188,22 @@ def main():
               f"(max |diff| {err:.3g})")
         check(float(got.max()) > 0.0, "the image is lit")
 
+        # Meshes without a lightmap (the box's dynamic probe) take the grid's irradiance at their origin.
+        check(bool(lk.probe_objects), f"objects lit from the grid: {lk.probe_objects}")
+        t = scene.relight(version=lk.applied_version, lightmap=False)
+        for name in lk.probe_objects:
+            obj = bpy.data.objects[name]
+            g = t.header.grid
+            p = np.array(convert.to_gltf(obj.matrix_world.translation))
+            f = np.clip((p - [g.origin.x, g.origin.y, g.origin.z]) / [g.spacing.x, g.spacing.y, g.spacing.z], 0,
+                        [g.nx - 1, g.ny - 1, g.nz - 1])
+            near = tuple(int(round(v)) for v in f[::-1])  # the nearest grid point (z, y, x)
+            e_near = math.pi * 0.282094791773878 * t.grid_sh[near][:, 0]
+            e_obj = np.array(obj["lightlink_irradiance"])
+            check(bool(np.all(e_obj > 0)) and bool(np.all(np.isfinite(e_obj))), f"{name}: irradiance {e_obj}")
+            check(float(np.abs(e_obj - e_near).max()) <= 0.5 * float(e_near.max()),
+                  f"{name}: near the grid's irradiance at its nearest point {e_near}")
+
         # Units round trip per light type: what the exporter wrote, the add-on's live conversion,
         # and Blender's importer inverse.
         state = lk.scene.lights()

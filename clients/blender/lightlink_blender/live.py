@@ -43,6 +43,8 @@ UV_LAYER = "LightlinkLM"
 IMAGE_NAME = "lightlink_lightmap"
 GROUP_NAME = "Lightlink Lightmap"
 OUTPUT_NAME = "Lightlink Output"
+PROBE_FLAG = "lightlink_probe"              # object property: 1 = lit from the grid
+PROBE_IRRADIANCE = "lightlink_irradiance"   # object property: the grid's irradiance at its origin
 
 
 def read_glb(data: bytes) -> Tuple[dict, bytes]:
@@ -105,6 +107,30 @@ def accessor_array(doc: dict, binary: bytes, index: int) -> np.ndarray:
     raw = np.frombuffer(binary, dtype=np.uint8, count=stride * (acc["count"] - 1) + item, offset=start)
     rows = np.lib.stride_tricks.as_strided(raw, shape=(acc["count"], item), strides=(stride, 1))
     return np.ascontiguousarray(rows).view(dtype).reshape(acc["count"], ncomp)
+
+
+def grid_irradiance(tex: Any, position: Tuple[float, float, float]) -> np.ndarray:
+    """The grid's irradiance averaged over normals (band 0: E = pi * Y00 * L00) at a glTF-frame
+    position, trilinear over the valid grid points around it (clamped to the grid)."""
+    g = tex.header.grid
+    dims = np.array([g.nx, g.ny, g.nz])
+    f = (np.array(position) - np.array([g.origin.x, g.origin.y, g.origin.z])) / np.array(
+        [g.spacing.x, g.spacing.y, g.spacing.z])
+    f = np.clip(f, 0.0, dims - 1)
+    i0 = np.minimum(np.floor(f).astype(int), np.maximum(dims - 2, 0))
+    t = f - i0
+    sh, valid = tex.grid_sh, tex.grid_valid
+    total, weight = np.zeros(3), 0.0
+    for dz in (0, 1):
+        for dy in (0, 1):
+            for dx in (0, 1):
+                x, y, z = min(i0[0] + dx, g.nx - 1), min(i0[1] + dy, g.ny - 1), min(i0[2] + dz, g.nz - 1)
+                w = (t[0] if dx else 1 - t[0]) * (t[1] if dy else 1 - t[1]) * (t[2] if dz else 1 - t[2])
+                if valid[z, y, x] and w > 0:
+                    total += w * sh[z, y, x, :, 0]
+                    weight += w
+    l00 = total / weight if weight > 0 else total
+    return np.maximum(math.pi * 0.282094791773878 * l00, 0.0)
 
 
 class LiveLink:
@@ -280,7 +306,14 @@ class LiveLink:
             layer.data.foreach_set("uv", loop_uv.ravel())
             self.lightmapped_objects.append(obj.name)
         self._ensure_image()
-        for name in self.lightmapped_objects:
+        # Meshes without a lightmap (dynamic, or lit from the volume) take the grid at their origin.
+        self.probe_objects = [o.name for o in bpy.context.scene.objects
+                              if o.type == "MESH" and o.name not in self.lightmapped_objects]
+        for name in self.probe_objects:
+            obj = bpy.data.objects[name]
+            obj[PROBE_FLAG] = 1.0
+            obj[PROBE_IRRADIANCE] = [0.0, 0.0, 0.0]
+        for name in self.lightmapped_objects + self.probe_objects:
             self._wire_materials(bpy.data.objects[name])
 
     # ------------------------------------------------------------------ viewport
@@ -295,8 +328,9 @@ class LiveLink:
         self.image = img
 
     def _node_group(self) -> bpy.types.NodeTree:
-        """Emission = albedo * E / pi from the lightmap image on the LightlinkLM UVs: the
-        radiance a diffuse surface of that albedo sends under the baked irradiance E."""
+        """Emission = albedo * E / pi, the radiance a diffuse surface of that albedo sends under
+        irradiance E: E from the lightmap image on the LightlinkLM UVs, or, on an object the add-on
+        lights from the grid (object property lightlink_probe = 1), its lightlink_irradiance."""
         g = bpy.data.node_groups.get(GROUP_NAME)
         if g is not None:
             return g
@@ -312,14 +346,24 @@ class LiveLink:
         tex.image = self.image
         tex.interpolation = "Linear"
         tex.extension = "CLIP"  # triangles without a lightmap have UVs outside: black
+        probe = n.new("ShaderNodeAttribute")
+        probe.attribute_type = "OBJECT"
+        probe.attribute_name = PROBE_FLAG
+        probe_e = n.new("ShaderNodeAttribute")
+        probe_e.attribute_type = "OBJECT"
+        probe_e.attribute_name = PROBE_IRRADIANCE
+        pick = n.new("ShaderNodeMixRGB")
         mul = n.new("ShaderNodeMixRGB")
         mul.blend_type = "MULTIPLY"
         mul.inputs["Fac"].default_value = 1.0
         emit = n.new("ShaderNodeEmission")
         emit.inputs["Strength"].default_value = 1.0 / math.pi
         g.links.new(uv.outputs["UV"], tex.inputs["Vector"])
+        g.links.new(probe.outputs["Fac"], pick.inputs["Fac"])
+        g.links.new(tex.outputs["Color"], pick.inputs["Color1"])
+        g.links.new(probe_e.outputs["Color"], pick.inputs["Color2"])
         g.links.new(gin.outputs["Albedo"], mul.inputs["Color1"])
-        g.links.new(tex.outputs["Color"], mul.inputs["Color2"])
+        g.links.new(pick.outputs["Color"], mul.inputs["Color2"])
         g.links.new(mul.outputs["Color"], emit.inputs["Color"])
         g.links.new(emit.outputs["Emission"], gout.inputs["Shader"])
         return g
@@ -347,7 +391,7 @@ class LiveLink:
             out.is_active_output = True
 
     def _start_subscription(self) -> None:
-        self._subscription = self.scene.subscribe(grid=False)
+        self._subscription = self.scene.subscribe(grid=bool(self.probe_objects))
         sub = self._subscription
 
         def run():
@@ -367,6 +411,12 @@ class LiveLink:
         rgba[..., :3] = e
         self.image.pixels.foreach_set(np.flipud(rgba).ravel())
         self.image.update()
+        if tex.grid_sh is not None:
+            for name in self.probe_objects:
+                obj = bpy.data.objects.get(name)
+                if obj is not None:
+                    obj[PROBE_IRRADIANCE] = grid_irradiance(tex, convert.to_gltf(obj.matrix_world.translation)).tolist()
+                    obj.update_tag()
         self.applied_version = tex.version
         self.applied_at = time.monotonic()
 
