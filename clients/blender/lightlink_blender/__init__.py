@@ -33,11 +33,24 @@ def _settings(context):
     return context.scene.lightlink
 
 
+class LightlinkPreferences(bpy.types.AddonPreferences):
+    # In the user preferences, not in the .blend: a shared scene file does not carry the token.
+    bl_idname = __name__
+    token: bpy.props.StringProperty(name="Token", subtype="PASSWORD", default="",
+                                    description="Daemon bearer token (empty: none, or $LIGHTLINK_TOKEN)")
+
+    def draw(self, context):
+        self.layout.prop(self, "token")
+
+
+def _preferences(context):
+    addon = context.preferences.addons.get(__name__)
+    return addon.preferences if addon is not None else None
+
+
 class LightlinkSettings(bpy.types.PropertyGroup):
     address: bpy.props.StringProperty(name="Daemon", default="127.0.0.1:50051",
                                       description="host:port of lightlinkd")
-    token: bpy.props.StringProperty(name="Token", subtype="PASSWORD", default="",
-                                    description="Daemon bearer token (empty: none, or $LIGHTLINK_TOKEN)")
     preset: bpy.props.EnumProperty(name="Preset", items=[("draft", "Draft", ""), ("medium", "Medium", ""),
                                                          ("high", "High", "")], default="draft")
     options: bpy.props.StringProperty(name="Options", default="",
@@ -58,8 +71,12 @@ def _ensure_link(context):
     from .live import LiveLink
 
     s = _settings(context)
-    if _link is None or _link.target != s.address:
-        _link = LiveLink(s.address, token=s.token or None, options=_options(s))
+    prefs = _preferences(context)
+    token = (prefs.token if prefs is not None else "") or None
+    if _link is not None and (_link.target != s.address or _link.token != token):
+        stop_live()  # another daemon or token: the old link ends first
+    if _link is None:
+        _link = LiveLink(s.address, token=token, options=_options(s))
     _link.options = _options(s)
     return _link
 
@@ -183,7 +200,9 @@ class LIGHTLINK_PT_panel(bpy.types.Panel):
         s = _settings(context)
         col = self.layout.column()
         col.prop(s, "address")
-        col.prop(s, "token")
+        prefs = _preferences(context)
+        if prefs is not None:
+            col.prop(prefs, "token")
         col.prop(s, "preset")
         col.prop(s, "options")
         row = col.row()
@@ -249,7 +268,7 @@ def stop_live():
     _link = None
 
 
-_classes = (LightlinkSettings, LIGHTLINK_OT_connect, LIGHTLINK_OT_bake_live, LIGHTLINK_OT_cancel,
+_classes = (LightlinkPreferences, LightlinkSettings, LIGHTLINK_OT_connect, LIGHTLINK_OT_bake_live, LIGHTLINK_OT_cancel,
             LIGHTLINK_OT_stop, LIGHTLINK_PT_panel)
 
 
