@@ -45,8 +45,12 @@ class Daemon:
             stdout=self.log, stderr=subprocess.STDOUT)
         deadline = time.monotonic() + 30
         while time.monotonic() < deadline:
-            if os.path.exists(port_file) and open(port_file).read().strip():
-                self.target = f"127.0.0.1:{int(open(port_file).read().strip())}"
+            port = ""
+            if os.path.exists(port_file):
+                with open(port_file) as f:
+                    port = f.read().strip()
+            if port:
+                self.target = f"127.0.0.1:{int(port)}"
                 return
             if self.proc.poll() is not None:
                 break
@@ -238,6 +242,30 @@ class ClientTest(unittest.TestCase):
             with self.assertRaises(ll.LightlinkError) as gone:
                 scene.lights()
             self.assertEqual(gone.exception.code, grpc.StatusCode.NOT_FOUND)
+
+
+class TokenTest(unittest.TestCase):
+    def test_the_bearer_token_is_sent_and_a_missing_one_is_unauthenticated(self):
+        import lightlink
+
+        token = "0123456789abcdef0123456789abcdef"
+        tmp = tempfile.mkdtemp(prefix="lightlink_py_token_")
+        token_file = os.path.join(tmp, "token")
+        with open(token_file, "w") as f:
+            f.write(token + "\n")
+        d = Daemon(ARGS.daemon, ARGS.source_dir, extra=("--token-file", token_file))
+        try:
+            with lightlink.Client(d.target) as anonymous:
+                with self.assertRaises(lightlink.LightlinkError) as refused:
+                    anonymous.health()
+                self.assertEqual(refused.exception.code, grpc.StatusCode.UNAUTHENTICATED)
+            with lightlink.Client(d.target, token_file=token_file) as c:
+                self.assertEqual(c.health().protocol_version, 1)
+            with lightlink.Client(d.target, token=token) as c:
+                self.assertEqual(c.list_scenes(), [])
+        finally:
+            d.stop()
+            shutil.rmtree(tmp, ignore_errors=True)
 
 
 class ErrorTest(unittest.TestCase):
