@@ -244,6 +244,65 @@ class ClientTest(unittest.TestCase):
             self.assertEqual(gone.exception.code, grpc.StatusCode.NOT_FOUND)
 
 
+def plane_gltf(n):
+    """A 1 m x 1 m floor of n x n quads under a point light, self-contained (data: URI)."""
+    import base64
+
+    xs = np.linspace(0.0, 1.0, n + 1, dtype=np.float32)
+    gx, gz = np.meshgrid(xs, xs)
+    pos = np.stack([gx.ravel(), np.zeros(gx.size, np.float32), gz.ravel()], axis=-1).astype(np.float32)
+    nrm = np.tile(np.array([0, 1, 0], np.float32), (len(pos), 1))
+    q = np.arange(n * n)
+    a = (q // n) * (n + 1) + q % n
+    idx = np.stack([a, a + n + 1, a + 1, a + 1, a + n + 1, a + n + 2], axis=-1).astype(np.uint32).ravel()
+    blob = pos.tobytes() + nrm.tobytes() + idx.tobytes()
+    doc = {
+        "asset": {"version": "2.0"}, "extensionsUsed": ["KHR_lights_punctual"],
+        "extensions": {"KHR_lights_punctual": {"lights": [{"name": "lamp", "type": "point", "intensity": 5}]}},
+        "buffers": [{"byteLength": len(blob), "uri": "data:application/octet-stream;base64," + base64.b64encode(blob).decode()}],
+        "bufferViews": [{"buffer": 0, "byteOffset": 0, "byteLength": pos.nbytes},
+                        {"buffer": 0, "byteOffset": pos.nbytes, "byteLength": nrm.nbytes},
+                        {"buffer": 0, "byteOffset": pos.nbytes + nrm.nbytes, "byteLength": idx.nbytes}],
+        "accessors": [{"bufferView": 0, "componentType": 5126, "count": len(pos), "type": "VEC3",
+                       "min": [0, 0, 0], "max": [1, 0, 1]},
+                      {"bufferView": 1, "componentType": 5126, "count": len(nrm), "type": "VEC3"},
+                      {"bufferView": 2, "componentType": 5125, "count": len(idx), "type": "SCALAR"}],
+        "meshes": [{"primitives": [{"attributes": {"POSITION": 0, "NORMAL": 1}, "indices": 2}]}],
+        "nodes": [{"mesh": 0, "name": "floor"}, {"name": "lamp", "translation": [0.5, 0.5, 0.5],
+                                                  "extensions": {"KHR_lights_punctual": {"light": 0}}}],
+        "scenes": [{"nodes": [0, 1]}], "scene": 0}
+    return json.dumps(doc).encode()
+
+
+class SplitUvsTest(unittest.TestCase):
+    def test_a_mesh_larger_than_a_message_comes_in_parts_that_join(self):
+        import lightlink
+        from lightlink import pb
+        from lightlink._proto import lightlink_pb2_grpc as pb_grpc
+
+        d = Daemon(ARGS.daemon, ARGS.source_dir, extra=("--chunk-bytes", "4096"))
+        try:
+            with lightlink.Client(d.target, timeout=120) as c:
+                scene = c.open(upload=plane_gltf(48), options={"preset": "draft", "grid": "off"}, timeout=240)
+                uvs = scene.lightmap_uvs(gltf=True)
+                (floor,) = [m for m in uvs.meshes if m.lightmapped]
+                self.assertGreaterEqual(len(floor.uv), (49 * 49))
+                self.assertEqual(len(floor.indices), 2 * 48 * 48)
+                self.assertLess(int(floor.indices.max()), len(floor.uv))
+                self.assertEqual(len(floor.source_vertex), len(floor.uv))
+                self.assertLess(int(floor.source_vertex.max()), 49 * 49)
+                # The same stream, counted: the floor came in several messages.
+                stub = pb_grpc.LightlinkStub(c._channel)
+                index = next(m.index for m in uvs.meshes if m.lightmapped)
+                parts = [m for m in stub.GetLightmapUvs(pb.GetLightmapUvsRequest(scene=scene.ref), timeout=60)
+                         if m.HasField("mesh") and m.mesh.index == index]
+                self.assertGreater(len(parts), 1)
+                self.assertEqual([p.mesh.vertex_offset for p in parts][:2], [0, 4096 // 16])
+                self.assertEqual(uvs.glb[:4], b"glTF")
+        finally:
+            d.stop()
+
+
 class TokenTest(unittest.TestCase):
     def test_the_bearer_token_is_sent_and_a_missing_one_is_unauthenticated(self):
         import lightlink
