@@ -172,6 +172,13 @@ class ResultAssembler:
                 # The tile's texels, row-major and tile-local; a chunk may start and end mid-row.
                 data = np.frombuffer(c.data, dtype=np.uint8)
                 flat = np.frombuffer(full, dtype=np.uint8)
+                if c.offset % row == 0 and len(data) % row == 0:  # whole rows (the daemon sends whole tiles)
+                    r0, rows = c.offset // row, len(data) // row
+                    if r0 + rows > th:
+                        raise ProtocolError("result: a delta chunk beyond its tile")
+                    image = flat.reshape(h, w * texel_bytes)
+                    image[y0 + r0:y0 + r0 + rows, x0 * texel_bytes:x0 * texel_bytes + row] = data.reshape(rows, row)
+                    continue
                 pos, i = c.offset, 0
                 while i < len(data):
                     r, xb = divmod(pos, row)
