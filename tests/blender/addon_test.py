@@ -304,7 +304,7 @@ def main():
         check(float(got.mean()) < mean_before, f"the room got darker ({mean_before:.4g} -> {float(got.mean()):.4g})")
 
         # Drag: a move every frame-ish, measuring move -> updated image.
-        lat = []
+        lat, parts = [], []
         for i in range(a.moves):
             f = (i + 1) / (a.moves + 1)
             bulb.location = start.lerp(goal, f)
@@ -316,9 +316,18 @@ def main():
             if not wait_applied(lk, lk.sent_version):
                 fail(f"move {i}: version {lk.sent_version} never reached the image")
             lat.append((lk.applied_at - t) * 1e3)
+            parts.append(((lk.acked_at - t) * 1e3, (lk.received_at - lk.acked_at) * 1e3,
+                          (lk.applied_at - lk.received_at) * 1e3))
+
+        def median(v):
+            return sorted(v)[len(v) // 2]
+
         lat.sort()
         figures["drag_to_image_ms"] = {"moves": len(lat), "median": lat[len(lat) // 2],
-                                       "p95": lat[min(len(lat) - 1, int(math.ceil(0.95 * len(lat))) - 1)]}
+                                       "p95": lat[min(len(lat) - 1, int(math.ceil(0.95 * len(lat))) - 1)],
+                                       "median_move_to_ack": median([p[0] for p in parts]),
+                                       "median_ack_to_received": median([p[1] for p in parts]),
+                                       "median_received_to_image": median([p[2] for p in parts])}
         print("FIGURES " + json.dumps(figures), flush=True)
 
         bpy.ops.lightlink.stop()

@@ -147,6 +147,8 @@ class LiveLink:
         self.image: Optional[bpy.types.Image] = None
         self.applied_version = 0                  # version shown in the image
         self.applied_at = 0.0                     # time.monotonic() of the last apply
+        self.received_at = 0.0                    # when the applied result arrived from the stream
+        self.acked_at = 0.0                       # when the daemon acknowledged the last update
         self.sent_version = 0                     # version of the newest acknowledged update
         self.timings: Dict[str, float] = {}
         self._dirty: set = set()
@@ -397,7 +399,7 @@ class LiveLink:
         def run():
             try:
                 for t in sub:
-                    self._results.put(t)
+                    self._results.put((t, time.monotonic()))
             except Exception as e:  # shown in the panel; the editor goes on
                 self.error = str(e)
 
@@ -489,8 +491,9 @@ class LiveLink:
                 newest = self._results.get_nowait()
             except queue.Empty:
                 break
-        if newest is not None and newest.version > self.applied_version:
-            self.apply_result(newest)
+        if newest is not None and newest[0].version > self.applied_version:
+            self.apply_result(newest[0])
+            self.received_at = newest[1]
         with self._lock:
             send = bool(self._dirty or self._dirty_materials) and not self._in_flight and self.scene is not None
             names = list(self._dirty) if send else []
@@ -514,6 +517,7 @@ class LiveLink:
             def run():
                 try:
                     ack = self.scene.update_lights(modify=changes, emissive=overrides)
+                    self.acked_at = time.monotonic()
                     self.sent_version = ack.version
                 except Exception as e:
                     self.error = str(e)
