@@ -317,7 +317,7 @@ def main():
                 fail(f"move {i}: version {lk.sent_version} never reached the image")
             lat.append((lk.applied_at - t) * 1e3)
             parts.append(((lk.acked_at - t) * 1e3, (lk.received_at - lk.acked_at) * 1e3,
-                          (lk.applied_at - lk.received_at) * 1e3))
+                          (lk.applied_at - lk.received_at) * 1e3, lk.apply_ms))
 
         def median(v):
             return sorted(v)[len(v) // 2]
@@ -327,7 +327,8 @@ def main():
                                        "p95": lat[min(len(lat) - 1, int(math.ceil(0.95 * len(lat))) - 1)],
                                        "median_move_to_ack": median([p[0] for p in parts]),
                                        "median_ack_to_received": median([p[1] for p in parts]),
-                                       "median_received_to_image": median([p[2] for p in parts])}
+                                       "median_received_to_image": median([p[2] for p in parts]),
+                                       "median_main_thread_apply": median([p[3] for p in parts])}
         print("FIGURES " + json.dumps(figures), flush=True)
 
         bpy.ops.lightlink.stop()

@@ -147,6 +147,7 @@ class LiveLink:
         self.image: Optional[bpy.types.Image] = None
         self.applied_version = 0                  # version shown in the image
         self.applied_at = 0.0                     # time.monotonic() of the last apply
+        self.apply_ms = 0.0                       # main-thread time of the last apply
         self.received_at = 0.0                    # when the applied result arrived from the stream
         self.acked_at = 0.0                       # when the daemon acknowledged the last update
         self.sent_version = 0                     # version of the newest acknowledged update
@@ -399,19 +400,28 @@ class LiveLink:
         def run():
             try:
                 for t in sub:
-                    self._results.put((t, time.monotonic()))
+                    received = time.monotonic()
+                    self._results.put((t, self.image_pixels(t), received))
             except Exception as e:  # shown in the panel; the editor goes on
                 self.error = str(e)
 
         threading.Thread(target=run, name="lightlink-subscribe", daemon=True).start()
 
-    def apply_result(self, tex: Any) -> None:
-        """The result's irradiance (SH at each texel's dominant direction + baked direct) into
-        the image, rows flipped into Blender's bottom-up order."""
-        e = tex.irradiance()
+    @staticmethod
+    def image_pixels(tex: Any) -> np.ndarray:
+        """The result's irradiance (SH at each texel's dominant direction + baked direct) as the
+        image's RGBA floats, rows flipped into Blender's bottom-up order. No bpy: the subscription
+        thread computes it, so Blender's main thread only copies it into the image."""
         rgba = np.ones((tex.height, tex.width, 4), dtype=np.float32)
-        rgba[..., :3] = e
-        self.image.pixels.foreach_set(np.flipud(rgba).ravel())
+        rgba[..., :3] = tex.irradiance()
+        return np.ascontiguousarray(np.flipud(rgba)).ravel()
+
+    def apply_result(self, tex: Any, pixels: Optional[np.ndarray] = None) -> None:
+        """The result into the image (and the grid into the probe-lit objects)."""
+        start = time.monotonic()
+        if pixels is None:
+            pixels = self.image_pixels(tex)
+        self.image.pixels.foreach_set(pixels)
         self.image.update()
         if tex.grid_sh is not None:
             for name in self.probe_objects:
@@ -421,6 +431,7 @@ class LiveLink:
                     obj.update_tag()
         self.applied_version = tex.version
         self.applied_at = time.monotonic()
+        self.apply_ms = (self.applied_at - start) * 1e3  # Blender's main thread, this result
 
     def image_irradiance(self) -> np.ndarray:
         """(height, width, 3) of the image, in the lightmap's top-down order."""
@@ -492,8 +503,8 @@ class LiveLink:
             except queue.Empty:
                 break
         if newest is not None and newest[0].version > self.applied_version:
-            self.apply_result(newest[0])
-            self.received_at = newest[1]
+            self.apply_result(newest[0], newest[1])
+            self.received_at = newest[2]
         with self._lock:
             send = bool(self._dirty or self._dirty_materials) and not self._in_flight and self.scene is not None
             names = list(self._dirty) if send else []
