@@ -334,6 +334,12 @@ def main():
         bpy.ops.lightlink.stop()
         check(lightlink_blender.link() is None, "Stop ended the link")
         check(scene.id not in [x.scene_id for x in other.list_scenes()], "Stop closed the scene on the daemon")
+        # Loading another file ends a live link too.
+        check(bpy.ops.lightlink.bake_live() == {"FINISHED"}, "Bake live again")
+        second = lightlink_blender.link().scene.id
+        bpy.ops.wm.read_homefile(use_empty=True)
+        check(lightlink_blender.link() is None, "loading another file ended the link")
+        check(second not in [x.scene_id for x in other.list_scenes()], "and closed its scene")
         other.close()
     finally:
         if a.figures:

@@ -250,6 +250,12 @@ def _timer():
         return 0.1
 
 
+@bpy.app.handlers.persistent
+def _file_loading(*_args):
+    # Another .blend replaces the objects and materials the link maps: it ends (and closes its scene).
+    stop_live()
+
+
 def _start_live():
     if _depsgraph_changed not in bpy.app.handlers.depsgraph_update_post:
         bpy.app.handlers.depsgraph_update_post.append(_depsgraph_changed)
@@ -276,10 +282,13 @@ def register():
     for c in _classes:
         bpy.utils.register_class(c)
     bpy.types.Scene.lightlink = bpy.props.PointerProperty(type=LightlinkSettings)
+    bpy.app.handlers.load_pre.append(_file_loading)
 
 
 def unregister():
     stop_live()
+    if _file_loading in bpy.app.handlers.load_pre:
+        bpy.app.handlers.load_pre.remove(_file_loading)
     del bpy.types.Scene.lightlink
     for c in reversed(_classes):
         bpy.utils.unregister_class(c)
