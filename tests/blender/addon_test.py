@@ -188,6 +188,76 @@ def main():
               f"(max |diff| {err:.3g})")
         check(float(got.max()) > 0.0, "the image is lit")
 
+        # The "l1" encoding's images hold the daemon's band 0 and 1 coefficients and direct light.
+        t = scene.relight(version=lk.applied_version, grid=False)
+        valid = t.lightmap_valid[..., None]
+        for i, name in enumerate(live.L1_IMAGES[:4]):
+            err = float(np.abs(lk.image_values(name) - np.where(valid, t.lightmap_sh[..., :, i], 0)).max())
+            check(err == 0.0, f"{name} == the daemon's coefficient {i}")
+        check(float(np.abs(lk.image_values("lightlink_direct") - np.where(valid, t.lightmap_direct, 0)).max()) == 0.0,
+              "lightlink_direct == the daemon's direct light")
+        # The node group's per-pixel shading, through Cycles: bake the emission of a wall (one
+        # normal) into an image on LightlinkLM and compare with albedo x E(n) / pi from the
+        # daemon's SH (bands 0, 1) at that normal, texel by texel.
+        wall = bpy.data.objects["RedWall"]
+        mat = wall.material_slots[0].material
+        albedo = np.array(mat.node_tree.nodes[live.GROUP_NAME].inputs["Albedo"].default_value[:3])
+        target_img = bpy.data.images.new("bake_target", *lk.atlas, float_buffer=True)
+        target_img.colorspace_settings.name = "Non-Color"
+        node = mat.node_tree.nodes.new("ShaderNodeTexImage")
+        node.image = target_img
+        mat.node_tree.nodes.active = node
+        wall.data.uv_layers.active = wall.data.uv_layers["LightlinkLM"]
+        bpy.context.scene.render.engine = "CYCLES"
+        # Blender 3.4 here bakes EMIT and margin 0 as zeros; COMBINED of a pure emission shader is
+        # its emission. A tiny pixel filter samples each texel near its centre.
+        bpy.context.scene.cycles.samples = 4
+        bpy.context.scene.cycles.use_denoising = False
+        bpy.context.scene.cycles.filter_width = 0.01
+        bpy.context.scene.render.bake.margin = 2
+        for o in bpy.context.scene.objects:
+            o.select_set(o == wall)
+        bpy.context.view_layer.objects.active = wall
+        check(bpy.ops.object.bake(type="COMBINED") == {"FINISHED"}, "Cycles baked the wall's emission")
+        w_, h_ = target_img.size
+        baked = np.empty(w_ * h_ * 4, dtype=np.float32)
+        target_img.pixels.foreach_get(baked)
+        baked = np.flipud(baked.reshape(h_, w_, 4))[..., :3]
+        normal = wall.matrix_world.to_3x3() @ wall.data.polygons[0].normal
+        n_gltf = np.array(convert.to_gltf(normal.normalized()))
+        c = t.lightmap_sh
+        e = live.A0_Y00 * c[..., :, 0] + live.A1_Y1 * (c[..., :, 1] * n_gltf[1] + c[..., :, 2] * n_gltf[2]
+                                                      + c[..., :, 3] * n_gltf[0])
+        want_rgb = albedo * (np.maximum(e, 0) + t.lightmap_direct) / math.pi
+        # The wall's texels: centres inside its LightlinkLM triangles, as are their 8 neighbours.
+        luv = np.zeros(len(wall.data.loops) * 2, dtype=np.float32)
+        wall.data.uv_layers["LightlinkLM"].data.foreach_get("uv", luv)
+        luv = luv.reshape(-1, 2)
+        ys, xs = np.mgrid[0:h_, 0:w_]
+        centre = np.stack([(xs + 0.5) / w_, 1.0 - (ys + 0.5) / h_], axis=-1)
+        covered = np.zeros((h_, w_), dtype=bool)
+        wall.data.calc_loop_triangles()
+        for lt in wall.data.loop_triangles:
+            a_, b_, c_ = (luv[i] for i in lt.loops)
+            m = np.array([b_ - a_, c_ - a_]).T
+            if abs(np.linalg.det(m)) < 1e-12:
+                continue
+            bc = np.linalg.solve(m, (centre - a_).reshape(-1, 2).T).T.reshape(h_, w_, 2)
+            covered |= (bc[..., 0] >= 0) & (bc[..., 1] >= 0) & (bc.sum(axis=-1) <= 1)
+        interior = covered.copy()
+        for dy in (-1, 0, 1):
+            for dx in (-1, 0, 1):
+                interior &= np.roll(np.roll(covered, dy, 0), dx, 1)
+        interior &= t.lightmap_valid
+        rel = np.abs(baked[interior] - want_rgb[interior]) / np.maximum(np.abs(want_rgb[interior]), 1e-6)
+        check(interior.sum() > 50, f"the wall covers {int(covered.sum())} texels, {int(interior.sum())} interior")
+        check(float(np.median(rel)) < 1e-2,
+              f"the node group's shading == albedo x E(n) / pi from the daemon's SH on {int(interior.sum())} texels "
+              f"(median rel. error {float(np.median(rel)):.2g}, 95th {float(np.percentile(rel, 95)):.2g}; mean baked "
+              f"{baked[interior].mean(axis=0)}, expected {want_rgb[interior].mean(axis=0)})")
+        mat.node_tree.nodes.remove(node)
+        bpy.data.images.remove(target_img)
+
         # Meshes without a lightmap (the box's dynamic probe) take the grid's irradiance at their origin.
         check(bool(lk.probe_objects), f"objects lit from the grid: {lk.probe_objects}")
         t = scene.relight(version=lk.applied_version, lightmap=False)

@@ -55,6 +55,12 @@ class LightlinkSettings(bpy.types.PropertyGroup):
                                                          ("high", "High", "")], default="draft")
     options: bpy.props.StringProperty(name="Options", default="",
                                       description="More bake options, e.g. 'texel-size=0.05 bounces=2'")
+    encoding: bpy.props.EnumProperty(
+        name="Viewport", default="l1",
+        items=[("l1", "SH L1 per pixel", "Irradiance at each pixel's shading normal from SH bands 0 and 1, plus "
+                "baked direct (five images)"),
+               ("irradiance", "Irradiance", "One image: each texel's SH along its dominant light direction, plus "
+                "baked direct")])
 
 
 def _options(s):
@@ -73,10 +79,10 @@ def _ensure_link(context):
     s = _settings(context)
     prefs = _preferences(context)
     token = (prefs.token if prefs is not None else "") or None
-    if _link is not None and (_link.target != s.address or _link.token != token):
-        stop_live()  # another daemon or token: the old link ends first
+    if _link is not None and (_link.target != s.address or _link.token != token or _link.encoding != s.encoding):
+        stop_live()  # another daemon, token or encoding: the old link ends first
     if _link is None:
-        _link = LiveLink(s.address, token=token, options=_options(s))
+        _link = LiveLink(s.address, token=token, options=_options(s), encoding=s.encoding)
     _link.options = _options(s)
     return _link
 
@@ -205,6 +211,7 @@ class LIGHTLINK_PT_panel(bpy.types.Panel):
             col.prop(prefs, "token")
         col.prop(s, "preset")
         col.prop(s, "options")
+        col.prop(s, "encoding")
         row = col.row()
         row.operator("lightlink.connect")
         row.operator("lightlink.bake_live")

@@ -41,6 +41,13 @@ except ImportError:  # running from the source tree: clients/python on sys.path
 
 UV_LAYER = "LightlinkLM"
 IMAGE_NAME = "lightlink_lightmap"
+# The "l1" encoding's images: the SH coefficients of band 0 and 1 per texel (RGB = the colour
+# channels' coefficient, docs/sh.md index order: 0, then y, z, x) and the baked direct light.
+L1_IMAGES = ("lightlink_sh0", "lightlink_sh1", "lightlink_sh2", "lightlink_sh3", "lightlink_direct")
+ENCODINGS = ("l1", "irradiance")
+# Irradiance of SH bands 0 and 1 (docs/sh.md): E(n) = pi Y00 L00 + (2 pi / 3) Y1 (L1 . n).
+A0_Y00 = math.pi * 0.282094791773878
+A1_Y1 = 2.0 * math.pi / 3.0 * 0.488602511902920
 GROUP_NAME = "Lightlink Lightmap"
 OUTPUT_NAME = "Lightlink Output"
 PROBE_FLAG = "lightlink_probe"              # object property: 1 = lit from the grid
@@ -134,7 +141,12 @@ def grid_irradiance(tex: Any, position: Tuple[float, float, float]) -> np.ndarra
 
 
 class LiveLink:
-    def __init__(self, target: str, token: Optional[str] = None, options: Optional[Dict[str, str]] = None) -> None:
+    def __init__(self, target: str, token: Optional[str] = None, options: Optional[Dict[str, str]] = None,
+                 encoding: str = "l1") -> None:
+        if encoding not in ENCODINGS:
+            raise ValueError(f"encoding '{encoding}': not one of {', '.join(ENCODINGS)}")
+        self.encoding = encoding
+        self.images: Dict[str, bpy.types.Image] = {}
         self.target = target
         self.token = token or None
         self.options = dict(options or {})
@@ -322,33 +334,78 @@ class LiveLink:
     # ------------------------------------------------------------------ viewport
     def _ensure_image(self) -> None:
         w, h = self.atlas
-        img = bpy.data.images.get(IMAGE_NAME)
-        if img is None or tuple(img.size) != (w, h):
-            if img is not None:
-                bpy.data.images.remove(img)
-            img = bpy.data.images.new(IMAGE_NAME, w, h, alpha=True, float_buffer=True)
-            img.colorspace_settings.name = "Non-Color"
-        self.image = img
+        names = (IMAGE_NAME,) + (L1_IMAGES if self.encoding == "l1" else ())
+        for name in names:
+            img = bpy.data.images.get(name)
+            if img is None or tuple(img.size) != (w, h):
+                if img is not None:
+                    bpy.data.images.remove(img)
+                img = bpy.data.images.new(name, w, h, alpha=True, float_buffer=True)
+                img.colorspace_settings.name = "Non-Color"
+            self.images[name] = img
+        self.image = self.images[IMAGE_NAME]
 
     def _node_group(self) -> bpy.types.NodeTree:
         """Emission = albedo * E / pi, the radiance a diffuse surface of that albedo sends under
-        irradiance E: E from the lightmap image on the LightlinkLM UVs, or, on an object the add-on
-        lights from the grid (object property lightlink_probe = 1), its lightlink_irradiance."""
-        g = bpy.data.node_groups.get(GROUP_NAME)
+        irradiance E. E on the LightlinkLM UVs: "l1", per pixel at the shading normal n from the
+        SH images, max(0, pi Y00 L00 + 2pi/3 Y1 (L1 . n)) + direct (n in glTF's frame: x, z, -y of
+        Blender's); "irradiance", the preview image. On an object lit from the grid (object
+        property lightlink_probe = 1): its lightlink_irradiance."""
+        name = f"{GROUP_NAME} ({self.encoding})"
+        g = bpy.data.node_groups.get(name)
         if g is not None:
             return g
-        g = bpy.data.node_groups.new(GROUP_NAME, "ShaderNodeTree")
+        g = bpy.data.node_groups.new(name, "ShaderNodeTree")
         g.inputs.new("NodeSocketColor", "Albedo").default_value = (0.8, 0.8, 0.8, 1.0)
         g.outputs.new("NodeSocketShader", "Shader")
-        n = g.nodes
+        n, link = g.nodes, g.links.new
         gin, gout = n.new("NodeGroupInput"), n.new("NodeGroupOutput")
         uv = n.new("ShaderNodeUVMap")
         uv.uv_map = UV_LAYER
-        tex = n.new("ShaderNodeTexImage")
-        tex.name = "Lightmap"
-        tex.image = self.image
-        tex.interpolation = "Linear"
-        tex.extension = "CLIP"  # triangles without a lightmap have UVs outside: black
+
+        def image(img_name):
+            tex = n.new("ShaderNodeTexImage")
+            tex.name = img_name
+            tex.image = self.images[img_name]
+            tex.interpolation = "Linear"
+            tex.extension = "CLIP"  # triangles without a lightmap have UVs outside: black
+            link(uv.outputs["UV"], tex.inputs["Vector"])
+            return tex.outputs["Color"]
+
+        def vmath(op, a, b=None, scale=None):
+            m = n.new("ShaderNodeVectorMath")
+            m.operation = op
+            link(a, m.inputs[0])
+            if b is not None:
+                if isinstance(b, (tuple, list)):
+                    m.inputs[1].default_value = b
+                else:
+                    link(b, m.inputs[1])
+            if scale is not None:
+                if isinstance(scale, float):
+                    m.inputs["Scale"].default_value = scale
+                else:
+                    link(scale, m.inputs["Scale"])
+            return m.outputs["Vector"]
+
+        if self.encoding == "l1":
+            geo = n.new("ShaderNodeNewGeometry")
+            xyz = n.new("ShaderNodeSeparateXYZ")
+            link(geo.outputs["Normal"], xyz.inputs["Vector"])
+            neg_y = n.new("ShaderNodeMath")
+            neg_y.operation = "MULTIPLY"
+            neg_y.inputs[1].default_value = -1.0
+            link(xyz.outputs["Y"], neg_y.inputs[0])
+            # glTF normal (x, z, -y); the images are the coefficients of y, z, x.
+            e = vmath("SCALE", image("lightlink_sh0"), scale=A0_Y00)
+            for img_name, component in (("lightlink_sh1", xyz.outputs["Z"]), ("lightlink_sh2", neg_y.outputs["Value"]),
+                                        ("lightlink_sh3", xyz.outputs["X"])):
+                term = vmath("SCALE", vmath("SCALE", image(img_name), scale=component), scale=A1_Y1)
+                e = vmath("ADD", e, term)
+            e = vmath("MAXIMUM", e, (0.0, 0.0, 0.0))
+            e = vmath("ADD", e, image("lightlink_direct"))
+        else:
+            e = image(IMAGE_NAME)
         probe = n.new("ShaderNodeAttribute")
         probe.attribute_type = "OBJECT"
         probe.attribute_name = PROBE_FLAG
@@ -361,14 +418,13 @@ class LiveLink:
         mul.inputs["Fac"].default_value = 1.0
         emit = n.new("ShaderNodeEmission")
         emit.inputs["Strength"].default_value = 1.0 / math.pi
-        g.links.new(uv.outputs["UV"], tex.inputs["Vector"])
-        g.links.new(probe.outputs["Fac"], pick.inputs["Fac"])
-        g.links.new(tex.outputs["Color"], pick.inputs["Color1"])
-        g.links.new(probe_e.outputs["Color"], pick.inputs["Color2"])
-        g.links.new(gin.outputs["Albedo"], mul.inputs["Color1"])
-        g.links.new(pick.outputs["Color"], mul.inputs["Color2"])
-        g.links.new(mul.outputs["Color"], emit.inputs["Color"])
-        g.links.new(emit.outputs["Emission"], gout.inputs["Shader"])
+        link(probe.outputs["Fac"], pick.inputs["Fac"])
+        link(e, pick.inputs["Color1"])
+        link(probe_e.outputs["Color"], pick.inputs["Color2"])
+        link(gin.outputs["Albedo"], mul.inputs["Color1"])
+        link(pick.outputs["Color"], mul.inputs["Color2"])
+        link(mul.outputs["Color"], emit.inputs["Color"])
+        link(emit.outputs["Emission"], gout.inputs["Shader"])
         return g
 
     def _wire_materials(self, obj: bpy.types.Object) -> None:
@@ -407,22 +463,33 @@ class LiveLink:
 
         threading.Thread(target=run, name="lightlink-subscribe", daemon=True).start()
 
-    @staticmethod
-    def image_pixels(tex: Any) -> np.ndarray:
-        """The result's irradiance (SH at each texel's dominant direction + baked direct) as the
-        image's RGBA floats, rows flipped into Blender's bottom-up order. No bpy: the subscription
-        thread computes it, so Blender's main thread only copies it into the image."""
-        rgba = np.ones((tex.height, tex.width, 4), dtype=np.float32)
-        rgba[..., :3] = tex.irradiance()
-        return np.ascontiguousarray(np.flipud(rgba)).ravel()
+    def image_pixels(self, tex: Any) -> Dict[str, np.ndarray]:
+        """The images' RGBA floats for a result, rows flipped into Blender's bottom-up order: the
+        irradiance preview (SH at each texel's dominant direction + baked direct) and, for "l1",
+        the band 0 and 1 coefficients and the direct light. No bpy: the subscription thread
+        computes them, so Blender's main thread only copies them into the images."""
+        def rgba(rgb):
+            out = np.ones((tex.height, tex.width, 4), dtype=np.float32)
+            out[..., :3] = rgb
+            return np.ascontiguousarray(np.flipud(out)).ravel()
 
-    def apply_result(self, tex: Any, pixels: Optional[np.ndarray] = None) -> None:
-        """The result into the image (and the grid into the probe-lit objects)."""
+        pixels = {IMAGE_NAME: rgba(tex.irradiance())}
+        if self.encoding == "l1":
+            sh, valid = tex.lightmap_sh, tex.lightmap_valid[..., None]
+            for i, name in enumerate(L1_IMAGES[:4]):
+                pixels[name] = rgba(np.where(valid, sh[..., :, i], 0.0) if i < sh.shape[-1] else 0.0)
+            direct = tex.lightmap_direct
+            pixels["lightlink_direct"] = rgba(np.where(valid, direct, 0.0) if direct is not None else 0.0)
+        return pixels
+
+    def apply_result(self, tex: Any, pixels: Optional[Dict[str, np.ndarray]] = None) -> None:
+        """The result into the images (and the grid into the probe-lit objects)."""
         start = time.monotonic()
         if pixels is None:
             pixels = self.image_pixels(tex)
-        self.image.pixels.foreach_set(pixels)
-        self.image.update()
+        for name, px in pixels.items():
+            self.images[name].pixels.foreach_set(px)
+            self.images[name].update()
         if tex.grid_sh is not None:
             for name in self.probe_objects:
                 obj = bpy.data.objects.get(name)
@@ -433,12 +500,17 @@ class LiveLink:
         self.applied_at = time.monotonic()
         self.apply_ms = (self.applied_at - start) * 1e3  # Blender's main thread, this result
 
-    def image_irradiance(self) -> np.ndarray:
-        """(height, width, 3) of the image, in the lightmap's top-down order."""
-        w, h = self.image.size
+    def image_values(self, name: str) -> np.ndarray:
+        """(height, width, 3) of one of the add-on's images, in the lightmap's top-down order."""
+        img = self.images[name]
+        w, h = img.size
         px = np.empty(w * h * 4, dtype=np.float32)
-        self.image.pixels.foreach_get(px)
+        img.pixels.foreach_get(px)
         return np.flipud(px.reshape(h, w, 4))[..., :3]
+
+    def image_irradiance(self) -> np.ndarray:
+        """(height, width, 3) of the irradiance preview image, top-down."""
+        return self.image_values(IMAGE_NAME)
 
     # ------------------------------------------------------------------ live updates
     def light_changed(self, obj_name: str) -> None:
