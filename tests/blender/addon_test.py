@@ -98,7 +98,7 @@ def object_means(lk, image):
 def main():
     a = args_after_dashes()
     try:
-        import grpc  # noqa: F401
+        import grpc
         import numpy as np
     except ImportError as e:
         print(f"skipped: {e} (python3-grpcio, python3-numpy)")
@@ -190,10 +190,11 @@ def main():
 
         # The "l1" encoding's images hold the daemon's band 0 and 1 coefficients and direct light.
         t = scene.relight(version=lk.applied_version, grid=False)
+        check(t.version == lk.applied_version, f"the daemon still has version {lk.applied_version} (got {t.version})")
         valid = t.lightmap_valid[..., None]
         for i, name in enumerate(live.L1_IMAGES[:4]):
             err = float(np.abs(lk.image_values(name) - np.where(valid, t.lightmap_sh[..., :, i], 0)).max())
-            check(err == 0.0, f"{name} == the daemon's coefficient {i}")
+            check(err == 0.0, f"{name} == the daemon's coefficient {i} (max |diff| {err:.3g})")
         check(float(np.abs(lk.image_values("lightlink_direct") - np.where(valid, t.lightmap_direct, 0)).max()) == 0.0,
               "lightlink_direct == the daemon's direct light")
         # The node group's per-pixel shading, through Cycles: bake the emission of a wall (one
@@ -410,6 +411,32 @@ def main():
         bpy.ops.wm.read_homefile(use_empty=True)
         check(lightlink_blender.link() is None, "loading another file ended the link")
         check(second not in [x.scene_id for x in other.list_scenes()], "and closed its scene")
+
+        # Cancel while the daemon opens the scene (what the panel's Cancel and Esc do): the open
+        # ends CANCELLED and leaves no scene behind.
+        import threading
+
+        bpy.ops.import_scene.gltf(filepath=a.scene)
+        lk2 = live.LiveLink(target, options={"preset": a.preset, "texel-size": "0.0123"})  # a new precompute
+        lk2.connect()
+        lk2.glb = lk2.export_glb(os.path.join(tmp, "cancel.glb"))
+        outcome = {}
+
+        def open_it():
+            try:
+                lk2.open_exported()
+            except Exception as e:
+                outcome["error"] = e
+
+        th = threading.Thread(target=open_it)
+        th.start()
+        lk2.cancel()
+        th.join(60)
+        err = outcome.get("error")
+        check(err is not None and getattr(err, "code", None) == grpc.StatusCode.CANCELLED,
+              f"Cancel ended the open: {err}")
+        check(len(other.list_scenes()) == 0, "no scene was left open")
+        lk2.stop(close_scene=False)
         other.close()
     finally:
         if a.figures:

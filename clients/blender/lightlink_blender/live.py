@@ -166,6 +166,7 @@ class LiveLink:
         self.timings: Dict[str, float] = {}
         self._dirty: set = set()
         self._dirty_materials: set = set()
+        self._emission_sent: Dict[str, Any] = {}  # material -> the emission the daemon has
         self.materials: Dict[str, Tuple[int, float]] = {}  # Blender material -> (glTF index, strength at export)
         self._in_flight = False
         self._results: "queue.Queue[Any]" = queue.Queue()
@@ -189,11 +190,13 @@ class LiveLink:
             data = f.read()
         doc, binary = read_glb(data)
         self.materials = {}
+        self._emission_sent = {}
         for i, m in enumerate(doc.get("materials", [])):
             mat = bpy.data.materials.get(m.get("name", ""))
             if mat is not None:
                 e = self.emission_of(mat)
                 self.materials[mat.name] = (i, e[1] if e else 0.0)
+                self._emission_sent[mat.name] = e
         return write_glb(doc, binary) if booleanize_flags(doc) else data
 
     def bake_live(self) -> None:
@@ -592,10 +595,20 @@ class LiveLink:
                 if obj is not None:
                     changes.append(dict(self.fields_of(obj), id=self.light_ids[n]))
             for n in mats:
+                # Any edit of the node tree (the add-on's own wiring too) marks a material; only a
+                # changed emission is sent.
                 mat = bpy.data.materials.get(n)
-                o = self.override_of(mat) if mat is not None else None
+                e = self.emission_of(mat) if mat is not None else None
+                if e is None or e == self._emission_sent.get(n):
+                    continue
+                o = self.override_of(mat)
                 if o is not None:
                     overrides.append(o)
+                    self._emission_sent[n] = e
+            if not changes and not overrides:
+                with self._lock:
+                    self._in_flight = False
+                return 0.02
 
             def run():
                 try:
