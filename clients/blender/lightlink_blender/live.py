@@ -172,6 +172,7 @@ class LiveLink:
         self._results: "queue.Queue[Any]" = queue.Queue()
         self._subscription: Optional[Any] = None
         self._cancel = threading.Event()
+        self.scene_name = "blender"
         self._lock = threading.Lock()
 
     # ------------------------------------------------------------------ connect
@@ -188,6 +189,8 @@ class LiveLink:
                                   convert_lighting_mode="SPEC", use_selection=False)
         with open(path, "rb") as f:
             data = f.read()
+        self.scene_name = bpy.path.basename(bpy.data.filepath) or "blender"  # ListScenes shows it
+        self._cancel.clear()  # a new bake: Cancel from now on applies to it
         doc, binary = read_glb(data)
         self.materials = {}
         self._emission_sent = {}
@@ -220,9 +223,8 @@ class LiveLink:
             self.progress = p.fraction
             self.status = f"{p.stage} {p.fraction * 100:.0f}%"
 
-        self._cancel.clear()
         self.status = "opening on the daemon"
-        self.scene = self.client.open(upload=self.glb, options=self.options, name="blender",
+        self.scene = self.client.open(upload=self.glb, options=self.options, name=self.scene_name,
                                       progress=on_progress, cancel=self._cancel)
         self.timings["open_s"] = time.monotonic() - t0
 
