@@ -339,7 +339,7 @@ class LiveLink:
     # ------------------------------------------------------------------ viewport
     def _ensure_image(self) -> None:
         w, h = self.atlas
-        names = (IMAGE_NAME,) + (L1_IMAGES if self.encoding == "l1" else ())
+        names = L1_IMAGES if self.encoding == "l1" else (IMAGE_NAME,)
         for name in names:
             img = bpy.data.images.get(name)
             if img is None or tuple(img.size) != (w, h):
@@ -348,7 +348,7 @@ class LiveLink:
                 img = bpy.data.images.new(name, w, h, alpha=True, float_buffer=True)
                 img.colorspace_settings.name = "Non-Color"
             self.images[name] = img
-        self.image = self.images[IMAGE_NAME]
+        self.image = self.images[names[0]]
 
     def _node_group(self) -> bpy.types.NodeTree:
         """Emission = albedo * E / pi, the radiance a diffuse surface of that albedo sends under
@@ -469,16 +469,18 @@ class LiveLink:
         threading.Thread(target=run, name="lightlink-subscribe", daemon=True).start()
 
     def image_pixels(self, tex: Any) -> Dict[str, np.ndarray]:
-        """The images' RGBA floats for a result, rows flipped into Blender's bottom-up order: the
-        irradiance preview (SH at each texel's dominant direction + baked direct) and, for "l1",
-        the band 0 and 1 coefficients and the direct light. No bpy: the subscription thread
+        """The images' RGBA floats for a result, rows flipped into Blender's bottom-up order: for
+        "l1" the band 0 and 1 coefficients and the direct light, for "irradiance" the preview (SH
+        at each texel's dominant direction + baked direct). No bpy: the subscription thread
         computes them, so Blender's main thread only copies them into the images."""
         def rgba(rgb):
             out = np.ones((tex.height, tex.width, 4), dtype=np.float32)
             out[..., :3] = rgb
             return np.ascontiguousarray(np.flipud(out)).ravel()
 
-        pixels = {IMAGE_NAME: rgba(tex.irradiance())}
+        if self.encoding == "irradiance":
+            return {IMAGE_NAME: rgba(tex.irradiance())}
+        pixels = {}
         if self.encoding == "l1":
             sh, valid = tex.lightmap_sh, tex.lightmap_valid[..., None]
             for i, name in enumerate(L1_IMAGES[:4]):
@@ -514,8 +516,16 @@ class LiveLink:
         return np.flipud(px.reshape(h, w, 4))[..., :3]
 
     def image_irradiance(self) -> np.ndarray:
-        """(height, width, 3) of the irradiance preview image, top-down."""
-        return self.image_values(IMAGE_NAME)
+        """(height, width, 3) irradiance the images show, top-down, each texel along its dominant
+        light direction: the preview image ("irradiance"), or bands 0 and 1 of the "l1" images
+        (direction from band 1) plus direct."""
+        if self.encoding == "irradiance":
+            return self.image_values(IMAGE_NAME)
+        c = np.stack([self.image_values(n) for n in L1_IMAGES[:4]], axis=-1)  # (h, w, 3, 4)
+        d = ll.sh.dominant_direction(c)
+        e = A0_Y00 * c[..., 0] + A1_Y1 * (c[..., 1] * d[..., None, 1] + c[..., 2] * d[..., None, 2]
+                                          + c[..., 3] * d[..., None, 0])
+        return np.maximum(e, 0.0) + self.image_values("lightlink_direct")
 
     # ------------------------------------------------------------------ live updates
     def light_changed(self, obj_name: str) -> None:
