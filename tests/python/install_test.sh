@@ -7,7 +7,8 @@
 set -eu
 python="$1"
 src="$2"
-"$python" -c "import venv, grpc, numpy, google.protobuf" 2>/dev/null || { echo "skipped: no venv, grpc or numpy"; exit 77; }
+"$python" -c "import venv, grpc, numpy, google.protobuf, setuptools, wheel" 2>/dev/null || {
+  echo "skipped: venv, grpc, numpy, protobuf, setuptools or wheel missing (scripts/packages.txt)"; exit 77; }
 tmp=$(mktemp -d)
 trap 'rm -rf "$tmp"' EXIT
 "$python" -m venv --system-site-packages "$tmp/venv" || { echo "skipped: venv cannot be created"; exit 77; }
