@@ -455,7 +455,9 @@ class LiveLink:
             out.is_active_output = True
 
     def _start_subscription(self) -> None:
-        self._subscription = self.scene.subscribe(grid=bool(self.probe_objects))
+        # SH L1 reads bands 0 and 1 only: the daemon sends that prefix (4 of 9 coefficients a texel).
+        bands = min(2, self.scene.info.bands) if self.encoding == "l1" and self.scene.info is not None else 0
+        self._subscription = self.scene.subscribe(grid=bool(self.probe_objects), bands=bands)
         sub = self._subscription
 
         def run():
