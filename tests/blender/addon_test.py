@@ -18,6 +18,7 @@ import json
 import math
 import os
 import shutil
+import signal
 import subprocess
 import sys
 import tempfile
@@ -52,10 +53,12 @@ def args_after_dashes():
     return ap.parse_args(argv)
 
 
-def start_daemon(path, scene_root, tmp):
+def start_daemon(path, scene_root, tmp, port=0):
     port_file = os.path.join(tmp, "port")
-    log = open(os.path.join(tmp, "daemon.log"), "wb")
-    proc = subprocess.Popen([path, "--listen", "127.0.0.1:0", "--port-file", port_file, "--cache-dir",
+    if os.path.exists(port_file):
+        os.remove(port_file)
+    log = open(os.path.join(tmp, "daemon.log"), "ab")
+    proc = subprocess.Popen([path, "--listen", f"127.0.0.1:{port}", "--port-file", port_file, "--cache-dir",
                              os.path.join(tmp, "cache"), "--scene-root", scene_root, "--backend", "cpu",
                              "--preview", "off", "--bounces", "1"], stdout=log, stderr=subprocess.STDOUT)
     for _ in range(1500):
@@ -397,6 +400,24 @@ def main():
                                        "median_received_to_image": median([p[2] for p in parts]),
                                        "median_main_thread_apply": median([p[3] for p in parts])}
         print("FIGURES " + json.dumps(figures), flush=True)
+
+        # The daemon restarts (same port, same cache: it restores the scene from sessions.json):
+        # the link subscribes again by itself and the next move goes through.
+        daemon.send_signal(signal.SIGTERM)
+        daemon.wait(30)
+        daemon, _ = start_daemon(a.daemon, os.path.dirname(os.path.abspath(a.scene)), tmp,
+                                 port=int(target.rsplit(":", 1)[1]))
+        before_restart = lk.sent_version
+        bulb.location = start
+        bpy.context.view_layer.update()
+        end = time.monotonic() + 60
+        while time.monotonic() < end and not (lk.sent_version > before_restart and lk.applied_version >= lk.sent_version):
+            lk.tick()
+            time.sleep(0.01)
+        check(lk.sent_version > before_restart and lk.applied_version >= lk.sent_version,
+              f"after a daemon restart the move was sent (version {lk.sent_version}) and shown "
+              f"(version {lk.applied_version}); status '{lk.status}'")
+        images_match(lk.applied_version)
 
         bpy.ops.lightlink.stop()
         check(lightlink_blender.link() is None, "Stop ended the link")

@@ -29,6 +29,7 @@ import time
 from typing import Any, Dict, List, Optional, Tuple
 
 import bpy
+import grpc
 import numpy as np
 from mathutils import Vector, kdtree
 
@@ -172,6 +173,7 @@ class LiveLink:
         self._results: "queue.Queue[Any]" = queue.Queue()
         self._subscription: Optional[Any] = None
         self._cancel = threading.Event()
+        self._stopping = False
         self.scene_name = "blender"
         self._lock = threading.Lock()
 
@@ -455,18 +457,37 @@ class LiveLink:
             out.is_active_output = True
 
     def _start_subscription(self) -> None:
+        """A thread that reads the Subscribe stream and, when it breaks (the daemon restarts or
+        drains), subscribes again with a growing pause (0.2 s doubling to 5 s) from the version
+        shown; it gives up only when the scene is gone (NOT_FOUND, PERMISSION_DENIED)."""
         # SH L1 reads bands 0 and 1 only: the daemon sends that prefix (4 of 9 coefficients a texel).
         bands = min(2, self.scene.info.bands) if self.encoding == "l1" and self.scene.info is not None else 0
-        self._subscription = self.scene.subscribe(grid=bool(self.probe_objects), bands=bands)
-        sub = self._subscription
+        scene, grid = self.scene, bool(self.probe_objects)
+        self._stopping = False
 
         def run():
-            try:
-                for t in sub:
-                    received = time.monotonic()
-                    self._results.put((t, self.image_pixels(t), received))
-            except Exception as e:  # shown in the panel; the editor goes on
-                self.error = str(e)
+            pause = 0.2
+            while not self._stopping:
+                sub = scene.subscribe(grid=grid, bands=bands, after_version=self.applied_version)
+                self._subscription = sub
+                try:
+                    for t in sub:
+                        pause = 0.2
+                        if self.status.startswith("reconnecting"):
+                            self.status, self.error = f"live: scene {scene.id}", ""
+                        received = time.monotonic()
+                        self._results.put((t, self.image_pixels(t), received))
+                    why = "the stream ended"
+                except Exception as e:  # shown in the panel; the editor goes on
+                    if getattr(e, "code", None) in (grpc.StatusCode.NOT_FOUND, grpc.StatusCode.PERMISSION_DENIED):
+                        self.error, self.status = str(e), "scene gone: Bake live again"
+                        return
+                    why = str(e)
+                if self._stopping:
+                    return
+                self.status = f"reconnecting ({why})"
+                time.sleep(pause)
+                pause = min(pause * 2.0, 5.0)
 
         threading.Thread(target=run, name="lightlink-subscribe", daemon=True).start()
 
@@ -629,8 +650,17 @@ class LiveLink:
                     ack = self.scene.update_lights(modify=changes, emissive=overrides)
                     self.acked_at = time.monotonic()
                     self.sent_version = ack.version
+                    self.error = ""
                 except Exception as e:
+                    # Not applied (all or nothing): marked again, the next tick retries with the
+                    # then current values (a daemon restarting answers UNAVAILABLE meanwhile).
                     self.error = str(e)
+                    with self._lock:
+                        self._dirty.update(names)
+                        self._dirty_materials.update(mats)
+                    for n in mats:
+                        self._emission_sent.pop(n, None)
+                    time.sleep(0.2)
                 finally:
                     with self._lock:
                         self._in_flight = False
@@ -639,6 +669,7 @@ class LiveLink:
         return 0.02
 
     def stop(self, close_scene: bool = True) -> None:
+        self._stopping = True
         if self._subscription is not None:
             self._subscription.cancel()
         if close_scene and self.scene is not None:
