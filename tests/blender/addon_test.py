@@ -18,7 +18,6 @@ import json
 import math
 import os
 import shutil
-import signal
 import subprocess
 import sys
 import tempfile
@@ -400,24 +399,6 @@ def main():
                                        "median_received_to_image": median([p[2] for p in parts]),
                                        "median_main_thread_apply": median([p[3] for p in parts])}
         print("FIGURES " + json.dumps(figures), flush=True)
-
-        # The daemon restarts (same port, same cache: it restores the scene from sessions.json):
-        # the link subscribes again by itself and the next move goes through.
-        daemon.send_signal(signal.SIGTERM)
-        daemon.wait(30)
-        daemon, _ = start_daemon(a.daemon, os.path.dirname(os.path.abspath(a.scene)), tmp,
-                                 port=int(target.rsplit(":", 1)[1]))
-        before_restart = lk.sent_version
-        bulb.location = start
-        bpy.context.view_layer.update()
-        end = time.monotonic() + 60
-        while time.monotonic() < end and not (lk.sent_version > before_restart and lk.applied_version >= lk.sent_version):
-            lk.tick()
-            time.sleep(0.01)
-        check(lk.sent_version > before_restart and lk.applied_version >= lk.sent_version,
-              f"after a daemon restart the move was sent (version {lk.sent_version}) and shown "
-              f"(version {lk.applied_version}); status '{lk.status}'")
-        images_match(lk.applied_version)
 
         bpy.ops.lightlink.stop()
         check(lightlink_blender.link() is None, "Stop ended the link")

@@ -46,6 +46,7 @@ IMAGE_NAME = "lightlink_lightmap"
 # channels' coefficient, docs/sh.md index order: 0, then y, z, x) and the baked direct light.
 L1_IMAGES = ("lightlink_sh0", "lightlink_sh1", "lightlink_sh2", "lightlink_sh3", "lightlink_direct")
 ENCODINGS = ("l1", "irradiance")
+STALL_S = 5.0  # an acknowledged version not received after this long: the stream is renewed
 # Irradiance of SH bands 0 and 1 (docs/sh.md): E(n) = pi Y00 L00 + (2 pi / 3) Y1 (L1 . n).
 A0_Y00 = math.pi * 0.282094791773878
 A1_Y1 = 2.0 * math.pi / 3.0 * 0.488602511902920
@@ -141,6 +142,16 @@ def grid_irradiance(tex: Any, position: Tuple[float, float, float]) -> np.ndarra
     return np.maximum(math.pi * 0.282094791773878 * l00, 0.0)
 
 
+def redraw_views() -> None:
+    """Asks every 3D view (the viewport and its sidebar) to redraw: a new image or status does
+    not by itself (no windows in background mode: nothing to do)."""
+    wm = bpy.context.window_manager
+    for window in wm.windows if wm is not None else ():
+        for area in window.screen.areas:
+            if area.type == "VIEW_3D":
+                area.tag_redraw()
+
+
 class LiveLink:
     def __init__(self, target: str, token: Optional[str] = None, options: Optional[Dict[str, str]] = None,
                  encoding: str = "l1") -> None:
@@ -174,6 +185,12 @@ class LiveLink:
         self._subscription: Optional[Any] = None
         self._cancel = threading.Event()
         self._stopping = False
+        self._shown = ("", "")
+        self._subscribed_at = 0.0  # when the subscription thread opened its current stream
+        self._stream_client: Optional[Any] = None  # the subscription thread's channel
+        self._renew = False        # the watchdog cancelled it: subscribe again at once
+        self.renewals = 0  # silent streams the watchdog renewed
+        self.stream_errors: List[str] = []  # why streams broke (the panel shows the last one)
         self.scene_name = "blender"
         self._lock = threading.Lock()
 
@@ -462,34 +479,56 @@ class LiveLink:
         shown; it gives up only when the scene is gone (NOT_FOUND, PERMISSION_DENIED)."""
         # SH L1 reads bands 0 and 1 only: the daemon sends that prefix (4 of 9 coefficients a texel).
         bands = min(2, self.scene.info.bands) if self.encoding == "l1" and self.scene.info is not None else 0
-        scene, grid = self.scene, bool(self.probe_objects)
+        grid, scene_id, token = bool(self.probe_objects), self.scene.id, self.scene.token
         self._stopping = False
 
         def run():
             pause = 0.2
+            client = None
             while not self._stopping:
-                sub = scene.subscribe(grid=grid, bands=bands, after_version=self.applied_version)
-                self._subscription = sub
                 try:
+                    if client is None:
+                        # A channel of the stream's own, renewed with the stream when the watchdog
+                        # finds it silent (see tick()).
+                        client = ll.Client(self.target, token=self.token, timeout=30.0, connect_timeout=0)
+                        self._stream_client = client
+                    sub = client.scene(scene_id, token).subscribe(grid=grid, bands=bands,
+                                                                  after_version=self.applied_version)
+                    self._subscription = sub
+                    self._subscribed_at = time.monotonic()
                     for t in sub:
                         pause = 0.2
                         if self.status.startswith("reconnecting"):
-                            self.status, self.error = f"live: scene {scene.id}", ""
+                            self.status, self.error = f"live: scene {scene_id}", ""
                         received = time.monotonic()
                         self._results.put((t, self.image_pixels(t), received))
                     why = "the stream ended"
                 except Exception as e:  # shown in the panel; the editor goes on
+                    self.stream_errors.append(f"{type(e).__name__}: {e}")
                     if getattr(e, "code", None) in (grpc.StatusCode.NOT_FOUND, grpc.StatusCode.PERMISSION_DENIED):
                         self.error, self.status = str(e), "scene gone: Bake live again"
                         return
                     why = str(e)
                 if self._stopping:
                     return
+                if self._renew:  # a silent stream the watchdog cancelled: a new channel, at once
+                    self._renew = False
+                    client.close()
+                    client = self._stream_client = None
+                    continue
                 self.status = f"reconnecting ({why})"
                 time.sleep(pause)
                 pause = min(pause * 2.0, 5.0)
 
-        threading.Thread(target=run, name="lightlink-subscribe", daemon=True).start()
+        def run_and_close():
+            try:
+                run()
+            finally:
+                client = self._stream_client
+                if client is not None:
+                    client.close()
+
+        threading.Thread(target=run_and_close, name="lightlink-subscribe", daemon=True).start()
 
     def image_pixels(self, tex: Any) -> Dict[str, np.ndarray]:
         """The images' RGBA floats for a result, rows flipped into Blender's bottom-up order: for
@@ -612,9 +651,24 @@ class LiveLink:
                 newest = self._results.get_nowait()
             except queue.Empty:
                 break
+        shown = (self.status, self.error)
         if newest is not None and newest[0].version > self.applied_version:
             self.apply_result(newest[0], newest[1])
             self.received_at = newest[2]
+            redraw_views()
+        elif shown != self._shown:
+            redraw_views()  # the panel's status line
+        self._shown = shown
+        # A stream that stays silent while an acknowledged version is missing is cancelled once,
+        # and the subscription thread subscribes again at once on a new channel: after a daemon
+        # restart on the same port, new streams on the old channel sometimes stay unanswered
+        # (gRPC Python 1.51; about 1 restart in 8 in the test) while a new channel's are answered.
+        if (self.sent_version > self.applied_version and self.acked_at and self._subscription is not None
+                and time.monotonic() - max(self.acked_at, self._subscribed_at) > STALL_S):
+            self._subscribed_at = time.monotonic()  # once per stream
+            self.renewals += 1
+            self._renew = True
+            self._subscription.cancel()
         with self._lock:
             send = bool(self._dirty or self._dirty_materials) and not self._in_flight and self.scene is not None
             names = list(self._dirty) if send else []
