@@ -660,9 +660,9 @@ class LiveLink:
             redraw_views()  # the panel's status line
         self._shown = shown
         # A stream that stays silent while an acknowledged version is missing is cancelled once,
-        # and the subscription thread subscribes again at once on a new channel: after a daemon
-        # restart on the same port, new streams on the old channel sometimes stay unanswered
-        # (gRPC Python 1.51; about 1 restart in 8 in the test) while a new channel's are answered.
+        # and the subscription thread subscribes again at once on a new channel (after a daemon
+        # restart on the same port the add-on's new streams were seen to stay unanswered while
+        # another client's were answered; not understood yet, docs/blender.md).
         if (self.sent_version > self.applied_version and self.acked_at and self._subscription is not None
                 and time.monotonic() - max(self.acked_at, self._subscribed_at) > STALL_S):
             self._subscribed_at = time.monotonic()  # once per stream
