@@ -97,6 +97,9 @@ Status applyConfigFile(const std::string& path, DaemonConfig& c) {
     else if (key == "drain_seconds") {
       if (!v.is_number()) return invalidInput("--config {}: 'drain_seconds' must be a number", path);
       c.drain_seconds = v.get<double>();
+    } else if (key == "session_idle_timeout") {
+      if (!v.is_number()) return invalidInput("--config {}: 'session_idle_timeout' must be a number", path);
+      c.session_idle_timeout_s = v.get<double>();
     } else if (key == "bounces") s = integer(c.relight_bounces);
     else if (key == "progressive") {
       if (!v.is_boolean()) return invalidInput("--config {}: 'progressive' must be true or false", path);
@@ -170,6 +173,10 @@ void declareFlags(CLI::App& app, DaemonConfig& c, std::string& config_path, std:
   app.add_option("--drain-seconds", c.drain_seconds,
                  "On SIGTERM/SIGINT: seconds open streams get to finish before the server stops")
       ->capture_default_str();
+  app.add_option("--session-idle-timeout", c.session_idle_timeout_s,
+                 "Seconds a scene may go without a client call naming it (and without a Subscribe stream) before "
+                 "the daemon closes it and forgets it (0 = never)")
+      ->capture_default_str();
   app.add_option("--bounces", c.relight_bounces, "Indirect bounce cap of every relight (0..256); relights stop earlier once converged")->capture_default_str();
   app.add_flag("--progressive", c.progressive,
                "Publish each light change after one bounce iteration started from the last solution, then more "
@@ -222,6 +229,9 @@ Status DaemonConfig::validate() const {
     return invalidInput("--chunk-bytes {} is out of range (4096..1048576)", chunk_bytes);
   if (!std::isfinite(drain_seconds) || drain_seconds < 0.0 || drain_seconds > 3600.0)
     return invalidInput("--drain-seconds {} is out of range (0..3600)", drain_seconds);
+  if (!std::isfinite(session_idle_timeout_s) || session_idle_timeout_s < 0.0 || session_idle_timeout_s > 31536000.0)
+    return invalidInput("--session-idle-timeout {} is out of range (0..31536000 seconds, 0 = never)",
+                        session_idle_timeout_s);
   if (!shared_memory_dir.empty() && shared_memory_dir.front() != '/')
     return invalidInput("--shared-memory-dir '{}' must be an absolute path", shared_memory_dir);
   if (relight_bounces < 0 || relight_bounces > 256)

@@ -52,6 +52,9 @@ struct DaemonConfig {
   std::size_t max_receive_bytes = 64u << 20;  // largest request message
   std::size_t max_send_bytes = 4u << 20;      // largest response message
   double drain_seconds = 5.0;              // SIGTERM: how long open streams may take to finish
+  // A scene that no client call named for this long (and with no Subscribe stream open) is
+  // closed, as CloseScene would: its memory is freed and it leaves sessions.json. 0: never.
+  double session_idle_timeout_s = 1800.0;
   int relight_bounces = relight::RelightOptions{}.max_bounces;  // relight options of every scene
   bool progressive = false;                // one warm iteration first, then more as new versions
   // Instant preview: a new scene's first version is a grid lit without links (core/preview),

@@ -691,6 +691,13 @@ SessionStats SceneSession::stats() const {
   return st;
 }
 
+relight::LightSet SceneSession::lightSet(std::uint64_t* version) const {
+  std::lock_guard lock(mutex_);
+  if (journal_) settleInFlight();
+  if (version) *version = version_;
+  return lights_;
+}
+
 nlohmann::ordered_json SceneSession::persistentLights(std::uint64_t* version) const {
   std::lock_guard lock(mutex_);
   if (journal_) settleInFlight();

@@ -196,7 +196,22 @@ class SceneSession {
   bool closed() const { return closed_.load(); }
 
   SessionStats stats() const;
-  void addSubscriber(int delta) { subscribers_ += delta; }
+  void addSubscriber(int delta) {
+    subscribers_ += delta;
+    touch();
+  }
+
+  // The newest (visible) light set and its version (GetLights).
+  relight::LightSet lightSet(std::uint64_t* version) const;
+
+  // Client activity, for the daemon's idle timeout (--session-idle-timeout): every call that
+  // names the scene touches it. idleFor() is how long no call did, zero while a Subscribe
+  // stream is open (a subscribed editor is a client even when it sends nothing).
+  void touch() { last_activity_ns_.store(Clock::now().time_since_epoch().count(), std::memory_order_relaxed); }
+  Clock::duration idleFor() const {
+    if (subscribers_.load() > 0) return Clock::duration::zero();
+    return Clock::now() - Clock::time_point(Clock::duration(last_activity_ns_.load(std::memory_order_relaxed)));
+  }
 
   // The durable light set and version, for sessions.json.
   nlohmann::ordered_json persistentLights(std::uint64_t* version) const;
@@ -282,6 +297,7 @@ class SceneSession {
   std::uint64_t updates_ = 0, relights_ = 0, coalesced_ = 0, relight_errors_ = 0, previews_ = 0, instant_previews_ = 0;
   double last_ms_ = 0.0, total_ms_ = 0.0;
   std::atomic<int> subscribers_{0};
+  std::atomic<Clock::rep> last_activity_ns_{Clock::now().time_since_epoch().count()};
   mutable std::atomic<std::uint64_t> wake_epoch_{0};
   std::thread worker_;
 };

@@ -2,15 +2,19 @@
 
 #include <unistd.h>
 
+#include <algorithm>
 #include <condition_variable>
 #include <deque>
+#include <filesystem>
 #include <fstream>
 #include <functional>
+#include <iterator>
 #include <system_error>
 #include <thread>
 
-#include "service/auth.h"
+#include "core/charts/gltf_writer.h"
 #include "gpu/backend_factory.h"
+#include "service/auth.h"
 #include "service/logging.h"
 #include "service/status_map.h"
 #include "service/validation.h"
@@ -334,7 +338,56 @@ std::uint64_t residentSetBytes() {
 }
 
 LightlinkService::LightlinkService(const DaemonConfig& config, SceneRegistry& registry)
-    : config_(config), registry_(registry), shared_(config.shared_memory_dir) {}
+    : config_(config), registry_(registry), shared_(config.shared_memory_dir) {
+  if (config_.session_idle_timeout_s <= 0.0) return;
+  // Checks a tenth of the timeout apart (50 ms .. 5 s): a scene goes at most 10 % late.
+  const auto period = std::chrono::duration_cast<Clock::duration>(
+      std::chrono::duration<double>(std::clamp(config_.session_idle_timeout_s / 10.0, 0.05, 5.0)));
+  reaper_ = std::thread([this, period] {
+    std::unique_lock lock(reaper_mutex_);
+    while (!reaper_cv_.wait_for(lock, period, [&] { return reaper_stop_; })) {
+      lock.unlock();
+      if (!draining_.load()) closeIdleScenes();
+      lock.lock();
+    }
+  });
+}
+
+LightlinkService::~LightlinkService() {
+  {
+    std::lock_guard lock(reaper_mutex_);
+    reaper_stop_ = true;
+  }
+  reaper_cv_.notify_all();
+  if (reaper_.joinable()) reaper_.join();
+}
+
+std::vector<std::string> LightlinkService::closeIdleScenes() {
+  std::vector<std::string> closed;
+  if (config_.session_idle_timeout_s <= 0.0) return closed;
+  const auto timeout = std::chrono::duration<double>(config_.session_idle_timeout_s);
+  for (const auto& s : registry_.list()) {
+    const auto idle = s->idleFor();
+    // A scene still opening (its instant preview shown) has an open call: never idle.
+    if (!s->linked() || idle < timeout) continue;
+    const std::string& id = s->identity().id;
+    if (!registry_.close(id)) continue;  // closed meanwhile
+    shared_.dropScene(id);
+    {
+      std::lock_guard lock(idle_mutex_);
+      if (idle_closed_.size() >= 4096) idle_closed_.erase(idle_closed_.begin());
+      idle_closed_[id] = std::chrono::system_clock::now();
+    }
+    logEvent(LogLevel::kInfo, "scene_idle_closed",
+             {{"scene", id}, {"idle_s", std::chrono::duration<double>(idle).count()},
+              {"timeout_s", config_.session_idle_timeout_s}});
+    closed.push_back(id);
+  }
+  if (!closed.empty())
+    if (Status saved = registry_.persistNow(); !saved)
+      logEvent(LogLevel::kError, "sessions_write_failed", {{"error", saved.message()}});
+  return closed;
+}
 
 template <typename Request>
 grpc::ServerWriteReactor<grpc::ByteBuffer>* LightlinkService::startResultCall(
@@ -432,9 +485,18 @@ grpc::Status LightlinkService::lookup(grpc::ServerContextBase* ctx, const v1::Sc
       s = registry_.find(ref.scene_id());
     }
   }
-  if (!s) return grpcError(grpc::StatusCode::NOT_FOUND, "scene_id: no scene '" + shown + "'");
+  if (!s) {
+    std::lock_guard lock(idle_mutex_);
+    if (idle_closed_.count(ref.scene_id()))
+      return grpcError(grpc::StatusCode::NOT_FOUND,
+                       fmt::format("scene_id: scene '{}' was closed after {} s without a client call "
+                                   "(the daemon's --session-idle-timeout); open it again",
+                                   shown, config_.session_idle_timeout_s));
+    return grpcError(grpc::StatusCode::NOT_FOUND, "scene_id: no scene '" + shown + "'");
+  }
   if (!constantTimeEqual(ref.token(), s->identity().token))
     return grpcError(grpc::StatusCode::PERMISSION_DENIED, "token: does not match scene '" + shown + "'");
+  s->touch();
   *out = std::move(s);
   return grpc::Status::OK;
 }
@@ -691,6 +753,128 @@ grpc::Status LightlinkService::subscribe(grpc::ServerContextBase* ctx, const v1:
       return st;
     previous = std::move(snap);
   }
+}
+
+grpc::Status LightlinkService::GetLights(grpc::ServerContext* ctx, const v1::GetLightsRequest* request,
+                                         v1::GetLightsResponse* response) {
+  if (auto st = admit(ctx, false); !st.ok()) return st;
+  std::shared_ptr<SceneSession> s;
+  if (auto st = lookup(ctx, request->scene(), &s); !st.ok()) return st;
+  std::uint64_t version = 0;
+  const relight::LightSet lights = s->lightSet(&version);
+  response->set_version(version);
+  response->set_light_set_json(lights.toJson().dump(2));
+  for (const auto& e : lights.lights()) *response->add_lights() = toProtoLight(e);
+  return grpc::Status::OK;
+}
+
+namespace {
+
+// The scene written back as .glb with its lightmap UVs (charts::writeGltfWithLightmapUv), in
+// a folder of its own under the cache directory that is removed afterwards (the writer may
+// copy images next to its output).
+Expected<std::string> lightmapGlb(const std::string& cache_dir, const SceneSession& s) {
+  namespace fs = std::filesystem;
+  static std::atomic<std::uint64_t> serial{0};
+  const fs::path dir = fs::path(cache_dir) / fmt::format(".uvs.{}.{}", ::getpid(), serial++);
+  std::error_code ec;
+  fs::create_directories(dir, ec);
+  if (ec) return ioError("gltf: cannot create {}: {}", dir.string(), ec.message());
+  struct Remove {
+    fs::path dir;
+    ~Remove() {
+      std::error_code ignored;
+      fs::remove_all(dir, ignored);
+    }
+  } remove{dir};
+  const fs::path out = dir / "scene_lm.glb";
+  const auto& r = s.resident();
+  if (Status w = charts::writeGltfWithLightmapUv(s.identity().source_path, r.scene(), r.atlas(), out.string()); !w)
+    return w;
+  std::ifstream in(out, std::ios::binary);
+  std::string bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  if (!in.good() && !in.eof()) return ioError("gltf: cannot read {}", out.string());
+  return bytes;
+}
+
+}  // namespace
+
+grpc::Status LightlinkService::GetLightmapUvs(grpc::ServerContext* ctx, const v1::GetLightmapUvsRequest* request,
+                                              grpc::ServerWriter<v1::LightmapUvsMessage>* writer) {
+  if (auto st = admit(ctx, true); !st.ok()) return st;
+  std::shared_ptr<SceneSession> s;
+  if (auto st = lookup(ctx, request->scene(), &s); !st.ok()) return st;
+  if (!s->linked())
+    return grpcError(grpc::StatusCode::UNAVAILABLE,
+                     "scene: its lightmap UVs exist once the precompute is done (OpenScene's last message); "
+                     "the instant preview has none");
+  const auto& r = s->resident();
+  const auto& scene = r.scene();
+  const auto& atlas = r.atlas();
+  std::string glb;
+  if (request->gltf()) {
+    auto bytes = lightmapGlb(config_.cache_dir, *s);
+    if (!bytes) return toGrpc(bytes.status());
+    glb = std::move(*bytes);
+  }
+  const auto& p = r.precomputation();
+  v1::LightmapUvsMessage m;
+  auto* h = m.mutable_header();
+  h->set_width(p.lightmap.width);
+  h->set_height(p.lightmap.height);
+  h->set_texel_size_m(atlas.texel_size_m);
+  h->set_generated(atlas.generated);
+  h->set_meshes(static_cast<std::uint32_t>(scene.meshes.size()));
+  h->set_glb_bytes(glb.size());
+  if (!writer->Write(m)) return grpcError(grpc::StatusCode::CANCELLED, "the client went away");
+
+  // About --chunk-bytes of arrays per message, well below the send limit: a vertex costs 8
+  // bytes of uv and at most 5 of source index, a triangle index 4 bytes.
+  const std::size_t budget = config_.chunk_bytes;
+  const std::size_t verts_per_message = budget / 16, indices_per_message = budget / 8;
+  for (std::size_t i = 0; i < scene.meshes.size(); ++i) {
+    const auto& inst = scene.meshes[i];
+    const bool lit = charts::isLightmapped(scene, atlas, i);
+    const std::vector<std::uint32_t>* source =
+        i < atlas.meshes.size() ? &atlas.meshes[i].source_vertex : nullptr;
+    const std::size_t nv = lit ? inst.uv1.size() : 0, ni = lit ? inst.indices.size() : 0;
+    std::size_t v0 = 0, i0 = 0;
+    do {
+      v1::LightmapUvsMessage out;
+      auto* mesh = out.mutable_mesh();
+      mesh->set_index(static_cast<std::uint32_t>(i));
+      mesh->set_vertex_offset(static_cast<std::uint32_t>(v0));
+      mesh->set_vertex_count(static_cast<std::uint32_t>(nv));
+      mesh->set_index_offset(static_cast<std::uint32_t>(i0));
+      mesh->set_index_count(static_cast<std::uint32_t>(ni));
+      if (v0 == 0 && i0 == 0) {
+        mesh->set_name(inst.name);
+        mesh->set_node(inst.gltf_node);
+        mesh->set_mesh(inst.gltf_mesh);
+        mesh->set_primitive(inst.gltf_primitive);
+        mesh->set_lightmapped(lit);
+      }
+      const std::size_t v1n = std::min(nv, v0 + verts_per_message), i1n = std::min(ni, i0 + indices_per_message);
+      if (v1n > v0) {
+        mesh->mutable_uv()->assign(reinterpret_cast<const char*>(inst.uv1.data() + v0), (v1n - v0) * sizeof(glm::vec2));
+        if (source && !source->empty())
+          for (std::size_t k = v0; k < v1n; ++k) mesh->add_source_vertex((*source)[k]);
+      }
+      if (i1n > i0)
+        mesh->mutable_indices()->assign(reinterpret_cast<const char*>(inst.indices.data() + i0),
+                                        (i1n - i0) * sizeof(std::uint32_t));
+      v0 = v1n;
+      i0 = i1n;
+      if (!writer->Write(out)) return grpcError(grpc::StatusCode::CANCELLED, "the client went away");
+    } while (v0 < nv || i0 < ni);
+  }
+  for (std::size_t off = 0; off < glb.size(); off += config_.chunk_bytes) {
+    v1::LightmapUvsMessage out;
+    out.mutable_glb()->set_offset(off);
+    out.mutable_glb()->set_data(glb.substr(off, config_.chunk_bytes));
+    if (!writer->Write(out)) return grpcError(grpc::StatusCode::CANCELLED, "the client went away");
+  }
+  return grpc::Status::OK;
 }
 
 grpc::Status LightlinkService::ListScenes(grpc::ServerContext* ctx, const v1::ListScenesRequest*,

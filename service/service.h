@@ -1,5 +1,9 @@
 // LightlinkService: the gRPC handlers of lightlink.v1 (proto/lightlink.proto).
 //
+// GetLights and GetLightmapUvs read a scene back (its current light set, the lightmap UVs it
+// is lit with) for editors that show or map what the daemon holds. A reaper thread closes the
+// scenes no client named for --session-idle-timeout.
+//
 // Handlers are thin: admit the call (bearer token, draining, per-client stream limit),
 // look up the scene and check its token, translate the request, call the registry or the
 // scene session, translate the answer. All calls share `admit` and `lookup`, and the three
@@ -17,12 +21,15 @@
 
 #include <atomic>
 #include <chrono>
+#include <condition_variable>
 #include <functional>
 #include <map>
 #include <memory>
 #include <mutex>
 #include <optional>
 #include <string>
+#include <thread>
+#include <vector>
 
 #include <grpcpp/grpcpp.h>
 
@@ -41,6 +48,7 @@ using LightlinkServiceBase = v1::Lightlink::WithRawCallbackMethod_Relight<
 class LightlinkService final : public LightlinkServiceBase {
  public:
   LightlinkService(const DaemonConfig& config, SceneRegistry& registry);
+  ~LightlinkService() override;
 
   grpc::Status OpenScene(grpc::ServerContext* ctx, const v1::OpenSceneRequest* request,
                          grpc::ServerWriter<v1::OpenSceneProgress>* writer) override;
@@ -59,6 +67,10 @@ class LightlinkService final : public LightlinkServiceBase {
                                                           const grpc::ByteBuffer* request) override;
   grpc::ServerWriteReactor<grpc::ByteBuffer>* Subscribe(grpc::CallbackServerContext* ctx,
                                                         const grpc::ByteBuffer* request) override;
+  grpc::Status GetLights(grpc::ServerContext* ctx, const v1::GetLightsRequest* request,
+                         v1::GetLightsResponse* response) override;
+  grpc::Status GetLightmapUvs(grpc::ServerContext* ctx, const v1::GetLightmapUvsRequest* request,
+                              grpc::ServerWriter<v1::LightmapUvsMessage>* writer) override;
   grpc::Status ListScenes(grpc::ServerContext* ctx, const v1::ListScenesRequest* request,
                           v1::ListScenesResponse* response) override;
   grpc::Status CloseScene(grpc::ServerContext* ctx, const v1::CloseSceneRequest* request,
@@ -66,6 +78,10 @@ class LightlinkService final : public LightlinkServiceBase {
   grpc::Status Health(grpc::ServerContext* ctx, const v1::HealthRequest* request,
                       v1::HealthResponse* response) override;
   grpc::Status Stats(grpc::ServerContext* ctx, const v1::StatsRequest* request, v1::StatsResponse* response) override;
+
+  // Closes the scenes no client named for --session-idle-timeout (as CloseScene does, the
+  // close persisted); the reaper thread calls it every few seconds. Returns their ids.
+  std::vector<std::string> closeIdleScenes();
 
   // SIGTERM: Health says DRAINING, new work is refused, open streams end at their next
   // message boundary.
@@ -131,6 +147,13 @@ class LightlinkService final : public LightlinkServiceBase {
   std::mutex streams_mutex_;
   std::map<std::string, int> streams_per_client_;
   const std::chrono::steady_clock::time_point started_ = std::chrono::steady_clock::now();
+  // Ids closed for idleness, so a late call hears why its scene is gone (bounded).
+  mutable std::mutex idle_mutex_;
+  std::map<std::string, std::chrono::system_clock::time_point> idle_closed_;
+  std::mutex reaper_mutex_;
+  std::condition_variable reaper_cv_;
+  bool reaper_stop_ = false;
+  std::thread reaper_;
 };
 
 // Resident set size of this process in bytes (/proc/self/statm), 0 when unavailable.

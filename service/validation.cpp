@@ -185,4 +185,30 @@ Status validateSpec(const v1::ResultSpec& spec, int result_bands, std::string_vi
   return {};
 }
 
+v1::Light toProtoLight(const relight::LightEntry& entry) {
+  const auto vec = [](glm::vec3 v, v1::Vec3* out) {
+    out->set_x(v.x);
+    out->set_y(v.y);
+    out->set_z(v.z);
+  };
+  const auto& l = entry.light;
+  v1::Light out;
+  out.set_id(entry.id);
+  switch (l.kind) {
+    case scene::Light::Kind::kPoint: out.set_type(v1::LIGHT_TYPE_POINT); break;
+    case scene::Light::Kind::kSpot: out.set_type(v1::LIGHT_TYPE_SPOT); break;
+    case scene::Light::Kind::kDirectional: out.set_type(v1::LIGHT_TYPE_DIRECTIONAL); break;
+  }
+  vec(l.color, out.mutable_color());
+  out.set_intensity(l.intensity);
+  out.set_range(l.range);
+  vec(l.position, out.mutable_position());
+  vec(l.direction, out.mutable_direction());
+  out.set_inner_cone_angle(l.inner_cone_angle);
+  out.set_outer_cone_angle(l.outer_cone_angle);
+  out.set_baked(entry.baked);
+  out.set_name(l.name);
+  return out;
+}
+
 }  // namespace lightlink::service

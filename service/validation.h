@@ -41,6 +41,9 @@ Expected<precompute::PrecomputeOptions> precomputeOptionsFrom(const v1::OpenScen
 // nothing. `material_count` bounds emissive override indices.
 Status applyUpdate(const v1::UpdateLightsRequest& request, std::size_t material_count, relight::LightSet& lights);
 
+// A light of a light set as the proto Light GetLights answers: every field set.
+v1::Light toProtoLight(const relight::LightEntry& entry);
+
 // Checks a ResultSpec against a result with `result_bands` bands.
 Status validateSpec(const v1::ResultSpec& spec, int result_bands, std::string_view field = "spec");
 

@@ -1,6 +1,7 @@
 // Client: one gRPC channel, thin wrappers that translate requests in and statuses out.
 #include "clients/client/client.h"
 
+#include <cstring>
 #include <fstream>
 #include <optional>
 #include <sstream>
@@ -427,6 +428,85 @@ Status Client::subscribe(const SceneHandle& scene, const TexturesCallback& callb
       return {};
     }
   }
+}
+
+Expected<LightSetState> Client::getLights(const SceneHandle& scene) {
+  v1::GetLightsRequest req;
+  setRef(req.mutable_scene(), scene);
+  grpc::ClientContext ctx;
+  impl_->prepare(ctx);
+  v1::GetLightsResponse resp;
+  if (Status s = fromGrpc("GetLights", impl_->rpc->GetLights(&ctx, req, &resp)); !s) return s;
+  LightSetState out;
+  out.version = resp.version();
+  out.json = resp.light_set_json();
+  out.lights.assign(resp.lights().begin(), resp.lights().end());
+  return out;
+}
+
+Expected<LightmapUvs> Client::getLightmapUvs(const SceneHandle& scene, bool gltf) {
+  v1::GetLightmapUvsRequest req;
+  setRef(req.mutable_scene(), scene);
+  req.set_gltf(gltf);
+  grpc::ClientContext ctx;
+  impl_->prepare(ctx);
+  auto reader = impl_->rpc->GetLightmapUvs(&ctx, req);
+  LightmapUvs out;
+  bool have_header = false;
+  std::uint64_t glb_bytes = 0;
+  v1::LightmapUvsMessage m;
+  const auto bad = [](const std::string& why) -> Status { return internalError("GetLightmapUvs: {}", why); };
+  std::optional<Status> broken;
+  while (reader->Read(&m)) {
+    if (broken) continue;  // drain the stream, then report
+    if (m.has_header()) {
+      const auto& h = m.header();
+      out.width = h.width();
+      out.height = h.height();
+      out.texel_size_m = h.texel_size_m();
+      out.generated = h.generated();
+      out.meshes.resize(h.meshes());
+      glb_bytes = h.glb_bytes();
+      out.glb.reserve(glb_bytes);
+      have_header = true;
+    } else if (m.has_mesh()) {
+      const auto& in = m.mesh();
+      if (!have_header || in.index() >= out.meshes.size()) {
+        broken = bad(fmt::format("mesh {} outside the header's {} meshes", in.index(), out.meshes.size()));
+        continue;
+      }
+      MeshUvs& mesh = out.meshes[in.index()];
+      if (in.vertex_offset() == 0 && in.index_offset() == 0) {
+        mesh.name = in.name();
+        mesh.node = in.node();
+        mesh.mesh = in.mesh();
+        mesh.primitive = in.primitive();
+        mesh.lightmapped = in.lightmapped();
+      }
+      if (in.vertex_offset() * 2 != mesh.uv.size() || in.index_offset() != mesh.indices.size() ||
+          in.uv().size() % 8 != 0 || in.indices().size() % 4 != 0) {
+        broken = bad(fmt::format("mesh {}: parts out of order", in.index()));
+        continue;
+      }
+      const std::size_t nuv = in.uv().size() / 4, nidx = in.indices().size() / 4;
+      mesh.uv.resize(mesh.uv.size() + nuv);
+      std::memcpy(mesh.uv.data() + mesh.uv.size() - nuv, in.uv().data(), in.uv().size());
+      mesh.indices.resize(mesh.indices.size() + nidx);
+      std::memcpy(mesh.indices.data() + mesh.indices.size() - nidx, in.indices().data(), in.indices().size());
+      mesh.source_vertex.insert(mesh.source_vertex.end(), in.source_vertex().begin(), in.source_vertex().end());
+    } else if (m.has_glb()) {
+      if (m.glb().offset() != out.glb.size()) {
+        broken = bad(fmt::format("glb chunk at offset {}, expected {}", m.glb().offset(), out.glb.size()));
+        continue;
+      }
+      out.glb += m.glb().data();
+    }
+  }
+  if (Status s = fromGrpc("GetLightmapUvs", reader->Finish()); !s) return s;
+  if (broken) return *broken;
+  if (!have_header) return bad("the stream had no header");
+  if (out.glb.size() != glb_bytes) return bad(fmt::format("{} of {} glb bytes", out.glb.size(), glb_bytes));
+  return out;
 }
 
 Expected<std::vector<v1::SceneSummary>> Client::listScenes() {

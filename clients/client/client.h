@@ -113,6 +113,32 @@ struct UpdateResult {
   bool relit = false;  // with wait_ms: a result >= version existed when the call returned
 };
 
+// A scene's current light set (proto GetLightsResponse).
+struct LightSetState {
+  std::uint64_t version = 0;
+  std::string json;              // a light-set document, schema version 1 (docs/lightset.md)
+  std::vector<v1::Light> lights; // every field set
+};
+
+// The lightmap UVs of one glTF primitive instance (proto MeshLightmapUv, arrays joined).
+struct MeshUvs {
+  std::string name;
+  int node = -1, mesh = -1, primitive = -1;
+  bool lightmapped = false;
+  std::vector<std::uint32_t> source_vertex;  // lightmap vertex -> glTF vertex; empty = 1:1
+  std::vector<float> uv;                     // (u, v) per lightmap vertex, glTF convention
+  std::vector<std::uint32_t> indices;        // 3 per triangle, over the lightmap vertices
+};
+
+// A scene's lightmap UVs (proto GetLightmapUvs).
+struct LightmapUvs {
+  int width = 0, height = 0;
+  float texel_size_m = 0.0f;
+  bool generated = false;
+  std::vector<MeshUvs> meshes;  // in the scene's mesh order
+  std::string glb;              // the scene as .glb with TEXCOORD_1, when asked for
+};
+
 using ProgressCallback = std::function<void(const v1::OpenSceneProgress&)>;
 // Told the scene once its instant preview is published, while openScene still waits for the
 // precompute: the handle (its `info` describes the preview: version, grid, no lightmap) can be
@@ -166,6 +192,10 @@ class Client {
   // ends (scene closed, daemon draining). Returns the stream's final status.
   Status subscribe(const SceneHandle& scene, const TexturesCallback& callback, const ResultSpec& spec = {},
                    bool deltas = true, std::uint64_t after_version = 0);
+  // The scene's current light set: version, light-set JSON and proto lights.
+  Expected<LightSetState> getLights(const SceneHandle& scene);
+  // The lightmap UVs the scene is lit with; `gltf` true: also the scene as .glb with them.
+  Expected<LightmapUvs> getLightmapUvs(const SceneHandle& scene, bool gltf = false);
   Expected<std::vector<v1::SceneSummary>> listScenes();
   Status closeScene(const SceneHandle& scene);
   Expected<v1::HealthResponse> health();

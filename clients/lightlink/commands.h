@@ -188,4 +188,17 @@ struct PullArgs {
 };
 int runPull(const PullArgs& args);
 
+struct LightsArgs {
+  RemoteArgs remote;
+  std::string output_path;  // empty: stdout
+};
+int runLights(const LightsArgs& args);
+
+struct UvsArgs {
+  RemoteArgs remote;
+  std::string gltf_path;  // .glb with TEXCOORD_1
+  std::string json_path;  // per-mesh UVs as JSON
+};
+int runUvs(const UvsArgs& args);
+
 }  // namespace lightlink::cli

@@ -239,6 +239,19 @@ int main(int argc, char** argv) {
   pull_cmd->add_option("--encoding", pull.encoding, "Written encoding: l0, l1 or l2, as bake's --encoding")
       ->capture_default_str();
   pull_cmd->add_flag("-q,--quiet", pull.quiet, "No summary");
+
+  LightsArgs lights;
+  auto* lights_cmd =
+      app.add_subcommand("lights", "Print a scene's current light set as a light-set JSON document (docs/lightset.md)");
+  addRemoteOptions(lights_cmd, lights.remote);
+  lights_cmd->add_option("-o,--output", lights.output_path, "Write the document to this file instead of stdout");
+
+  UvsArgs uvs;
+  auto* uvs_cmd = app.add_subcommand("uvs", "Fetch the lightmap UVs a resident scene is lit with");
+  addRemoteOptions(uvs_cmd, uvs.remote);
+  uvs_cmd->add_option("--gltf", uvs.gltf_path, "Write the scene with its lightmap UVs as TEXCOORD_1 (.glb)");
+  uvs_cmd->add_option("--json", uvs.json_path,
+                      "Write every mesh's UVs as JSON (node, mesh, primitive, source_vertex, uv, indices)");
 #endif
 
   try {
@@ -262,6 +275,8 @@ int main(int argc, char** argv) {
   if (*watch_cmd) return runWatch(watch);
   if (*close_cmd) return runClose(close_args);
   if (*pull_cmd) return runPull(pull);
+  if (*lights_cmd) return runLights(lights);
+  if (*uvs_cmd) return runUvs(uvs);
 #endif
   return kExitUsage;
 }

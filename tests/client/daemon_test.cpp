@@ -4,7 +4,9 @@
 #include <gtest/gtest.h>
 
 #include <atomic>
+#include <cstring>
 #include <fstream>
+#include <iterator>
 #include <nlohmann/json.hpp>
 #include <thread>
 
@@ -550,21 +552,76 @@ TEST_F(ClientDaemon, GameClientRendersAFrame) {
   EXPECT_NE(wrong.err.find("--preset"), std::string::npos) << wrong.err;
 }
 
-// ---- the Python example (Debian's python3-grpcio + generated stubs)
+// ---- reading a scene back: the library and the CLI
+
+TEST_F(ClientDaemon, LightsAndLightmapUvsReadBackThroughTheLibraryAndTheCli) {
+  SceneHandle scene = open();
+  ASSERT_FALSE(scene.id.empty());
+  const std::string light = scene.info.light_ids(0);
+  LightUpdate u;
+  ASSERT_TRUE(u.modify(moveTo(light, 0.2f, 0.4f, 0.25f)));
+  auto r = client_->updateLights(scene, u);
+  ASSERT_TRUE(r) << r.status().toString();
+  auto lights = client_->getLights(scene);
+  ASSERT_TRUE(lights) << lights.status().toString();
+  EXPECT_EQ(lights->version, r->version);
+  ASSERT_EQ(lights->lights.size(), 1u);
+  EXPECT_EQ(lights->lights[0].id(), light);
+  EXPECT_FLOAT_EQ(lights->lights[0].position().z(), 0.25f);
+  // The document converts back into an update through the one light-set reader.
+  auto again = LightUpdate::fromLightSetText(lights->json, &scene.light_ids);
+  ASSERT_TRUE(again) << again.status().toString() << "\n" << lights->json;
+
+  auto uvs = client_->getLightmapUvs(scene, true);
+  ASSERT_TRUE(uvs) << uvs.status().toString();
+  EXPECT_EQ(uvs->width, scene.info.lightmap().width());
+  EXPECT_TRUE(uvs->generated);
+  std::size_t lit = 0;
+  for (const MeshUvs& m : uvs->meshes) {
+    if (!m.lightmapped) continue;
+    ++lit;
+    EXPECT_EQ(m.source_vertex.size() * 2, m.uv.size()) << m.name;
+    EXPECT_EQ(m.indices.size() % 3, 0u);
+  }
+  EXPECT_GT(lit, 0u);
+  EXPECT_EQ(uvs->glb.substr(0, 4), "glTF");
+
+  // The CLI prints the same document and writes the same .glb.
+  TempDir tmp;
+  const std::string session = (tmp / "s.json").string();
+  ASSERT_TRUE(saveSession(session, Session{daemon_->target(), scene}));
+  auto printed = runCommand({LIGHTLINK_CLI_PATH, "lights", "--session", session}, std::chrono::seconds(60));
+  ASSERT_EQ(printed.exit_code, 0) << printed.out << printed.err;
+  EXPECT_EQ(nlohmann::json::parse(printed.out), nlohmann::json::parse(lights->json));
+  const std::string glb = (tmp / "lm.glb").string(), json = (tmp / "uvs.json").string();
+  auto wrote = runCommand({LIGHTLINK_CLI_PATH, "uvs", "--session", session, "--gltf", glb, "--json", json},
+                          std::chrono::seconds(60));
+  ASSERT_EQ(wrote.exit_code, 0) << wrote.out << wrote.err;
+  std::ifstream glb_in(glb, std::ios::binary);
+  const std::string glb_bytes((std::istreambuf_iterator<char>(glb_in)), std::istreambuf_iterator<char>());
+  EXPECT_EQ(glb_bytes, uvs->glb);
+  std::ifstream json_in(json);
+  const auto doc = nlohmann::json::parse(json_in, nullptr, false);
+  ASSERT_FALSE(doc.is_discarded());
+  ASSERT_EQ(doc["meshes"].size(), uvs->meshes.size());
+  EXPECT_EQ(doc["meshes"][0]["uv"].get<std::vector<float>>(), uvs->meshes[0].uv);
+}
+
+// ---- the Python example on the `lightlink` package (Debian's python3-grpcio, -protobuf, -numpy)
 
 TEST_F(ClientDaemon, PythonExampleMovesALightAndSavesTheLightmap) {
-  if (std::string(LIGHTLINK_PYTHON_STUBS).empty())
-    GTEST_SKIP() << "no Python stubs: grpc_python_plugin (protobuf-compiler-grpc) was not found at configure time";
   const std::string python = "/usr/bin/python3";
-  auto probe = runCommand({python, "-c", "import grpc, google.protobuf"}, std::chrono::seconds(30));
+  auto probe = runCommand({python, "-c", "import grpc, google.protobuf, numpy"}, std::chrono::seconds(30));
   if (probe.exit_code != 0)
-    GTEST_SKIP() << "Debian's python3-grpcio / python3-protobuf are not installed (scripts/packages.txt): "
+    GTEST_SKIP() << "Debian's python3-grpcio / python3-protobuf / python3-numpy are not installed "
+                    "(scripts/packages.txt): "
                  << probe.err;
   TempDir tmp;
+  const std::string session = (tmp / "session.json").string();
   auto r = runCommand({python, (lightlink::testing::sourceDir() / "clients/python/move_light.py").string(),
                        "--target", daemon_->target(), "--scene", kCornell, "--preset", kPreset, "--out",
-                       tmp.path().string(), "--timeout", "200"},
-                      std::chrono::seconds(240), {"PYTHONPATH=" LIGHTLINK_PYTHON_STUBS});
+                       tmp.path().string(), "--timeout", "200", "--session", session},
+                      std::chrono::seconds(240), {"PYTHONPATH=" LIGHTLINK_PYTHON_PACKAGE});
   ASSERT_EQ(r.exit_code, 0) << r.out << r.err << daemon_->log();
   std::ifstream meta_in(tmp / "lightmap.json");
   const auto meta = nlohmann::json::parse(meta_in, nullptr, false);
@@ -578,6 +635,36 @@ TEST_F(ClientDaemon, PythonExampleMovesALightAndSavesTheLightmap) {
   EXPECT_EQ(std::string(sig + 1, 3), "PNG");
   EXPECT_EQ(meta["position"][0].get<double>(), 0.15);  // the example's default move
   EXPECT_NE(r.out.find("light change to texture"), std::string::npos) << r.out;
+
+  // numpy's decode is the C++ client's: the same version fetched through the session file the
+  // script wrote (the handle `lightlink pull --session` reads) gives the same floats, bit for bit.
+  auto loaded = loadSession(session);
+  ASSERT_TRUE(loaded) << loaded.status().toString();
+  EXPECT_EQ(loaded->scene.id, meta["scene_id"].get<std::string>());
+  ResultSpec spec;
+  spec.grid = false;
+  auto tex = client_->relight(loaded->scene, meta["version"].get<std::uint64_t>(), spec);
+  ASSERT_TRUE(tex) << tex.status().toString();
+  ASSERT_EQ(tex->info.version, meta["version"].get<std::uint64_t>());
+  const auto readFloats = [&](const char* name) {
+    std::ifstream in(tmp / name, std::ios::binary);
+    std::vector<float> v(fs::file_size(tmp / name) / 4);
+    in.read(reinterpret_cast<char*>(v.data()), std::streamsize(v.size() * 4));
+    return v;
+  };
+  const std::vector<float> sh = readFloats("lightmap_sh.f32"), cpp_sh = tex->floats(Payload::kLightmapSh);
+  ASSERT_EQ(sh.size(), cpp_sh.size());
+  EXPECT_EQ(std::memcmp(sh.data(), cpp_sh.data(), sh.size() * 4), 0) << "numpy's half decode differs from C++'s";
+  if (tex->has(Payload::kLightmapDirect)) {
+    const std::vector<float> direct = readFloats("direct.f32"), cpp_direct = tex->floats(Payload::kLightmapDirect);
+    ASSERT_EQ(direct.size(), cpp_direct.size());
+    EXPECT_EQ(std::memcmp(direct.data(), cpp_direct.data(), direct.size() * 4), 0);
+  }
+  std::ifstream valid_in(tmp / "valid.u8", std::ios::binary);
+  const std::string valid((std::istreambuf_iterator<char>(valid_in)), std::istreambuf_iterator<char>());
+  const auto cpp_valid = tex->bytes(Payload::kLightmapValid);
+  ASSERT_EQ(valid.size(), cpp_valid.size());
+  EXPECT_EQ(std::memcmp(valid.data(), cpp_valid.data(), valid.size()), 0);
 }
 
 }  // namespace

@@ -48,6 +48,27 @@ struct Umask {
   mode_t old;
 };
 
+TEST(ServiceConfig, SessionIdleTimeoutFromTheFlagAndTheConfigFile) {
+  EXPECT_EQ(parse({"--cache-dir", "/tmp/x"}).config.session_idle_timeout_s, 1800.0) << "default: 30 minutes";
+  const ParsedArgs flag = parse({"--cache-dir", "/tmp/x", "--session-idle-timeout", "90"});
+  ASSERT_FALSE(flag.exit_now) << flag.output;
+  EXPECT_EQ(flag.config.session_idle_timeout_s, 90.0);
+  EXPECT_EQ(parse({"--cache-dir", "/tmp/x", "--session-idle-timeout", "0"}).config.session_idle_timeout_s, 0.0);
+  TempDir tmp;
+  writeFile(tmp / "c.json", R"({"cache_dir": "/tmp/x", "session_idle_timeout": 12.5})");
+  const ParsedArgs file = parse({"--config", (tmp / "c.json").string()});
+  ASSERT_FALSE(file.exit_now) << file.output;
+  EXPECT_EQ(file.config.session_idle_timeout_s, 12.5);
+  writeFile(tmp / "bad.json", R"({"cache_dir": "/tmp/x", "session_idle_timeout": "soon"})");
+  const ParsedArgs bad = parse({"--config", (tmp / "bad.json").string()});
+  ASSERT_TRUE(bad.exit_now);
+  EXPECT_EQ(bad.exit_code, 2);
+  EXPECT_NE(bad.output.find("session_idle_timeout"), std::string::npos) << bad.output;
+  const ParsedArgs negative = parse({"--cache-dir", "/tmp/x", "--session-idle-timeout", "-1"});
+  ASSERT_TRUE(negative.exit_now);
+  EXPECT_NE(negative.output.find("--session-idle-timeout"), std::string::npos) << negative.output;
+}
+
 TEST(ServiceTokens, TokenInArgvIsRefusedNamingTheAlternatives) {
   const ParsedArgs p = parse({"--cache-dir", "/tmp/x", "--token", "0123456789abcdef0123"});
   ASSERT_TRUE(p.exit_now);

@@ -114,6 +114,26 @@ TEST(DaemonPreview, FirstVersionIsThePreviewThenTheLinkedResultWithTheUpdatesMad
       EXPECT_TRUE(ur.relit());
       relit = newest(*rpc, *preview);
       updated_during_preview = relit.header.kind() == v1::RESULT_KIND_INSTANT_PREVIEW;
+      // Reading the scene back while it shows its preview: the light set is there at once; the
+      // lightmap UVs once the precompute is done (UNAVAILABLE before, never a crash).
+      v1::GetLightsRequest gl;
+      *gl.mutable_scene() = refOf(*preview);
+      v1::GetLightsResponse lights;
+      ASSERT_TRUE(rpc->GetLights(context().get(), gl, &lights).ok()) << d.log();
+      EXPECT_GE(lights.version(), ur.version());
+      EXPECT_TRUE(std::any_of(lights.lights().begin(), lights.lights().end(),
+                              [](const v1::Light& l) { return l.id() == "key"; }));
+      v1::GetLightmapUvsRequest gu;
+      *gu.mutable_scene() = refOf(*preview);
+      auto uctx = context();
+      auto uvs = rpc->GetLightmapUvs(uctx.get(), gu);
+      v1::LightmapUvsMessage um;
+      while (uvs->Read(&um)) {
+      }
+      const auto us = uvs->Finish();
+      EXPECT_TRUE(us.ok() || (us.error_code() == grpc::StatusCode::UNAVAILABLE &&
+                              us.error_message().find("instant preview") != std::string::npos))
+          << us.error_code() << " " << us.error_message();
     }
     if (m.has_opened()) opened = m.opened();
   }
