@@ -76,8 +76,7 @@ std::string eventText(const LiveScene& live, const LiveVersion& v) {
   j["lighting"] = v.lighting;
   j["relight_ms"] = v.relight_ms;
   j["write_ms"] = v.write_ms;
-  auto [lights, lights_version] = live.lights();
-  if (v.lights_version == lights_version) j["lights"] = lights;  // the set this version was lit with
+  if (!v.lights.is_null()) j["lights"] = v.lights;  // the set this version was lit with
   return "event: version\ndata: " + j.dump() + "\n\n";
 }
 

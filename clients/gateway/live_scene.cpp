@@ -168,11 +168,14 @@ void LiveScene::follow() {
       continue;
     }
     const double write_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
-    LiveVersion v{version, dir, files->files, files->lighting, tex.info.relight_ms, write_ms, 0};
+    LiveVersion v{version, dir, files->files, files->lighting, tex.info.relight_ms, write_ms, nullptr};
+    // Pages move their light handles (and the direct light of grid-lit objects) to the set
+    // this version was lit with, also when another client changed it.
+    if (auto state = client_.getLights(handle_); state && state->version == version)
+      v.lights = nlohmann::json::parse(state->json, nullptr, false);
     std::vector<fs::path> dropped;
     {
       std::lock_guard lock(mutex_);
-      v.lights_version = light_set_version_ <= version ? light_set_version_ : 0;
       versions_.push_back(std::move(v));
       while (int(versions_.size()) > keep_) {
         dropped.push_back(versions_.front().dir);
@@ -187,6 +190,7 @@ void LiveScene::follow() {
 }
 
 nlohmann::json LiveScene::describe() const {
+  auto state = client_.getLights(handle_);  // before the locks: an RPC
   std::lock_guard update(update_mutex_);  // updates change the handle's light ids
   std::lock_guard lock(mutex_);
   nlohmann::json j;
@@ -195,7 +199,7 @@ nlohmann::json LiveScene::describe() const {
   j["scene_token"] = handle_.token;  // so the CLI (set-light, watch, pull) can join this scene
   j["cache_key"] = handle_.info.cache_key();
   j["light_ids"] = nlohmann::json(std::vector<std::string>(handle_.light_ids.begin(), handle_.light_ids.end()));
-  j["lights"] = light_set_;
+  j["lights"] = state ? nlohmann::json::parse(state->json, nullptr, false) : nlohmann::json();
   j["light_nodes"] = light_nodes_;
   j["scenarios"] = scenarios_;
   j["lightmap"] = {{"width", handle_.info.lightmap().width()}, {"height", handle_.info.lightmap().height()}};
@@ -208,27 +212,6 @@ Expected<std::uint64_t> LiveScene::updateLights(const std::string& light_set_jso
   std::lock_guard update(update_mutex_);
   auto r = client_.updateLightsFromJson(handle_, light_set_json);
   if (!r) return r.status();
-  // The light set the page shows with this version: the document merged into the last one.
-  nlohmann::json doc = nlohmann::json::parse(light_set_json, nullptr, false);
-  std::lock_guard lock(mutex_);
-  if (light_set_.is_null() || !doc.is_object()) {
-    light_set_ = doc.is_object() ? doc : nlohmann::json::object();
-  } else if (doc.contains("lights") && doc["lights"].is_array()) {
-    auto& lights = light_set_["lights"];
-    if (!lights.is_array()) lights = nlohmann::json::array();
-    for (const auto& entry : doc["lights"]) {
-      if (!entry.contains("id")) continue;
-      auto it = std::find_if(lights.begin(), lights.end(), [&](const auto& l) { return l.value("id", "") == entry["id"]; });
-      if (entry.value("remove", false)) {
-        if (it != lights.end()) lights.erase(it);
-      } else if (it == lights.end()) {
-        lights.push_back(entry);
-      } else {
-        for (const auto& [k, v] : entry.items()) (*it)[k] = v;
-      }
-    }
-  }
-  light_set_version_ = r->version;
   return r->version;
 }
 
@@ -254,9 +237,5 @@ std::optional<LiveVersion> LiveScene::find(std::uint64_t version) const {
   return std::nullopt;
 }
 
-std::pair<nlohmann::json, std::uint64_t> LiveScene::lights() const {
-  std::lock_guard lock(mutex_);
-  return {light_set_, light_set_version_};
-}
 
 }  // namespace lightlink::gateway

@@ -39,7 +39,9 @@ struct LiveVersion {
   nlohmann::json lighting;   // LIGHTLINK_lighting description of `files`
   double relight_ms = 0.0;
   double write_ms = 0.0;     // the gateway writing the files
-  std::uint64_t lights_version = 0;  // newest update through the gateway this result includes
+  // The daemon's light set of this version (GetLights), whoever changed it; null when the
+  // set had moved on by the time it was asked for (the next version brings it).
+  nlohmann::json lights;
 };
 
 class LiveScene {
@@ -51,8 +53,8 @@ class LiveScene {
 
   const client::SceneHandle& handle() const { return handle_; }
   const std::filesystem::path& bakeDir() const { return bake_dir_; }
-  // What a page needs to start: ids, tokens, the light set, the light -> glTF node map,
-  // scenario names and the newest version (when one was written).
+  // What a page needs to start: ids, tokens, the light set (asked of the daemon), the light
+  // -> glTF node map, scenario names and the newest version (when one was written).
   nlohmann::json describe() const;
 
   // A light-set document (docs/lightset.md) applied over the current lights; returns the
@@ -64,8 +66,6 @@ class LiveScene {
   // The newest version above `after`, waiting up to `timeout`; nullopt on timeout or close.
   std::optional<LiveVersion> waitNewer(std::uint64_t after, std::chrono::milliseconds timeout);
   std::optional<LiveVersion> find(std::uint64_t version) const;
-  // The light set after the newest update through the gateway (JSON), and its version.
-  std::pair<nlohmann::json, std::uint64_t> lights() const;
   // Ends the stream and wakes every waiter; the daemon scene is closed too.
   void close();
   bool closed() const { return closed_; }
@@ -88,8 +88,6 @@ class LiveScene {
   mutable std::mutex mutex_;
   std::condition_variable changed_;
   std::deque<LiveVersion> versions_;
-  nlohmann::json light_set_;            // newest light set sent through the gateway
-  std::uint64_t light_set_version_ = 0;
   mutable std::mutex update_mutex_;     // one update at a time (the handle's light ids)
   std::unique_ptr<client::Subscription> subscription_;
   std::thread follower_;

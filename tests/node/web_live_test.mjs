@@ -143,22 +143,26 @@ try {
   if (!(sb.right > 1.15 * sa.right && sb.left < 0.95 * sa.left))
     fail('moving the light to the box\'s left did not brighten the picture\'s right third and darken its left');
 
-  // The same version as files, drawn by `lightlink render` with the moved light.
-  const pulled = path.join(work, 'pulled');
-  run('pull', '--target', `127.0.0.1:${daemonPort}`, '--scene', info.sceneId, '--scene-token', info.token,
-      '--version', String(movedVersion), '-o', pulled, '--quiet');
-  const lights = JSON.parse(fs.readFileSync(path.join(bake, 'lights.json'), 'utf8'));
-  lights.lights.find((l) => l.id === LIGHT).position = left;
-  fs.writeFileSync(path.join(work, 'moved.json'), JSON.stringify(lights));
-  const rendered = path.join(work, 'b_render.png');
-  run('render', path.join(bake, 'cornell_box_lm.gltf'), '--bake', pulled, '--lights', path.join(work, 'moved.json'), '-o', rendered,
-      '--eye', ...VIEW.eye.map(String), '--target', ...VIEW.target.map(String), '--fov', String(VIEW.fov),
-      '--width', String(VIEW.width), '--height', String(VIEW.height), '--exposure',
-      String(await page.evaluate(() => window.lightlinkViewer.exposure)), '--quiet');
-  const c = compare(PNG.sync.read(fs.readFileSync(rendered)), b);
-  console.log(`page vs render of pulled version ${movedVersion}: lit ${c.n}, mean ${c.mean.toFixed(3)}, p95 ${c.p95.toFixed(2)} ` +
-              `(tolerance mean ${TOLERANCE.mean}, p95 ${TOLERANCE.p95})`);
-  if (!(c.mean <= TOLERANCE.mean && c.p95 <= TOLERANCE.p95)) fail(`the live page differs from lightlink render (kept ${work})`);
+  // The same version as files, drawn by `lightlink render` with the moved light (the sphere,
+  // lit from the grid, takes its direct light from the page's light position).
+  const exposure = String(await page.evaluate(() => window.lightlinkViewer.exposure));
+  const checkAgainstRender = (version, position, shotPng, name) => {
+    const pulled = path.join(work, `pulled_${name}`);
+    run('pull', '--target', `127.0.0.1:${daemonPort}`, '--scene', info.sceneId, '--scene-token', info.token,
+        '--version', String(version), '-o', pulled, '--quiet');
+    const lights = JSON.parse(fs.readFileSync(path.join(bake, 'lights.json'), 'utf8'));
+    lights.lights.find((l) => l.id === LIGHT).position = position;
+    fs.writeFileSync(path.join(work, `${name}.json`), JSON.stringify(lights));
+    const rendered = path.join(work, `${name}_render.png`);
+    run('render', path.join(bake, 'cornell_box_lm.gltf'), '--bake', pulled, '--lights', path.join(work, `${name}.json`), '-o', rendered,
+        '--eye', ...VIEW.eye.map(String), '--target', ...VIEW.target.map(String), '--fov', String(VIEW.fov),
+        '--width', String(VIEW.width), '--height', String(VIEW.height), '--exposure', exposure, '--quiet');
+    const c = compare(PNG.sync.read(fs.readFileSync(rendered)), shotPng);
+    console.log(`${name}: page vs render of pulled version ${version}: lit ${c.n}, mean ${c.mean.toFixed(3)}, p95 ${c.p95.toFixed(2)} ` +
+                `(tolerance mean ${TOLERANCE.mean}, p95 ${TOLERANCE.p95})`);
+    if (!(c.mean <= TOLERANCE.mean && c.p95 <= TOLERANCE.p95)) fail(`${name}: the live page differs from lightlink render (kept ${work})`);
+  };
+  checkAgainstRender(movedVersion, left, b, 'page_move');
 
   // 2. Another client moves it to the right side: the page follows.
   const before = await page.evaluate(() => window.lightlinkViewer.live.version);
@@ -169,6 +173,9 @@ try {
   const sd = sides(d);
   console.log(`set-light: version ${cliVersion}; left/right thirds ${sb.left.toFixed(1)}/${sb.right.toFixed(1)} -> ${sd.left.toFixed(1)}/${sd.right.toFixed(1)}`);
   if (!(sd.left > 1.15 * sb.left && sd.right < 0.95 * sb.right)) fail('after set-light the page did not follow the light to the left third');
+  // The page learnt the new position from the daemon (GetLights through the gateway): its
+  // sphere's direct light agrees with render's too.
+  checkAgainstRender(cliVersion, [0.45, 0.45, 0.25], d, 'set_light');
 
   // 3. Scenario blend from the page: all "dim" is about a tenth of all "full".
   const blend = async (weights) => {
