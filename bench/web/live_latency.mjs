@@ -19,13 +19,13 @@ import { spawn, execFileSync } from 'node:child_process';
 import { fileURLToPath } from 'node:url';
 
 const repo = path.resolve(path.dirname(fileURLToPath(import.meta.url)), '../..');
-const { chromium } = await import(path.join(repo, 'tests/node/node_modules/playwright-core/index.mjs'));
+const { findChromium, launchBrowser } = await import(path.join(repo, 'tests/node/browser.mjs'));
 
 const args = Object.fromEntries(process.argv.slice(2).reduce((a, v, i, all) => (v.startsWith('--') ? [...a, [v.slice(2), all[i + 1]]] : a), []));
 for (const k of ['cli', 'viewer', 'scene']) if (!args[k]) { console.error(`--${k} is required`); process.exit(2); }
 const moves = Number(args.moves ?? 20), preset = args.preset ?? 'draft';
 const [width, height] = (args.size ?? '640x480').split('x').map(Number);
-const chromiumPath = [process.env.LIGHTLINK_CHROMIUM, '/usr/bin/chromium'].find((p) => p && fs.existsSync(p));
+const chromiumPath = findChromium();
 if (!chromiumPath) { console.error('no Chromium (apt-get install chromium)'); process.exit(2); }
 
 const work = fs.mkdtempSync(path.join(os.tmpdir(), 'lightlink-webbench-'));
@@ -58,8 +58,7 @@ const daemon = spawn(cli, ['serve', '--listen', '127.0.0.1:0', '--port-file', pa
 for (let i = 0; i < 300 && !fs.existsSync(path.join(work, 'hport')); ++i) await new Promise((r) => setTimeout(r, 100));
 const base = `http://127.0.0.1:${fs.readFileSync(path.join(work, 'hport'), 'utf8').trim()}`;
 
-const browser = await chromium.launch({ executablePath: chromiumPath, headless: true,
-  args: ['--no-sandbox', '--disable-gpu', '--use-angle=swiftshader', '--enable-unsafe-swiftshader', '--no-first-run'] });
+const browser = await launchBrowser(chromiumPath);
 const stats = (v) => {
   const s = [...v].sort((a, b) => a - b);
   return { n: s.length, median: s[Math.floor((s.length - 1) / 2)], p95: s[Math.floor(0.95 * (s.length - 1))], max: s.at(-1) };

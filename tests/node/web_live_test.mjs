@@ -18,7 +18,7 @@ import os from 'node:os';
 import path from 'node:path';
 import { spawn, execFileSync } from 'node:child_process';
 import { PNG } from 'pngjs';
-import { chromium } from 'playwright-core';
+import { findChromium, launchBrowser } from './browser.mjs';
 
 const TOLERANCE = { mean: 1.0, p95: 3 };  // web_viewer_test.mjs's, same renderer and page
 const VIEW = { eye: [0.36, 0.33, -0.8], target: [0.26, 0.26, 0.28], fov: 42, width: 320, height: 240 };
@@ -26,7 +26,7 @@ const LIGHT = 'WarmBulb';
 
 const fail = (msg) => { console.error(`FAIL: ${msg}`); process.exit(1); };
 const viewerDir = process.argv[2];
-const chromiumPath = [process.env.LIGHTLINK_CHROMIUM, '/usr/bin/chromium', '/usr/bin/chromium-browser'].find((p) => p && fs.existsSync(p));
+const chromiumPath = findChromium();
 if (!chromiumPath) {
   console.log('SKIP: no Chromium binary (install Debian\'s chromium, or set LIGHTLINK_CHROMIUM)');
   process.exit(77);
@@ -62,11 +62,7 @@ const httpPort = fs.readFileSync(path.join(work, 'hport'), 'utf8').trim();
 const base = `http://127.0.0.1:${httpPort}`;
 if (!/viewer is at http:\/\/127\.0\.0\.1:\d+\//.test(daemonLog)) fail(`serve does not print the viewer's URL:\n${daemonLog}`);
 
-const browser = await chromium.launch({
-  executablePath: chromiumPath, headless: true,
-  args: ['--no-sandbox', '--disable-gpu', '--use-angle=swiftshader', '--enable-unsafe-swiftshader', '--disable-quic',
-         '--no-first-run', '--disable-background-networking', '--disable-component-update', '--disable-sync'],
-});
+const browser = await launchBrowser(chromiumPath);
 
 const luminance = (png) => {
   const l = new Float64Array(png.width * png.height);

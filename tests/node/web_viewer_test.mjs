@@ -12,7 +12,7 @@ import os from 'node:os';
 import path from 'node:path';
 import { execFileSync } from 'node:child_process';
 import { PNG } from 'pngjs';
-import { chromium } from 'playwright-core';
+import { findChromium, launchBrowser } from './browser.mjs';
 import { serveFolders } from './static_server.mjs';
 
 // Measured (docs/web.md "Comparison", 2 cores, SwiftShader): room mean 0.10, p95 0.33; probe
@@ -31,7 +31,7 @@ const VIEWS = {
 
 const fail = (msg) => { console.error(`FAIL: ${msg}`); process.exit(1); };
 const viewerDir = process.argv[2];
-const chromiumPath = [process.env.LIGHTLINK_CHROMIUM, '/usr/bin/chromium', '/usr/bin/chromium-browser'].find((p) => p && fs.existsSync(p));
+const chromiumPath = findChromium();
 if (!chromiumPath) {
   console.log('SKIP: no Chromium binary (install Debian\'s chromium, or set LIGHTLINK_CHROMIUM)');
   process.exit(77);
@@ -50,12 +50,7 @@ for (const encoding of Object.keys(BAKES))
       '--grid', 'on', '--encoding', encoding, '--quiet');
 const vec = (v) => v.join(',');
 const server = await serveFolders({ '/viewer/': viewerDir, '/bake/': work });
-// A fresh profile (playwright's launch makes one), no network, WebGL through SwiftShader.
-const browser = await chromium.launch({
-  executablePath: chromiumPath, headless: true,
-  args: ['--no-sandbox', '--disable-gpu', '--use-angle=swiftshader', '--enable-unsafe-swiftshader', '--disable-quic',
-         '--no-first-run', '--disable-background-networking', '--disable-component-update', '--disable-sync'],
-});
+const browser = await launchBrowser(chromiumPath);
 
 // One view: `lightlink render` and the page's screenshot, compared. Returns whether it passed.
 async function compareView(encoding, view) {

@@ -13,22 +13,10 @@
 #include "core/scene/load.h"
 #include "tests/common/escaping_scenes.h"
 #include "tests/common/testing.h"
+#include "tests/precompute/demo_options.h"
 
 namespace lightlink::precompute {
 namespace {
-
-const std::string kDemo = (testing::sourceDir() / "clients/demo/cornell_box.gltf").string();
-
-PrecomputeOptions smallOptions() {
-  PrecomputeOptions o;
-  o.surfels = 1024;
-  o.links = 32;
-  o.rays = 256;
-  o.target_resolution = 32;
-  o.grid_resolution = 6;
-  o.validity_rays = 16;
-  return o;
-}
 
 Precomputation runDemo(const PrecomputeOptions& o) {
   auto scene = scene::loadGltf(kDemo);

@@ -15,25 +15,12 @@
 #include "core/precompute/precompute.h"
 #include "core/scene/load.h"
 #include "tests/common/testing.h"
+#include "tests/precompute/demo_options.h"
 
 namespace lightlink::precompute {
 namespace {
 
 namespace fs = std::filesystem;
-
-const std::string kDemo = (testing::sourceDir() / "clients/demo/cornell_box.gltf").string();
-
-// The demo has a dynamic probe: lightmap and grid caches, so shards split across both sets.
-PrecomputeOptions smallOptions() {
-  PrecomputeOptions o;
-  o.surfels = 1024;
-  o.links = 32;
-  o.rays = 256;
-  o.target_resolution = 32;
-  o.grid_resolution = 6;
-  o.validity_rays = 16;
-  return o;
-}
 
 std::string readFile(const fs::path& path) {
   std::ifstream in(path, std::ios::binary);
