@@ -1,8 +1,8 @@
 #!/usr/bin/python3
 """The committed gRPC modules of the Python package (clients/python/lightlink/_proto) are what
-proto/lightlink.proto generates now (the build's copy in <build>/clients/python/lightlink_stubs).
+proto/lightlink.proto generates now (the build's copy in <build>/clients/python/lightlink_grpc).
 
-    stubs_current.py GENERATED_DIR COMMITTED_DIR
+    grpc_modules_current.py GENERATED_DIR COMMITTED_DIR
 """
 import difflib
 import os
@@ -23,7 +23,7 @@ def main():
             print("\n".join(list(diff)[:40]))
     if stale:
         print(f"stale: {', '.join(stale)} in {committed} differ from what proto/lightlink.proto generates; "
-              "refresh them with `cmake --build build --target lightlink_python_stubs_update` and commit them")
+              "refresh them with `cmake --build build --target lightlink_python_grpc_update` and commit them")
         return 1
     print("the committed Python gRPC modules match proto/lightlink.proto")
     return 0

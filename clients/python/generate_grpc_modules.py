@@ -1,15 +1,15 @@
 #!/usr/bin/python3
 """Generates the lightlink package's gRPC modules from proto/lightlink.proto.
 
-    generate_stubs.py --protoc PROTOC --plugin GRPC_PYTHON_PLUGIN --proto proto/lightlink.proto --out DIR
+    generate_grpc_modules.py --protoc PROTOC --plugin GRPC_PYTHON_PLUGIN --proto proto/lightlink.proto --out DIR
 
 writes DIR/lightlink_pb2.py and DIR/lightlink_pb2_grpc.py with protoc's Python generator and
 gRPC's Python plugin (Debian: protobuf-compiler, protobuf-compiler-grpc), then makes the
 plugin's top-level `import lightlink_pb2` a package-relative import, so the modules live
-inside the `lightlink._proto` package. The build runs it (target lightlink_python_stubs) and
-the test python_stubs_current compares its output with the committed copy in
+inside the `lightlink._proto` package. The build runs it (target lightlink_python_grpc) and
+the test python_grpc_current compares its output with the committed copy in
 clients/python/lightlink/_proto; after a proto change refresh that copy with
-`cmake --build build --target lightlink_python_stubs_update`.
+`cmake --build build --target lightlink_python_grpc_update`.
 """
 import argparse
 import os
@@ -37,7 +37,7 @@ def main():
             text = f.read()
         text, n = re.subn(r"^import lightlink_pb2 as ", "from . import lightlink_pb2 as ", text, flags=re.M)
         if n != 1:
-            sys.exit(f"generate_stubs.py: expected one 'import lightlink_pb2' in the gRPC module, found {n}")
+            sys.exit(f"generate_grpc_modules.py: expected one 'import lightlink_pb2' in the gRPC module, found {n}")
         with open(grpc_path, "w", encoding="utf-8") as f:
             f.write(text)
         os.makedirs(args.out, exist_ok=True)
