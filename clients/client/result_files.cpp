@@ -20,6 +20,7 @@ Expected<ResultFiles> writeResultFiles(const Textures& tex, const std::string& d
   exr.scene_hash = options.scene_hash;
   exr.encoding = options.encoding;
   exr.compress = options.compress;
+  exr.irradiance = options.irradiance;
   const caches::LightmapCaches preview = previewCachesOf(tex);
   auto lm = output::writeLightmapExrs(*result, preview, out.string(), exr);
   if (!lm) return lm.status();

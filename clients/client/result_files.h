@@ -21,6 +21,7 @@ struct ResultFileOptions {
   bool png_preview = true;   // lightmap.png
   std::string scene_hash;    // the scene's cache key (hex), into every file's header
   bool compress = true;      // false: uncompressed EXRs (output::ExrOptions::compress)
+  bool irradiance = true;    // false: no irradiance.exr beside SH files (output::ExrOptions::irradiance)
   // false: of the grid only grid.raw (what the web viewer reads), not its EXRs, grid.json
   // and the three.js files.
   bool all_grid_files = true;

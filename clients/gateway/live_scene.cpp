@@ -48,8 +48,8 @@ std::string wholeSetDocument(nlohmann::json set, const std::vector<std::string>&
 
 }  // namespace
 
-LiveScene::LiveScene(client::Client& client, fs::path bake_dir, fs::path work_dir, int keep)
-    : client_(client), bake_dir_(std::move(bake_dir)), work_dir_(std::move(work_dir)), keep_(std::max(1, keep)) {}
+LiveScene::LiveScene(client::Client& client, fs::path work_dir, int keep)
+    : client_(client), work_dir_(std::move(work_dir)), keep_(std::max(1, keep)) {}
 
 Expected<std::unique_ptr<LiveScene>> LiveScene::open(client::Client& client, const fs::path& bake_dir,
                                                      const fs::path& work_dir, int keep_versions) {
@@ -58,7 +58,7 @@ Expected<std::unique_ptr<LiveScene>> LiveScene::open(client::Client& client, con
   const nlohmann::json& source = (*report)["source"];
   if (!source.is_object() || !source.contains("scene") || !source["scene"].is_string())
     return invalidInput("{}/report.json has no \"source\" (a bake before live mode): bake again", bake_dir.string());
-  std::unique_ptr<LiveScene> live(new LiveScene(client, bake_dir, work_dir, keep_versions));
+  std::unique_ptr<LiveScene> live(new LiveScene(client, work_dir, keep_versions));
 
   client::OpenOptions open;
   open.path = source["scene"].get<std::string>();
@@ -139,6 +139,7 @@ void LiveScene::follow() {
   options.png_preview = false;
   options.compress = false;        // written and read at once on this machine
   options.all_grid_files = false;  // the page reads grid.raw
+  options.irradiance = false;      // and evaluates the SH files itself
   options.scene_hash = handle_.info.cache_key();
   while (!closed_) {
     auto next = subscription_->next();
@@ -194,7 +195,6 @@ nlohmann::json LiveScene::describe() const {
   std::lock_guard update(update_mutex_);  // updates change the handle's light ids
   std::lock_guard lock(mutex_);
   nlohmann::json j;
-  j["live"] = handle_.id;
   j["scene_id"] = handle_.id;
   j["scene_token"] = handle_.token;  // so the CLI (set-light, watch, pull) can join this scene
   j["cache_key"] = handle_.info.cache_key();

@@ -52,7 +52,6 @@ class LiveScene {
   ~LiveScene();
 
   const client::SceneHandle& handle() const { return handle_; }
-  const std::filesystem::path& bakeDir() const { return bake_dir_; }
   // What a page needs to start: ids, tokens, the light set (asked of the daemon), the light
   // -> glTF node map, scenario names and the newest version (when one was written).
   nlohmann::json describe() const;
@@ -74,11 +73,11 @@ class LiveScene {
   bool usable() const { return !closed_ && !ended_; }
 
  private:
-  LiveScene(client::Client& client, std::filesystem::path bake_dir, std::filesystem::path work_dir, int keep);
+  LiveScene(client::Client& client, std::filesystem::path work_dir, int keep);
   void follow();
 
   client::Client& client_;
-  std::filesystem::path bake_dir_, work_dir_;
+  std::filesystem::path work_dir_;
   int keep_;
   client::SceneHandle handle_;
   nlohmann::json light_nodes_ = nlohmann::json::object();

@@ -200,13 +200,15 @@ Expected<WrittenExrs> writeLightmapExrs(const relight::RelightResult& result, co
       result.texel_valid.size() != texels)
     return invalidInput("lightmap EXR: result holds no {}x{} lightmap", result.width, result.height);
   WrittenExrs written;
-  auto irradiance = evaluateIrradiance(result, lightmap, /*include_direct=*/true, direct_texels);
-  if (!irradiance) return irradiance.status();
-  if (Status s = writeRgbFile(irradiance->irradiance, irradiance->width, irradiance->height, dir, "irradiance.exr",
-                              "irradiance", 0, result, options, written);
-      !s)
-    return s;
   const int bands = lightmapBands(options.encoding, result.bands);
+  if (options.irradiance || bands == 0) {
+    auto irradiance = evaluateIrradiance(result, lightmap, /*include_direct=*/true, direct_texels);
+    if (!irradiance) return irradiance.status();
+    if (Status s = writeRgbFile(irradiance->irradiance, irradiance->width, irradiance->height, dir, "irradiance.exr",
+                                "irradiance", 0, result, options, written);
+        !s)
+      return s;
+  }
   if (bands == 0) return written;
   if (Status s = writeShFiles(result.lightmap_sh, texels, nc, bands, result.width, result.height,
                               [](std::size_t t) { return t; }, dir, "lightmap", result, options, written);

@@ -48,6 +48,9 @@ struct ExrOptions {
   // false: uncompressed, for files read back at once on the same machine (the web gateway's
   // live versions), where ZIP's time to write and to inflate in a browser costs more than bytes.
   bool compress = true;
+  // false: no irradiance.exr where the SH files are written (L1, L2), for readers that
+  // evaluate the SH themselves (the web gateway's live versions); an L0 set always has it.
+  bool irradiance = true;
 };
 
 struct WriteStats {
